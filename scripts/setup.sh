@@ -1,0 +1,85 @@
+#!/usr/bin/env bash
+# Set up (or bring up to date) the flexarm environment in .venv:
+#   1. a Python 3.11 venv,
+#   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
+#   3. the flexarm_msgs interfaces (ament_cmake + rosidl, built into the venv prefix),
+#   4. the Python packages flexarm_control, flexarm_vision, flexarm_sim (editable).
+# Each step is skipped when its inputs did not change since it last succeeded, so a re-run
+# takes about a second. Usage: scripts/setup.sh [--force]
+set -euo pipefail
+
+root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
+venv="$root/.venv"
+stamps="$venv/.flexarm-stamps"
+# A parent environment's ROS bootstrap guard would stop the venv's rclpy from loading.
+unset _ROS_WHEELS_BOOTSTRAP_COMPLETE VIRTUAL_ENV PYTHONHOME PYTHONPATH
+[ "${1:-}" = "--force" ] && rm -rf "$stamps"
+
+log() { printf '[setup] %s\n' "$*" >&2; }
+
+# Content hash of files (paths relative to the repository root).
+digest() { (cd "$root" && cat "$@" | sha256sum | cut -c1-16); }
+
+# Run "$@" unless the stamp named $1 holds the hash $2; record it after success.
+step() {
+  local name=$1 hash=$2
+  shift 2
+  if [ "$(cat "$stamps/$name" 2>/dev/null)" = "$hash" ]; then
+    return 0
+  fi
+  local start=$SECONDS
+  "$@"
+  mkdir -p "$stamps"
+  echo "$hash" > "$stamps/$name"
+  log "$name done in $((SECONDS - start)) s"
+}
+
+# pip, quiet on success; on failure its log (minus the local-index noise) is shown.
+pip() {
+  local out="$venv/.flexarm-pip.log"
+  if ! "$venv/bin/python" -m pip --disable-pip-version-check "$@" >"$out" 2>&1; then
+    grep -v '^WARNING: Location' "$out" | tail -n 40 >&2
+    log "pip $1 failed (full log: $out)"
+    return 1
+  fi
+}
+
+create_venv() {
+  local python
+  python=$(command -v python3.11 || true)
+  [ -n "$python" ] || { log "python3.11 not found (ROS 2 Jazzy wheels and torch need it)"; exit 1; }
+  log "creating $venv with $python"
+  rm -rf "$venv"
+  "$python" -m venv "$venv"
+}
+
+install_requirements() {
+  log "installing requirements.txt (first time: about a minute)"
+  pip install -r "$root/requirements.txt"
+}
+
+install_msgs() {
+  log "building flexarm_msgs (about 30 s)"
+  pip install --no-build-isolation --force-reinstall --no-deps "$root/src/flexarm_msgs"
+}
+
+install_packages() {
+  log "installing flexarm_control, flexarm_vision, flexarm_sim (editable)"
+  pip install --no-build-isolation --no-deps \
+    -e "$root/src/flexarm_control" -e "$root/src/flexarm_vision" -e "$root/src/flexarm_sim"
+  # Editable installs skip data-files: register the packages in the ament index by hand.
+  local pkg
+  for pkg in flexarm_control flexarm_vision flexarm_sim; do
+    install -D -m 644 "$root/src/$pkg/resource/$pkg" \
+      "$venv/share/ament_index/resource_index/packages/$pkg"
+    install -D -m 644 "$root/src/$pkg/package.xml" "$venv/share/$pkg/package.xml"
+  done
+}
+
+[ -x "$venv/bin/python" ] || { rm -rf "$stamps"; create_venv; }
+step requirements "$(digest requirements.txt)" install_requirements
+msgs_files=$(cd "$root" && find src/flexarm_msgs -type f -not -path "*/build/*" | sort)
+# shellcheck disable=SC2086
+step msgs "$(digest requirements.txt $msgs_files)" install_msgs
+step packages "$(digest src/flexarm_{control,vision,sim}/{pyproject.toml,package.xml})" \
+  install_packages

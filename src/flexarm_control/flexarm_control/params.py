@@ -1,0 +1,70 @@
+"""Read ROS 2 parameter files (``node: ros__parameters: {...}``) without rclpy.
+
+Core modules are configured from plain nested dicts; nodes get the same dicts from their
+declared parameters (dotted names), tests and benchmarks get them from the YAML files here.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+CONFIG_DIR = Path(__file__).resolve().parents[3] / 'config'
+
+
+def config_path(name: str) -> Path:
+    """Path of ``config/<name>`` in the source tree (editable install)."""
+    return CONFIG_DIR / name
+
+
+def load_node_params(path: str | Path, node_name: str) -> dict[str, Any]:
+    """Parameters that ``node_name`` gets from a params file: ``/**`` merged with its own."""
+    with open(path, encoding='utf-8') as f:
+        doc = yaml.safe_load(f) or {}
+    merged: dict[str, Any] = {}
+    for key in ('/**', node_name, '/' + node_name):
+        section = doc.get(key) or {}
+        _deep_update(merged, section.get('ros__parameters') or {})
+    return merged
+
+
+def load_config(*names: str, node_name: str = '/**') -> dict[str, Any]:
+    """Merge the parameters of several ``config/`` files, later files winning."""
+    merged: dict[str, Any] = {}
+    for name in names:
+        _deep_update(merged, load_node_params(config_path(name), node_name))
+    return merged
+
+
+def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
+    """Nested dict -> ROS dotted parameter names (``{'a': {'b': 1}}`` -> ``{'a.b': 1}``)."""
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, name + '.'))
+        else:
+            flat[name] = value
+    return flat
+
+
+def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
+    """ROS dotted parameter names -> nested dict (inverse of :func:`flatten`)."""
+    tree: dict[str, Any] = {}
+    for name, value in flat.items():
+        node = tree
+        *parents, leaf = name.split('.')
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return tree
+
+
+def _deep_update(target: dict[str, Any], source: Mapping[str, Any]) -> None:
+    for key, value in source.items():
+        if isinstance(value, Mapping) and isinstance(target.get(key), dict):
+            _deep_update(target[key], value)
+        else:
+            target[key] = dict(value) if isinstance(value, Mapping) else value

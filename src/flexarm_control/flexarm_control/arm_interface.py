@@ -1,0 +1,140 @@
+"""The arm as the control nodes see it: joint commands out, joint states and tip poses in.
+
+Shared by the compensator and the learner. Commands go to ros2_control's
+``/forward_position_controller/commands`` (one value per joint, in ``JOINT_NAMES`` order), so a
+real controller drops in. Waits are in the node's clock (sim time under ``use_sim_time``) and
+are also capped in wall time, so a stopped ``/clock`` can never hang a goal.
+"""
+from __future__ import annotations
+
+import threading
+import time
+from collections import deque
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+from rclpy.callback_groups import CallbackGroup
+from rclpy.node import Node
+from rclpy.qos import qos_profile_sensor_data
+from rclpy.time import Time
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from flexarm_control import topics
+from flexarm_control.kinematics import JOINT_NAMES
+from flexarm_control.measurement import Measurement, average_frames
+from flexarm_msgs.msg import TipPose
+
+# A wait of T s of sim time may take at most this many times T (+ slack) of wall time.
+_WALL_FACTOR = 3.0
+_WALL_SLACK = 10.0
+
+
+@dataclass(frozen=True)
+class JointSnapshot:
+    stamp: Time
+    positions: np.ndarray   # (4,) in JOINT_NAMES order [rad, m, rad, rad]
+
+
+class ArmInterface:
+    """Joint commands, joint states and tip poses of one node, with bounded waits."""
+
+    def __init__(self, node: Node, callback_group: CallbackGroup | None = None,
+                 frames_kept: int = 50) -> None:
+        self._node = node
+        self._cond = threading.Condition()
+        self._joints: JointSnapshot | None = None
+        self._frames: deque[TipPose] = deque(maxlen=frames_kept)
+        self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
+        node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state,
+                                 qos_profile_sensor_data, callback_group=callback_group)
+        node.create_subscription(TipPose, topics.TIP_POSE, self._on_tip_pose, 10,
+                                 callback_group=callback_group)
+
+    # --- inputs -----------------------------------------------------------------------------
+    def _on_joint_state(self, msg: JointState) -> None:
+        try:
+            positions = np.array([msg.position[msg.name.index(n)] for n in JOINT_NAMES])
+        except (ValueError, IndexError):
+            return
+        with self._cond:
+            self._joints = JointSnapshot(Time.from_msg(msg.header.stamp), positions)
+            self._cond.notify_all()
+
+    def _on_tip_pose(self, msg: TipPose) -> None:
+        with self._cond:
+            self._frames.append(msg)
+            self._cond.notify_all()
+
+    @property
+    def joints(self) -> JointSnapshot | None:
+        with self._cond:
+            return self._joints
+
+    def now(self) -> Time:
+        return self._node.get_clock().now()
+
+    # --- commands ---------------------------------------------------------------------------
+    def command(self, q: np.ndarray) -> None:
+        self._publisher.publish(Float64MultiArray(data=[float(v) for v in q]))
+
+    def hold(self) -> np.ndarray | None:
+        """Stop the arm where it is: command the current joint positions."""
+        snapshot = self.joints
+        if snapshot is not None:
+            self.command(snapshot.positions)
+            return snapshot.positions
+        return None
+
+    # --- waits ------------------------------------------------------------------------------
+    def wait_until(self, predicate: Callable[[], bool], timeout: float,
+                   abort: Callable[[], bool] = lambda: False) -> bool:
+        """Wait until ``predicate()`` (evaluated under the lock) or ``timeout`` s of node time.
+
+        Returns False on timeout or when ``abort()`` becomes true (e.g. a cancel request).
+        """
+        start = self.now()
+        wall_deadline = time.monotonic() + _WALL_FACTOR * timeout + _WALL_SLACK
+        with self._cond:
+            while not predicate():
+                if abort() or time.monotonic() > wall_deadline:
+                    return False
+                if (self.now() - start).nanoseconds * 1e-9 > timeout:
+                    return False
+                self._cond.wait(0.05)
+        return True
+
+    def wait_for_joints(self, timeout: float) -> bool:
+        return self.wait_until(lambda: self._joints is not None, timeout)
+
+    def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
+             abort: Callable[[], bool] = lambda: False) -> bool:
+        """Command ``q`` and wait until every joint is within ``tolerance`` of it."""
+        self.command(q)
+        target = np.asarray(q, dtype=float)
+
+        def arrived() -> bool:
+            return (self._joints is not None
+                    and bool(np.all(np.abs(self._joints.positions - target) <= tolerance)))
+        return self.wait_until(arrived, timeout, abort)
+
+    def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,
+                ) -> Measurement | None:
+        """Average ``frames`` valid, settled tip poses captured after now; None on timeout."""
+        since = self.now()
+        with self._cond:
+            self._frames.clear()
+
+        def usable() -> list[TipPose]:
+            return [f for f in self._frames
+                    if f.valid and f.settled and Time.from_msg(f.header.stamp) >= since]
+
+        if not self.wait_until(lambda: len(usable()) >= frames, timeout, abort):
+            return None
+        with self._cond:
+            chosen = usable()[:frames]
+        return average_frames(
+            np.array([[f.pose.x, f.pose.y, f.pose.phi] for f in chosen]),
+            holes_used=min(f.holes_used for f in chosen),
+            residual=max(f.residual for f in chosen))

@@ -1,0 +1,140 @@
+"""Scriptable client of the flexarm graph, in the spirit of nav2_simple_commander.
+
+    client = FlexarmClient()
+    client.wait_until_ready()
+    result = client.move_to(1.45, -0.15, math.radians(-45), mode='predictive')
+    client.destroy_node()
+
+Every call blocks with a timeout (seconds, wall clock) and raises :class:`TimeoutError` when
+it runs out; a goal that the server rejects raises :class:`GoalRejected` with its reason.
+Units are SI (m, rad); converting from mm/deg is the caller's (the CLI's) business.
+"""
+from __future__ import annotations
+
+import json
+import time
+from collections.abc import Callable, Mapping
+from typing import Any
+
+import rclpy
+from rclpy.action import ActionClient
+from rclpy.context import Context
+from rclpy.executors import SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.task import Future
+
+from flexarm_control import topics
+from flexarm_msgs.action import CollectSamples, MoveToPose
+from flexarm_msgs.msg import PlanarPose
+from flexarm_msgs.srv import Train
+
+MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
+         'predictive': MoveToPose.Goal.MODE_PREDICTIVE,
+         'closed_loop': MoveToPose.Goal.MODE_CLOSED_LOOP}
+
+
+class GoalRejected(RuntimeError):
+    """The server rejected the goal before anything moved."""
+
+
+class FlexarmClient(Node):
+    """Blocking client of the compensator and the learner."""
+
+    def __init__(self, node_name: str = 'flexarm_client', context: Context | None = None) -> None:
+        super().__init__(node_name, context=context)
+        self._move = ActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
+        self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
+        self._train = self.create_client(Train, topics.TRAIN)
+        self._executor = SingleThreadedExecutor(context=self.context)
+        self._executor.add_node(self)
+        self._goal_handle: Any = None
+
+    def wait_until_ready(self, timeout: float = 30.0, learner: bool = True) -> None:
+        """Wait until the compensator (and the learner) servers are discovered."""
+        deadline = time.monotonic() + timeout
+        waits: list[tuple[str, Callable[[float], bool]]] = [
+            (topics.MOVE_TO_POSE, self._move.wait_for_server)]
+        if learner:
+            waits += [(topics.COLLECT_SAMPLES, self._collect.wait_for_server),
+                      (topics.TRAIN, self._train.wait_for_service)]
+        for name, wait in waits:
+            if not wait(max(0.0, deadline - time.monotonic())):
+                raise TimeoutError(f'{name} not available after {timeout:.0f} s')
+
+    def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
+                position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
+                max_iterations: int = 0, trial: str = '', timeout: float = 300.0,
+                feedback: Callable[[MoveToPose.Feedback], None] | None = None,
+                ) -> MoveToPose.Result:
+        """Send a MoveToPose goal and wait for its result."""
+        if mode not in MODES:
+            raise ValueError(f'unknown mode {mode!r}; use one of {sorted(MODES)}')
+        goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
+                               mode=MODES[mode], position_tolerance=float(position_tolerance),
+                               angle_tolerance=float(angle_tolerance),
+                               max_iterations=int(max_iterations), trial=trial)
+        return self._run_goal(self._move, goal, timeout, feedback)
+
+    def collect(self, count: int, region: str = '', strategy: str = '', seed: int = 0,
+                dataset: str = '', timeout: float = 3600.0,
+                feedback: Callable[[CollectSamples.Feedback], None] | None = None,
+                ) -> CollectSamples.Result:
+        """Collect ``count`` deflection samples and wait for the result."""
+        goal = CollectSamples.Goal(count=int(count), region=region, strategy=strategy,
+                                   seed=int(seed), dataset=dataset)
+        return self._run_goal(self._collect, goal, timeout, feedback)
+
+    def train(self, kind: str = 'mlp', settings: Mapping[str, Any] | None = None,
+              dataset: str = '', timeout: float = 120.0) -> Train.Response:
+        """Train a predictor on a dataset; the response carries the validation metrics."""
+        if not self._train.wait_for_service(timeout_sec=min(timeout, 10.0)):
+            raise TimeoutError(f'{topics.TRAIN} not available')
+        request = Train.Request(kind=kind, settings_json=json.dumps(dict(settings or {})),
+                                dataset=dataset)
+        return self._spin_until(self._train.call_async(request), timeout, 'training')
+
+    def cancel(self, timeout: float = 10.0) -> None:
+        """Cancel the goal in progress (if any) and wait for the server to acknowledge."""
+        if self._goal_handle is not None:
+            self._spin_until(self._goal_handle.cancel_goal_async(), timeout, 'cancel')
+
+    def destroy_node(self) -> None:
+        self._move.destroy()
+        self._collect.destroy()
+        self._executor.shutdown(timeout_sec=1.0)
+        super().destroy_node()
+
+    def _run_goal(self, client: ActionClient, goal: Any, timeout: float,
+                  feedback: Callable[[Any], None] | None) -> Any:
+        deadline = time.monotonic() + timeout
+        if not client.wait_for_server(timeout_sec=min(timeout, 10.0)):
+            raise TimeoutError(f'action server {client._action_name} not available')
+        callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
+        handle = self._spin_until(client.send_goal_async(goal, feedback_callback=callback),
+                                  deadline - time.monotonic(), 'goal acceptance')
+        if not handle.accepted:
+            raise GoalRejected(f'{client._action_name} rejected the goal')
+        self._goal_handle = handle
+        try:
+            return self._spin_until(handle.get_result_async(), deadline - time.monotonic(),
+                                    'the result').result
+        except TimeoutError:
+            self.cancel()
+            raise
+        finally:
+            self._goal_handle = None
+
+    def _spin_until(self, future: Future, timeout: float, what: str) -> Any:
+        self._executor.spin_until_future_complete(future, timeout_sec=max(0.0, timeout))
+        if not future.done():
+            raise TimeoutError(f'timed out after {timeout:.1f} s waiting for {what}')
+        return future.result()
+
+
+def init_client(domain_id: int | None = None) -> FlexarmClient:
+    """Initialise rclpy (default context) and create a client node."""
+    if domain_id is None:
+        rclpy.init()
+    else:
+        rclpy.init(domain_id=domain_id)
+    return FlexarmClient()

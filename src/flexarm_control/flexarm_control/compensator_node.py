@@ -1,0 +1,282 @@
+"""Compensator: the ``/move_to_pose`` action server (seed section 3-2, Fig. 4).
+
+RIGID commands the rigid inverse kinematics of the target; PREDICTIVE commands the fixed point
+of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip and corrects
+the target from the measured error until within tolerance (beyond the paper). The algorithm
+lives in :mod:`flexarm_control.compensator`; this node validates goals, moves the arm through
+:class:`~flexarm_control.arm_interface.ArmInterface`, reports feedback and results, and
+hot-reloads the predictor the learner announces on ``/learner/model``.
+
+Goal policy: one goal at a time; a goal arriving while another executes is rejected. Every
+accepted goal is validated before anything moves and aborted with an error code and reason if
+invalid. Cancel holds the arm at its current joint positions.
+"""
+from __future__ import annotations
+
+import math
+import threading
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time as TimeMsg
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+
+from flexarm_control import topics
+from flexarm_control.arm_interface import ArmInterface
+from flexarm_control.compensator import Compensator, Plan
+from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
+from flexarm_control.node_params import declare, declare_tree
+from flexarm_control.predictors import Predictor, load_predictor
+from flexarm_msgs.action import MoveToPose
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose
+
+Goal = MoveToPose.Goal
+Result = MoveToPose.Result
+Feedback = MoveToPose.Feedback
+
+
+def planar(pose: np.ndarray) -> PlanarPose:
+    return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
+
+
+def goal_error(goal: Goal) -> str | None:
+    """Why a goal is malformed (before any kinematics), or None."""
+    values = {'target.x': goal.target.x, 'target.y': goal.target.y,
+              'target.phi': goal.target.phi, 'position_tolerance': goal.position_tolerance,
+              'angle_tolerance': goal.angle_tolerance}
+    bad = [name for name, v in values.items() if not math.isfinite(v)]
+    if bad:
+        return f'non-finite {", ".join(bad)}'
+    if goal.mode not in (Goal.MODE_RIGID, Goal.MODE_PREDICTIVE, Goal.MODE_CLOSED_LOOP):
+        return f'unknown mode {goal.mode}'
+    if goal.position_tolerance < 0 or goal.angle_tolerance < 0:
+        return 'tolerances must be >= 0 (0 = server default)'
+    return None
+
+
+class CompensatorNode(Node):
+
+    def __init__(self) -> None:
+        super().__init__('flexarm_compensator')
+        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        self._compensator = Compensator(self._geometry, declare_tree(
+            self, 'compensation', 'config/compensator.yaml'))
+        self._pos_tol = declare(self, 'position_tolerance', 0.05e-3,
+                                '[m] default closed-loop position tolerance')
+        self._ang_tol = declare(self, 'angle_tolerance', math.radians(0.005),
+                                '[rad] default closed-loop angle tolerance')
+        self._max_iter = declare(self, 'max_iterations', 5,
+                                 'default closed-loop corrections per goal')
+        self._joint_tol = np.array(declare(
+            self, 'arrival_tolerance', [1e-4, 1e-5, 1e-4, 1e-4],
+            'joint1..joint4 distance to the command that counts as arrived [rad, m, rad, rad]'))
+        self._move_margin = declare(self, 'move_timeout_margin', 10.0,
+                                    '[s] added to the slowest joint travel time for a timeout')
+        self._frames = declare(self, 'measurement_frames', 3,
+                               'valid settled tip poses averaged per measurement')
+        self._measure_timeout = declare(self, 'measurement_timeout', 30.0,
+                                        '[s] wait for a valid settled measurement after a move')
+        model_path = declare(self, 'model_path', '',
+                             'predictor loaded at start ("" = wait for /learner/model)')
+
+        self._group = ReentrantCallbackGroup()
+        self._arm = ArmInterface(self, self._group)
+        self._predictor: Predictor | None = None
+        self._model_version = ''
+        self._busy = threading.Lock()
+        if model_path and Path(model_path).exists():
+            self._load_model(model_path, 'start-up')
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_subscription(ModelInfo, topics.MODEL, self._on_model, latched,
+                                 callback_group=self._group)
+        self._outcomes = self.create_publisher(GoalOutcome, topics.OUTCOMES, 10)
+        self._server = ActionServer(
+            self, MoveToPose, topics.MOVE_TO_POSE, execute_callback=self._execute,
+            goal_callback=self._on_goal, handle_accepted_callback=self._on_accepted,
+            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=self._group)
+
+    # --- model hot reload -------------------------------------------------------------------
+    def _on_model(self, msg: ModelInfo) -> None:
+        if msg.version != self._model_version:
+            self._load_model(msg.path, f'version {msg.version}', msg.version)
+
+    def _load_model(self, path: str, what: str, version: str = '') -> None:
+        try:
+            predictor = load_predictor(path)
+        except (OSError, ValueError) as exc:
+            self.get_logger().error(f'cannot load model {what} from {path}: {exc}; '
+                                    'keeping the previous one')
+            return
+        self._predictor, self._model_version = predictor, version or path
+        self.get_logger().info(f'predictor {what} loaded ({predictor.kind}) from {path}')
+
+    # --- goal policy ------------------------------------------------------------------------
+    def _on_goal(self, goal: Goal) -> GoalResponse:
+        if self._busy.locked():
+            self.get_logger().warn('goal rejected: another goal is executing')
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _on_accepted(self, handle: ServerGoalHandle) -> None:
+        if not self._busy.acquire(blocking=False):
+            handle.abort()   # lost a race with another accepted goal
+            return
+        handle.execute()
+
+    # --- execution --------------------------------------------------------------------------
+    def _execute(self, handle: ServerGoalHandle) -> Result:
+        goal: Goal = handle.request
+        try:
+            result = self._run(handle, goal)
+        finally:
+            self._busy.release()
+        if result.error_code == Result.SUCCESSFUL:
+            handle.succeed()
+        elif result.error_code == Result.CANCELED:
+            handle.canceled()
+        else:
+            handle.abort()
+            self.get_logger().warn(f'goal aborted ({result.error_code}): {result.error_string}')
+        self._publish_outcome(goal, result)
+        return result
+
+    def _run(self, handle: ServerGoalHandle, goal: Goal) -> Result:
+        result = Result()
+        target = np.array([goal.target.x, goal.target.y, goal.target.phi])
+
+        def fail(code: int, reason: str) -> Result:
+            result.error_code, result.error_string = code, reason
+            return result
+
+        reason = goal_error(goal)
+        if reason is not None:
+            return fail(Result.INVALID_GOAL, reason)
+        predictor = self._predictor
+        if goal.mode != Goal.MODE_RIGID and predictor is None:
+            return fail(Result.NO_MODEL, 'no trained predictor yet: collect samples and train')
+        if not self._arm.wait_for_joints(5.0):
+            return fail(Result.CONTROLLER_TIMEOUT, 'no /joint_states from the controller')
+        pos_tol = goal.position_tolerance or self._pos_tol
+        ang_tol = goal.angle_tolerance or self._ang_tol
+        max_iter = goal.max_iterations or self._max_iter
+
+        self._feedback(handle, 0, Feedback.PHASE_PLANNING, target)
+        try:
+            plan = (self._compensator.rigid(target) if goal.mode == Goal.MODE_RIGID
+                    else self._compensator.predictive(target, predictor.predict))
+        except UnreachableError as exc:
+            return fail(Result.UNREACHABLE, str(exc))
+        result.compensation_iterations = plan.iterations
+        result.predicted_deflection = planar(plan.predicted_deflection)
+
+        iteration = 0
+        while True:
+            iteration += 1
+            outcome = self._move_and_measure(handle, plan, iteration)
+            result.iterations = iteration
+            result.joint_positions = plan.joints.tolist()
+            result.commanded_pose = planar(plan.commanded_pose)
+            if isinstance(outcome, Result):
+                outcome.iterations, outcome.joint_positions = iteration, result.joint_positions
+                outcome.commanded_pose = result.commanded_pose
+                outcome.predicted_deflection = result.predicted_deflection
+                outcome.compensation_iterations = result.compensation_iterations
+                return outcome
+            if outcome is None:
+                if goal.mode == Goal.MODE_CLOSED_LOOP:
+                    return fail(Result.MEASUREMENT_FAILED,
+                                'no valid settled tip pose within '
+                                f'{self._measure_timeout:.0f} s after the move')
+                result.error_string = 'moved; no valid settled tip measurement'
+                return result
+            error = pose_error(target, outcome)
+            result.measured, result.measured_pose = True, planar(outcome)
+            result.position_error = float(math.hypot(error[0], error[1]))
+            result.angle_error = float(abs(error[2]))
+            within = result.position_error <= pos_tol and result.angle_error <= ang_tol
+            if goal.mode != Goal.MODE_CLOSED_LOOP or within:
+                return result
+            if iteration > max_iter:
+                return fail(Result.TOLERANCE_NOT_MET,
+                            f'{result.position_error * 1e3:.3f} mm / '
+                            f'{math.degrees(result.angle_error):.4f} deg after {max_iter} '
+                            'corrections')
+            try:
+                plan = self._compensator.correct(plan, target, outcome)
+            except UnreachableError as exc:
+                return fail(Result.UNREACHABLE, f'correction: {exc}')
+
+    def _move_and_measure(self, handle: ServerGoalHandle, plan: Plan, iteration: int):
+        """Move to the plan; the measured pose, None if unmeasured, or a failure Result."""
+        self._feedback(handle, iteration, Feedback.PHASE_MOVING, plan.commanded_pose)
+        current = self._arm.joints.positions
+        travel = np.max(np.abs(plan.joints - current) / self._geometry.velocity)
+        arrived = self._arm.move(plan.joints, self._joint_tol, travel + self._move_margin,
+                                 abort=lambda: handle.is_cancel_requested)
+        if handle.is_cancel_requested:
+            self._arm.hold()
+            return Result(error_code=Result.CANCELED, error_string='canceled; arm held')
+        if not arrived:
+            self._arm.hold()
+            return Result(error_code=Result.CONTROLLER_TIMEOUT,
+                          error_string=f'joints did not reach the command within '
+                                       f'{travel + self._move_margin:.0f} s')
+        self._feedback(handle, iteration, Feedback.PHASE_SETTLING, plan.commanded_pose)
+        measurement = self._arm.measure(self._frames, self._measure_timeout,
+                                        abort=lambda: handle.is_cancel_requested)
+        if handle.is_cancel_requested:
+            return Result(error_code=Result.CANCELED, error_string='canceled after the move')
+        if measurement is None:
+            return None
+        self._feedback(handle, iteration, Feedback.PHASE_MEASURING, plan.commanded_pose,
+                       measurement.pose, handle.request)
+        return measurement.pose
+
+    def _feedback(self, handle: ServerGoalHandle, iteration: int, phase: str,
+                  commanded: np.ndarray, measured: np.ndarray | None = None,
+                  goal: Goal | None = None) -> None:
+        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
+        if measured is not None and goal is not None:
+            error = pose_error(np.array([goal.target.x, goal.target.y, goal.target.phi]),
+                               measured)
+            fb.measured, fb.measured_pose = True, planar(measured)
+            fb.position_error = float(math.hypot(error[0], error[1]))
+            fb.angle_error = float(abs(error[2]))
+        handle.publish_feedback(fb)
+
+    def _publish_outcome(self, goal: Goal, result: Result) -> None:
+        now = self.get_clock().now().to_msg()
+        self._outcomes.publish(GoalOutcome(
+            stamp=TimeMsg(sec=now.sec, nanosec=now.nanosec), trial=goal.trial, mode=goal.mode,
+            target=goal.target, commanded_pose=result.commanded_pose,
+            predicted_deflection=result.predicted_deflection,
+            measured_pose=result.measured_pose, measured=result.measured,
+            position_error=result.position_error, angle_error=result.angle_error,
+            iterations=result.iterations, error_code=result.error_code,
+            error_string=result.error_string))
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = CompensatorNode()
+        executor = MultiThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

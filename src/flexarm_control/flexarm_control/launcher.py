@@ -1,0 +1,193 @@
+"""Start flexarm nodes as OS processes: what ``flexarm up`` and the node-level tests share.
+
+ROS ``launch`` is not available from PyPI, so a node is started as
+``python -m <module> --ros-args -r __node:=<name> --params-file config/<file> -p k:=v`` in a
+clean environment (own ROS_DOMAIN_ID, localhost discovery, log directory) and in its own
+session, so that only the supervisor decides when it gets a signal.
+"""
+from __future__ import annotations
+
+import os
+import signal
+import subprocess
+import sys
+import time
+from collections.abc import Iterable, Mapping
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import IO, Any
+
+import yaml
+
+from flexarm_control.params import config_path
+
+# Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
+# that inherits it would skip its own re-exec and fail to import rclpy.
+_BOOTSTRAP_GUARD = '_ROS_WHEELS_BOOTSTRAP_COMPLETE'
+
+
+@dataclass(frozen=True)
+class NodeSpec:
+    """One node of the graph, as described in ``config/graph.yaml``."""
+
+    name: str
+    module: str
+    params_files: tuple[str, ...] = ()
+    parameters: Mapping[str, Any] = field(default_factory=dict)
+    restart: bool = False
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> NodeSpec:
+        return cls(name=d['name'], module=d['module'],
+                   params_files=tuple(d.get('params_files', ())),
+                   parameters=dict(d.get('parameters') or {}),
+                   restart=bool(d.get('restart', False)))
+
+
+def load_graph(robot: str = 'sim', path: Path | None = None) -> list[NodeSpec]:
+    """Node specs of the graph for a robot entry (``sim``, ``bridge``) of graph.yaml."""
+    with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
+        graph = yaml.safe_load(f)
+    robots = graph['robots']
+    if robot not in robots:
+        raise ValueError(f'unknown robot {robot!r}; graph.yaml defines {sorted(robots)}')
+    return [NodeSpec.from_dict(d) for d in [*robots[robot], *graph['nodes']]]
+
+
+def load_optional(path: Path | None = None) -> dict[str, NodeSpec]:
+    """Nodes of graph.yaml started only on request (e.g. the recorder), by name."""
+    with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
+        graph = yaml.safe_load(f)
+    return {d['name']: NodeSpec.from_dict(d) for d in graph.get('optional') or ()}
+
+
+def ros_env(domain_id: int, log_dir: Path | None = None,
+            base: Mapping[str, str] | None = None) -> dict[str, str]:
+    """Environment of a node process: isolated domain, localhost discovery, own log dir."""
+    env = dict(os.environ if base is None else base)
+    env.pop(_BOOTSTRAP_GUARD, None)
+    env['ROS_DOMAIN_ID'] = str(domain_id)
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['PYTHONUNBUFFERED'] = '1'
+    if log_dir is not None:
+        env['ROS_LOG_DIR'] = str(log_dir)
+    return env
+
+
+def _param_value(value: Any) -> str:
+    return yaml.safe_dump(value, default_flow_style=True).strip().removesuffix('...').strip()
+
+
+def node_command(spec: NodeSpec, extra: Mapping[str, Any] | None = None) -> list[str]:
+    """Command line of a node: its module, name, params files, then ``-p`` overrides."""
+    cmd = [sys.executable, '-m', spec.module, '--ros-args', '-r', f'__node:={spec.name}']
+    for name in spec.params_files:
+        cmd += ['--params-file', str(config_path(name))]
+    for key, value in {**spec.parameters, **(extra or {})}.items():
+        cmd += ['-p', f'{key}:={_param_value(value)}']
+    return cmd
+
+
+class NodeProcess:
+    """A running node: its process, its log file, and a clean way to stop it."""
+
+    def __init__(self, spec: NodeSpec, env: Mapping[str, str], log_path: Path,
+                 extra: Mapping[str, Any] | None = None) -> None:
+        self.spec = spec
+        self.log_path = log_path
+        self._env = dict(env)
+        self._extra = dict(extra or {})
+        self._log: IO[bytes] | None = None
+        self.process: subprocess.Popen[bytes] | None = None
+        self.restarts = 0
+
+    def start(self) -> None:
+        self.log_path.parent.mkdir(parents=True, exist_ok=True)
+        self._log = open(self.log_path, 'ab')
+        self.process = subprocess.Popen(
+            node_command(self.spec, self._extra), env=self._env, stdin=subprocess.DEVNULL,
+            stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)
+
+    @property
+    def returncode(self) -> int | None:
+        return None if self.process is None else self.process.poll()
+
+    def signal(self, sig: int) -> None:
+        if self.process is not None and self.process.poll() is None:
+            os.killpg(self.process.pid, sig)
+
+    def log_tail(self, lines: int = 10) -> str:
+        try:
+            text = self.log_path.read_text(encoding='utf-8', errors='replace')
+        except OSError:
+            return ''
+        return '\n'.join(text.splitlines()[-lines:])
+
+    def close(self) -> None:
+        if self._log is not None:
+            self._log.close()
+            self._log = None
+
+
+def stop_all(nodes: Iterable[NodeProcess], timeout: float = 5.0) -> dict[str, int | None]:
+    """SIGINT every node, wait up to ``timeout``, then SIGTERM, then SIGKILL what remains.
+
+    Returns each node's exit code. A node killed with SIGKILL leaves Fast DDS shared-memory
+    files behind; they are removed by :func:`remove_stale_shm`.
+    """
+    nodes = list(nodes)
+    for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
+        alive = [n for n in nodes if n.returncode is None]
+        if not alive:
+            break
+        for node in alive:
+            node.signal(sig)
+        deadline = time.monotonic() + wait
+        while time.monotonic() < deadline and any(n.returncode is None for n in alive):
+            time.sleep(0.02)
+    codes = {}
+    for node in nodes:
+        if node.process is not None:
+            try:
+                node.process.wait(timeout=1.0)
+            except subprocess.TimeoutExpired:
+                pass
+        node.close()
+        codes[node.spec.name] = node.returncode
+    remove_stale_shm()
+    return codes
+
+
+def remove_stale_shm(shm_dir: Path = Path('/dev/shm')) -> int:
+    """Remove Fast DDS shared-memory files whose owning process is gone; return how many."""
+    removed = 0
+    for lock in shm_dir.glob('fastrtps_*_el'):
+        segment = lock.with_name(lock.name.removesuffix('_el'))
+        if _lock_is_stale(lock):
+            for path in (lock, segment):
+                try:
+                    path.unlink()
+                    removed += 1
+                except OSError:
+                    pass
+    for mutex in shm_dir.glob('sem.fastrtps_port*_mutex'):
+        port = mutex.name.removeprefix('sem.').removesuffix('_mutex')
+        if not (shm_dir / port).exists():
+            mutex.unlink(missing_ok=True)
+            removed += 1
+    return removed
+
+
+def _lock_is_stale(lock: Path) -> bool:
+    """A Fast DDS ``*_el`` lock file is stale when no process holds a lock on it."""
+    import fcntl
+
+    try:
+        with open(lock, 'rb') as f:
+            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
+            fcntl.flock(f, fcntl.LOCK_UN)
+        return True
+    except BlockingIOError:
+        return False
+    except OSError:
+        return False

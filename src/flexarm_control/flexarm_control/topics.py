@@ -1,0 +1,20 @@
+"""Names of the flexarm graph's topics, actions and services (one place for every node).
+
+The controller contract is ros2_control's: joint_state_broadcaster's ``/joint_states`` and
+forward_command_controller's ``/forward_position_controller/commands``.
+"""
+
+JOINT_STATES = '/joint_states'                              # sensor_msgs/JointState
+JOINT_COMMANDS = '/forward_position_controller/commands'    # std_msgs/Float64MultiArray
+CLOCK = '/clock'                                            # rosgraph_msgs/Clock
+CAMERA_IMAGE = '/camera/image_raw'                          # sensor_msgs/Image (mono8)
+CAMERA_INFO = '/camera/camera_info'                         # sensor_msgs/CameraInfo, latched
+TIP_POSE = '/tip_pose'                                      # flexarm_msgs/TipPose
+TIP_POSE_TRUTH = '/sim/tip_pose_truth'                      # flexarm_msgs/TipPose, evaluation only
+SAMPLES = '/learner/samples'                                # flexarm_msgs/DeflectionSample
+MODEL = '/learner/model'                                    # flexarm_msgs/ModelInfo, latched
+OUTCOMES = '/compensator/outcomes'                          # flexarm_msgs/GoalOutcome
+
+MOVE_TO_POSE = '/move_to_pose'                              # flexarm_msgs/action/MoveToPose
+COLLECT_SAMPLES = '/collect_samples'                        # flexarm_msgs/action/CollectSamples
+TRAIN = '/train'                                            # flexarm_msgs/srv/Train

@@ -1,0 +1,164 @@
+"""Simulated robot controller: the flexible arm behind ros2_control's topic contract.
+
+Publishes ``/joint_states`` and the simulation ``/clock``, executes
+``/forward_position_controller/commands``, renders the tip camera
+(``/camera/image_raw`` + ``/camera/camera_info``) at the actual, deflected and vibrating tip
+pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for evaluation only.
+
+Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (in
+physics sub-steps of at most ``1 / physics_rate``); the wall timer runs ``real_time_factor``
+times faster. When the CPU cannot keep up the simulation slows down, it never skips steps;
+``benchmarks/sim_node.py`` measures the achieved rate.
+"""
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time as TimeMsg
+from rclpy.executors import ExternalShutdownException
+from rclpy.node import Node
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
+from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_msgs.msg import Float64MultiArray, Header
+
+from flexarm_control import topics
+from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, limit_violation
+from flexarm_control.node_params import declare, declare_tree
+from flexarm_msgs.msg import PlanarPose, TipPose
+from flexarm_sim.camera import CameraRenderer
+from flexarm_sim.dynamics import ArmDynamics
+from flexarm_sim.plant import Plant
+
+BASE_FRAME = 'base_link'
+CAMERA_FRAME = 'tip_camera'
+
+
+def stamp(t: float) -> TimeMsg:
+    sec = math.floor(t)
+    return TimeMsg(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
+
+
+def command_error(data: list[float], geometry: ArmGeometry) -> str | None:
+    """Why a joint command must be refused, or None if it is acceptable."""
+    if len(data) != len(JOINT_NAMES):
+        return f'expected {len(JOINT_NAMES)} values ({", ".join(JOINT_NAMES)}), got {len(data)}'
+    if not all(math.isfinite(v) for v in data):
+        return f'non-finite value in {list(data)}'
+    return limit_violation(geometry, np.asarray(data, dtype=float))
+
+
+class SimNode(Node):
+
+    def __init__(self) -> None:
+        super().__init__('flexarm_sim')
+        self._rtf = declare(self, 'real_time_factor', 1.0,
+                            'simulated seconds per wall-clock second')
+        self._js_rate = declare(self, 'joint_state_rate', 100.0,
+                                '[Hz, sim time] /joint_states, /clock and ground-truth rate')
+        physics_rate = declare(self, 'physics_rate', 500.0,
+                               '[Hz, sim time] minimum integration rate of the dynamics')
+        camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
+        seed = declare(self, 'seed', 0, 'seed of the camera noise')
+        initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
+                          'joint1..joint4 at start [rad, m, rad, rad]')
+        if self._rtf <= 0 or self._js_rate <= 0 or camera_rate <= 0 or physics_rate <= 0:
+            raise ValueError('real_time_factor and all rates must be positive')
+
+        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        sim = {key: declare_tree(self, key, 'config/sim.yaml') for key in ('plant', 'dynamics')}
+        plant = Plant.from_dict(sim['plant'], self._geometry)
+        self._dynamics = ArmDynamics(plant, self._geometry, sim['dynamics'],
+                                     np.asarray(initial, dtype=float))
+        cam = {key: declare_tree(self, key, 'config/camera.yaml')
+               for key in ('plate', 'camera', 'camera_render')}
+        self._camera = CameraRenderer.from_dict(cam)
+        self._rng = np.random.default_rng(seed)
+
+        self._dt = 1.0 / self._js_rate
+        self._substeps = max(1, math.ceil(physics_rate / self._js_rate))
+        self._camera_every = max(1, round(self._js_rate / camera_rate))
+        self._t = 0.0
+        self._tick = 0
+
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
+        self._js_pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
+        self._truth_pub = self.create_publisher(TipPose, topics.TIP_POSE_TRUTH, 10)
+        self._image_pub = self.create_publisher(Image, topics.CAMERA_IMAGE, 5)
+        self._info_pub = self.create_publisher(CameraInfo, topics.CAMERA_INFO, latched)
+        self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS, self._on_command, 10)
+        self._camera_info = self._make_camera_info()
+        self._info_pub.publish(self._camera_info)
+        self.create_timer(self._dt / self._rtf, self._on_tick)
+        self.get_logger().info(
+            f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
+            f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
+
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        reason = command_error(list(msg.data), self._geometry)
+        if reason is not None:
+            self.get_logger().error(f'joint command rejected, arm not moved: {reason}')
+            return
+        self._dynamics.command(np.asarray(msg.data, dtype=float))
+
+    def _on_tick(self) -> None:
+        for _ in range(self._substeps):
+            self._dynamics.step(self._dt / self._substeps)
+        self._t += self._dt
+        self._tick += 1
+        now = stamp(self._t)
+        self._clock_pub.publish(Clock(clock=now))
+        state = self._dynamics.state
+        self._js_pub.publish(JointState(
+            header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
+            position=state.joint_positions.tolist(), velocity=state.joint_velocities.tolist()))
+        x, y, phi = state.tip_pose
+        self._truth_pub.publish(TipPose(
+            header=self._header(now, BASE_FRAME), pose=PlanarPose(x=x, y=y, phi=phi),
+            valid=True, settled=not state.is_moving, holes_used=0, residual=0.0))
+        if self._tick % self._camera_every == 0 and self._image_pub.get_subscription_count():
+            self._publish_image(now, state)
+
+    def _publish_image(self, now: TimeMsg, state) -> None:
+        pixels = self._camera.render(state.tip_pose, tip_velocity=state.tip_velocity,
+                                     rng=self._rng)
+        height, width = pixels.shape
+        self._image_pub.publish(Image(
+            header=self._header(now, CAMERA_FRAME), height=height, width=width,
+            encoding='mono8', is_bigendian=0, step=width, data=pixels.tobytes()))
+        self._camera_info.header = self._header(now, CAMERA_FRAME)
+        self._info_pub.publish(self._camera_info)
+
+    def _make_camera_info(self) -> CameraInfo:
+        intr = self._camera.intrinsics
+        return CameraInfo(
+            header=self._header(stamp(self._t), CAMERA_FRAME), width=intr.width,
+            height=intr.height, distortion_model='plumb_bob', d=list(intr.distortion),
+            k=[intr.fx, 0.0, intr.cx, 0.0, intr.fy, intr.cy, 0.0, 0.0, 1.0],
+            r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
+            p=[intr.fx, 0.0, intr.cx, 0.0, 0.0, intr.fy, intr.cy, 0.0, 0.0, 0.0, 1.0, 0.0])
+
+    @staticmethod
+    def _header(now: TimeMsg, frame_id: str) -> Header:
+        return Header(stamp=now, frame_id=frame_id)
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = SimNode()
+        rclpy.spin(node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -5,9 +5,9 @@ Publishes ``/joint_states`` and the simulation ``/clock``, executes
 (``/camera/image_raw`` + ``/camera/camera_info``) at the actual, deflected and vibrating tip
 pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for evaluation only.
 
-Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (in
-physics sub-steps of at most ``1 / physics_rate``); the wall timer runs ``real_time_factor``
-times faster. When the CPU cannot keep up the simulation slows down, it never skips steps;
+Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
+dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``); the wall timer runs
+``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it never skips steps;
 ``benchmarks/sim_node.py`` measures the achieved rate.
 """
 from __future__ import annotations
@@ -58,13 +58,11 @@ class SimNode(Node):
                             'simulated seconds per wall-clock second')
         self._js_rate = declare(self, 'joint_state_rate', 100.0,
                                 '[Hz, sim time] /joint_states, /clock and ground-truth rate')
-        physics_rate = declare(self, 'physics_rate', 500.0,
-                               '[Hz, sim time] minimum integration rate of the dynamics')
         camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
         seed = declare(self, 'seed', 0, 'seed of the camera noise')
         initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
                           'joint1..joint4 at start [rad, m, rad, rad]')
-        if self._rtf <= 0 or self._js_rate <= 0 or camera_rate <= 0 or physics_rate <= 0:
+        if self._rtf <= 0 or self._js_rate <= 0 or camera_rate <= 0:
             raise ValueError('real_time_factor and all rates must be positive')
 
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
@@ -78,7 +76,6 @@ class SimNode(Node):
         self._rng = np.random.default_rng(seed)
 
         self._dt = 1.0 / self._js_rate
-        self._substeps = max(1, math.ceil(physics_rate / self._js_rate))
         self._camera_every = max(1, round(self._js_rate / camera_rate))
         self._t = 0.0
         self._tick = 0
@@ -105,8 +102,7 @@ class SimNode(Node):
         self._dynamics.command(np.asarray(msg.data, dtype=float))
 
     def _on_tick(self) -> None:
-        for _ in range(self._substeps):
-            self._dynamics.step(self._dt / self._substeps)
+        self._dynamics.step(self._dt)
         self._t += self._dt
         self._tick += 1
         now = stamp(self._t)

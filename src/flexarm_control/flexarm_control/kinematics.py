@@ -1,0 +1,166 @@
+"""Rigid kinematics of the 4-joint planar arm (seed section 2-2, Table 1).
+
+Joints: ``joint1`` revolute θ1 [rad], ``joint2`` prismatic θ2 = No.2 arm length [m],
+``joint3`` and ``joint4`` revolute [rad]. Base frame: x horizontal, y up; tip pose
+(x, y, φ) [m, m, rad]::
+
+    x = l4 cos(θ1+θ3+θ4) + l3 cos(θ1+θ3) + θ2 cos θ1 − d sin θ1
+    y = l4 sin(θ1+θ3+θ4) + l3 sin(θ1+θ3) + θ2 sin θ1 + d cos θ1
+    φ = θ1 + θ3 + θ4
+
+with d = m1 − m2 the lateral offset of the No.2 arm. This is the model both the controller
+side (simulator) and the control side (compensator, learner) use; the actual arm differs from
+it by its deflection and fabrication errors (``flexarm_sim.plant``).
+
+Inverse kinematics is analytic for a given θ2. The redundant θ2 follows one documented rule
+(:func:`inverse`): the preferred extension (0.6 m, as the paper's simulation) when the target
+is reachable with it, else the reachable extension nearest to it. Everything is vectorised
+over leading axes where it matters (forward kinematics of batches).
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+JOINT_NAMES = ('joint1', 'joint2', 'joint3', 'joint4')
+
+
+class UnreachableError(ValueError):
+    """The target pose has no inverse-kinematics solution inside the joint limits."""
+
+
+@dataclass(frozen=True)
+class ArmGeometry:
+    """Rigid geometry, joint limits and speeds (config/arm.yaml ``arm.*``)."""
+
+    link3: float                 # [m] joint3 -> joint4
+    link4: float                 # [m] joint4 -> tip
+    offset: float                # [m] lateral offset m1 - m2 of the No.2 arm axis
+    lower: np.ndarray            # (4,) joint lower limits [rad, m, rad, rad]
+    upper: np.ndarray            # (4,) joint upper limits
+    velocity: np.ndarray         # (4,) joint speed limits [rad/s, m/s, rad/s, rad/s]
+    preferred_extension: float   # [m] θ2 used when the target is reachable with it
+    min_elbow_bend: float        # [rad] keep the elbow at least this far from stretched
+    extension_step: float        # [m] grid of the θ2 search when the preferred one fails
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> ArmGeometry:
+        geometry = cls(
+            link3=float(d['link3']), link4=float(d['link4']), offset=float(d['offset']),
+            lower=np.asarray(d['lower'], dtype=float), upper=np.asarray(d['upper'], dtype=float),
+            velocity=np.asarray(d['velocity'], dtype=float),
+            preferred_extension=float(d['preferred_extension']),
+            min_elbow_bend=float(d['min_elbow_bend']),
+            extension_step=float(d['extension_step']))
+        names = tuple(d.get('joint_names', JOINT_NAMES))
+        if names != JOINT_NAMES:
+            raise ValueError(f'joint_names must be {JOINT_NAMES}, got {names}')
+        for name in ('lower', 'upper', 'velocity'):
+            if getattr(geometry, name).shape != (4,):
+                raise ValueError(f'arm.{name} needs 4 values')
+        if np.any(geometry.lower >= geometry.upper) or np.any(geometry.velocity <= 0):
+            raise ValueError('arm limits need lower < upper and positive velocities')
+        if min(geometry.link3, geometry.link4, geometry.extension_step) <= 0:
+            raise ValueError('arm link lengths and extension_step must be positive')
+        if not geometry.lower[1] <= geometry.preferred_extension <= geometry.upper[1]:
+            raise ValueError('arm.preferred_extension lies outside the joint2 limits')
+        return geometry
+
+
+def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
+    """Angle(s) wrapped to [-π, π); a float for a scalar input."""
+    wrapped = (np.asarray(angle, dtype=float) + np.pi) % (2 * np.pi) - np.pi
+    return wrapped if wrapped.ndim else float(wrapped)
+
+
+def forward(geometry: ArmGeometry, joints: np.ndarray) -> np.ndarray:
+    """Tip pose(s) (..., 3) of joint vector(s) (..., 4); φ wrapped to [-π, π)."""
+    q = np.asarray(joints, dtype=float)
+    t1, t2, t3, t4 = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    a13, a134 = t1 + t3, t1 + t3 + t4
+    x = (geometry.link4 * np.cos(a134) + geometry.link3 * np.cos(a13) + t2 * np.cos(t1)
+         - geometry.offset * np.sin(t1))
+    y = (geometry.link4 * np.sin(a134) + geometry.link3 * np.sin(a13) + t2 * np.sin(t1)
+         + geometry.offset * np.cos(t1))
+    return np.stack([x, y, wrap_angle(a134)], axis=-1)
+
+
+def limit_violation(geometry: ArmGeometry, joints: np.ndarray) -> str | None:
+    """Which joint limit ``joints`` violates (human-readable), or None."""
+    q = np.asarray(joints, dtype=float)
+    for i, name in enumerate(JOINT_NAMES):
+        if not geometry.lower[i] <= q[i] <= geometry.upper[i]:
+            return (f'{name} = {q[i]:.6g} outside its limits '
+                    f'[{geometry.lower[i]:.6g}, {geometry.upper[i]:.6g}]')
+    return None
+
+
+def pose_error(target: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
+    """(position error [m], |angle error| [rad]) of ``pose`` with respect to ``target``."""
+    d = np.asarray(pose, dtype=float) - np.asarray(target, dtype=float)
+    return float(math.hypot(d[0], d[1])), float(abs(wrap_angle(float(d[2]))))
+
+
+def _solve(geometry: ArmGeometry, pose: np.ndarray, extensions: np.ndarray) -> np.ndarray:
+    """Joint solutions (n, 2, 4) for candidate θ2 values (n,), NaN where impossible.
+
+    Index 1 is the elbow branch: 0 = elbow down (θ3 below the joint3 direction, preferred),
+    1 = elbow up.
+    """
+    x, y, phi = (float(v) for v in pose)
+    wx, wy = x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi)
+    r2 = wx * wx + wy * wy
+    d, b = geometry.offset, geometry.link3
+    t2 = extensions[:, None]
+    a = np.sqrt(t2 * t2 + d * d)                       # joint1 -> joint3 distance
+    skew = np.arctan2(d, t2)                            # joint3 direction from the arm axis
+    with np.errstate(invalid='ignore'):
+        bend = np.arccos((r2 - a * a - b * b) / (2 * a * b))   # elbow bend, nan out of reach
+    t3 = np.concatenate([skew - bend, skew + bend], axis=1)    # (n, 2)
+    bend = np.concatenate([bend, bend], axis=1)
+    t2 = np.broadcast_to(t2, t3.shape)
+    # Wrist point = R(θ1) [θ2 + b cos θ3, d + b sin θ3]  ->  θ1.
+    px, py = t2 + b * np.cos(t3), d + b * np.sin(t3)
+    t1 = wrap_angle(math.atan2(wy, wx) - np.arctan2(py, px))
+    t4 = wrap_angle(phi - t1 - t3)
+    q = np.stack([t1, t2, t3, t4], axis=-1)
+    ok = (bend >= geometry.min_elbow_bend) & np.all(
+        (q >= geometry.lower) & (q <= geometry.upper), axis=-1)
+    q[~ok] = np.nan
+    return q
+
+
+def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = None
+            ) -> np.ndarray:
+    """Joint positions (4,) putting the rigid tip at ``pose`` (x, y, φ).
+
+    ``extension`` fixes θ2 (e.g. to keep the one chosen for an earlier, nearby target); by
+    default θ2 follows the redundancy rule: ``preferred_extension`` if it gives a solution,
+    else the nearest θ2 on the ``extension_step`` grid that does. Of the two elbow branches
+    the elbow-down one is taken when both are valid. Raises :class:`UnreachableError` with
+    the reason when there is no solution inside the joint limits.
+    """
+    pose = np.asarray(pose, dtype=float)
+    if pose.shape != (3,) or not np.all(np.isfinite(pose)):
+        raise UnreachableError(f'target must be 3 finite numbers (x, y, phi), got {pose}')
+    if extension is not None:
+        candidates = np.array([float(extension)])
+        if not geometry.lower[1] <= extension <= geometry.upper[1]:
+            raise UnreachableError(f'joint2 = {extension:.4f} m outside its limits')
+    else:
+        grid = np.arange(geometry.lower[1], geometry.upper[1] + 1e-12, geometry.extension_step)
+        grid = grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]
+        candidates = np.concatenate([[geometry.preferred_extension], grid])
+    q = _solve(geometry, pose, candidates)
+    valid = ~np.isnan(q[..., 0])
+    if not valid.any():
+        raise UnreachableError(
+            f'pose (x={pose[0]:.4f} m, y={pose[1]:.4f} m, phi={math.degrees(pose[2]):.2f} deg) '
+            'is out of reach of the rigid arm inside its joint limits'
+            + (f' with joint2 = {extension:.4f} m' if extension is not None else ''))
+    i, branch = np.argwhere(valid)[0]
+    return q[i, branch]

@@ -1,0 +1,259 @@
+"""Deflection predictor interface, normalisation and the atomic single-file model format.
+
+A predictor maps joint positions θ = (θ1 rad, θ2 m, θ3 rad, θ4 rad), plus the payload [kg]
+as a fifth input when its ``payload_input`` setting is true, to the tip deflection
+(dx m, dy m, dφ rad) = measured − rigid pose. Inputs and outputs are z-scored with the
+training set's mean and standard deviation; an input that is constant in the training set
+(e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as nothing can be learned about it.
+The kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever see the normalised space.
+
+Model file: one NumPy ``.npz`` archive, loaded with ``allow_pickle=False`` (no pickle,
+nothing executable in it). Entry ``metadata`` is a JSON string::
+
+    {"kind": "mlp", "settings": {...}, "format": 1, "version": "20250101T120000.000000Z",
+     "created": "2025-01-01T12:00:00.000000+00:00", "samples": 50,
+     "normalisation": {"input_mean": [...], "input_std": [...], "active_inputs": [...],
+                       "output_mean": [3], "output_std": [3]},
+     "dataset_hash": "sha256 hex or empty", "metrics": {...} or null}
+
+and the kind's arrays are entries ``<kind>.<name>`` (MLP: its weights; RBF: the normalised
+training set, the model is rebuilt on load; GP: the normalised training set and the fitted
+kernel hyperparameters per output). ``version`` defaults to the UTC fit time, so it sorts in
+training order; the learner may overwrite it before saving. Saving writes a temporary file in
+the target's directory, fsyncs it, renames it over the target (``os.replace``) and fsyncs the
+directory: a crash or a failed save leaves either the old file or the new one, never a mix.
+"""
+from __future__ import annotations
+
+import contextlib
+import json
+import os
+import tempfile
+from abc import ABC, abstractmethod
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import IO, Any, ClassVar
+
+import numpy as np
+
+FORMAT_VERSION = 1
+JOINTS = 4
+OUTPUTS = 3
+_CONSTANT_STD = 1e-12   # an input with a smaller spread in the training set is dropped
+
+
+def atomic_write(path: str | Path, write: Callable[[IO[bytes]], None]) -> None:
+    """Write a file through ``write(binary_file)`` so that ``path`` is replaced atomically."""
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fd, temporary = tempfile.mkstemp(prefix=f'.{path.name}.', suffix='.tmp', dir=path.parent)
+    try:
+        with os.fdopen(fd, 'wb') as file:
+            write(file)
+            file.flush()
+            os.fsync(file.fileno())
+        os.replace(temporary, path)
+    except BaseException:
+        with contextlib.suppress(FileNotFoundError):
+            os.unlink(temporary)
+        raise
+    directory = os.open(path.parent, os.O_RDONLY)
+    try:
+        os.fsync(directory)
+    finally:
+        os.close(directory)
+
+
+@dataclass(frozen=True)
+class Normalisation:
+    """Z-score of inputs (constant ones dropped) and outputs, from a training set."""
+
+    input_mean: np.ndarray
+    input_std: np.ndarray
+    active_inputs: np.ndarray   # bool mask of the inputs the model uses
+    output_mean: np.ndarray
+    output_std: np.ndarray
+
+    @classmethod
+    def of(cls, inputs: np.ndarray, outputs: np.ndarray) -> Normalisation:
+        input_std = inputs.std(axis=0)
+        active = input_std > _CONSTANT_STD
+        output_std = outputs.std(axis=0)
+        return cls(inputs.mean(axis=0), np.where(active, input_std, 1.0), active,
+                   outputs.mean(axis=0), np.where(output_std > 0, output_std, 1.0))
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Normalisation:
+        return cls(*(np.asarray(d[name], dtype=bool if name == 'active_inputs' else float)
+                     for name in ('input_mean', 'input_std', 'active_inputs', 'output_mean',
+                                  'output_std')))
+
+    def as_dict(self) -> dict[str, list]:
+        return {name: getattr(self, name).tolist() for name in
+                ('input_mean', 'input_std', 'active_inputs', 'output_mean', 'output_std')}
+
+    def inputs(self, x: np.ndarray) -> np.ndarray:
+        return ((x - self.input_mean) / self.input_std)[:, self.active_inputs]
+
+    def outputs(self, y: np.ndarray) -> np.ndarray:
+        return (y - self.output_mean) / self.output_std
+
+    def outputs_back(self, z: np.ndarray) -> np.ndarray:
+        return z * self.output_std + self.output_mean
+
+
+def _coerce(name: str, value: Any, default: Any) -> Any:
+    """``value`` converted to the type of ``default`` (int → float allowed), else ValueError."""
+    if isinstance(default, list):
+        if not isinstance(value, (list, tuple)):
+            raise ValueError(f'setting {name!r} must be a list, got {value!r}')
+        return [_coerce(name, item, default[0]) for item in value]
+    is_bool = isinstance(value, (bool, np.bool_))
+    if isinstance(default, bool):
+        ok = is_bool
+    elif isinstance(default, int):
+        ok = isinstance(value, (int, np.integer)) and not is_bool
+    elif isinstance(default, float):
+        ok = isinstance(value, (int, float, np.integer, np.floating)) and not is_bool
+    else:
+        ok = isinstance(value, type(default))
+    if not ok:
+        raise ValueError(f'setting {name!r} must be of type {type(default).__name__}, '
+                         f'got {value!r}')
+    return type(default)(value)
+
+
+class Predictor(ABC):
+    """Deflection predictor Δ(θ[, payload]) → (dx, dy, dφ); see the module docstring."""
+
+    kind: ClassVar[str]
+    defaults: ClassVar[dict[str, Any]]   # every setting with its default value
+
+    def __init__(self, settings: Mapping[str, Any] | None = None) -> None:
+        given = dict(settings or {})
+        unknown = sorted(set(given) - set(self.defaults))
+        if unknown:
+            raise ValueError(f'unknown {self.kind} settings {unknown}; '
+                             f'known: {sorted(self.defaults)}')
+        self.settings: dict[str, Any] = {
+            name: _coerce(name, given.get(name, default), default)
+            for name, default in self.defaults.items()}
+        self._check_settings()
+        self.metadata: dict[str, Any] = {
+            'kind': self.kind, 'settings': self.settings, 'format': FORMAT_VERSION,
+            'version': '', 'created': '', 'samples': 0, 'normalisation': None,
+            'dataset_hash': '', 'metrics': None}
+        self._normalisation: Normalisation | None = None
+
+    @abstractmethod
+    def _check_settings(self) -> None:
+        """Raise ValueError for settings out of range."""
+
+    @abstractmethod
+    def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
+        """Fit on normalised inputs (N, d) and outputs (N, 3)."""
+
+    @abstractmethod
+    def _predict_normalised(self, x: np.ndarray) -> np.ndarray:
+        """Normalised outputs (M, 3) for normalised inputs (M, d)."""
+
+    @abstractmethod
+    def _state(self) -> dict[str, np.ndarray]:
+        """Arrays that, with the metadata, restore the fitted model."""
+
+    @abstractmethod
+    def _restore(self, state: Mapping[str, np.ndarray]) -> None:
+        """Inverse of :meth:`_state`."""
+
+    @property
+    def fitted(self) -> bool:
+        return self._normalisation is not None
+
+    def fit(self, joints: np.ndarray, deflections: np.ndarray,
+            payload: np.ndarray | None = None) -> Predictor:
+        """Fit on joints (N, 4), deflections (N, 3) [m, m, rad] and payload (N,) [kg]."""
+        x, _ = self._inputs(joints, payload)
+        y = np.asarray(deflections, dtype=float)
+        if y.shape != (len(x), OUTPUTS):
+            raise ValueError(f'deflections must have shape ({len(x)}, {OUTPUTS}), '
+                             f'got {y.shape}')
+        if not np.all(np.isfinite(y)):
+            raise ValueError('deflections contain NaN or infinite values')
+        if len(x) < 2:
+            raise ValueError(f'at least 2 samples are needed to fit, got {len(x)}')
+        normalisation = Normalisation.of(x, y)
+        self._fit_normalised(normalisation.inputs(x), normalisation.outputs(y))
+        self._normalisation = normalisation
+        now = datetime.now(timezone.utc)
+        self.metadata.update(created=now.isoformat(), version=now.strftime('%Y%m%dT%H%M%S.%fZ'),
+                             samples=len(x), normalisation=normalisation.as_dict())
+        return self
+
+    def predict(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                ) -> np.ndarray:
+        """Deflection (3,) for joints (4,), or (M, 3) for joints (M, 4)."""
+        x, single = self._inputs(joints, payload)
+        normalisation = self._require_fitted()
+        y = normalisation.outputs_back(self._predict_normalised(normalisation.inputs(x)))
+        return y[0] if single else y
+
+    def save(self, path: str | Path) -> None:
+        """Write the fitted model to ``path`` atomically (format: module docstring)."""
+        self._require_fitted()
+        arrays = {f'{self.kind}.{name}': value for name, value in self._state().items()}
+        metadata = np.array(json.dumps(self.metadata))
+        atomic_write(path, lambda file: np.savez(file, metadata=metadata, **arrays))
+
+    def _require_fitted(self) -> Normalisation:
+        if self._normalisation is None:
+            raise RuntimeError(f'the {self.kind} predictor is not fitted')
+        return self._normalisation
+
+    def _inputs(self, joints: np.ndarray, payload: np.ndarray | float | None,
+                ) -> tuple[np.ndarray, bool]:
+        """Model inputs (N, 4 or 5) and whether a single (4,) query was given."""
+        x = np.asarray(joints, dtype=float)
+        single = x.ndim == 1
+        if single:
+            x = x[np.newaxis]
+        if x.ndim != 2 or x.shape[1] != JOINTS:
+            raise ValueError(f'joints must have shape ({JOINTS},) or (N, {JOINTS}), '
+                             f'got {np.shape(joints)}')
+        if self.settings['payload_input']:
+            if payload is None:
+                raise ValueError(f'this {self.kind} predictor takes the payload as an input')
+            p = np.asarray(payload, dtype=float)
+            if p.ndim == 0:
+                p = np.full(len(x), float(p))
+            if p.shape != (len(x),):
+                raise ValueError(f'payload must be a scalar or have shape ({len(x)},), '
+                                 f'got {np.shape(payload)}')
+            x = np.column_stack([x, p])
+        if not np.all(np.isfinite(x)):
+            raise ValueError('joints or payload contain NaN or infinite values')
+        return x, single
+
+
+def read_model(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
+    """Metadata and the kind's arrays (names without the kind prefix) of a model file."""
+    with np.load(path, allow_pickle=False) as archive:
+        metadata = json.loads(str(archive['metadata']))
+        prefix = f"{metadata['kind']}."
+        state = {name[len(prefix):]: archive[name] for name in archive.files
+                 if name.startswith(prefix)}
+    if metadata.get('format', 0) > FORMAT_VERSION:
+        raise ValueError(f"{path}: model format {metadata['format']} is newer than the "
+                         f'supported {FORMAT_VERSION}')
+    return metadata, state
+
+
+def restore(cls: type[Predictor], metadata: dict[str, Any],
+            state: Mapping[str, np.ndarray]) -> Predictor:
+    """A fitted predictor of class ``cls`` from a model file's content."""
+    predictor = cls(metadata['settings'])
+    predictor.metadata = metadata
+    predictor._normalisation = Normalisation.from_dict(metadata['normalisation'])
+    predictor._restore(state)
+    return predictor

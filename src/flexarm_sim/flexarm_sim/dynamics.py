@@ -1,0 +1,133 @@
+"""Motion of the simulated arm: rate-limited joints and the ringing of the flexible tip.
+
+* Joints: each moves to its commanded position along a time-optimal trapezoidal profile with
+  the Table 1 speed and a configured acceleration; the joint encoders (``/joint_states``) see
+  exactly this motion.
+* Tip: the actual pose is the plant's static pose at the current joints plus a vibration z,
+  one damped mode per pose coordinate driven by the acceleration of the static pose (base
+  excitation): z'' + 2ζω z' + ω² z = −p̈_static. ω is the Table 6 natural frequency for the
+  payload and the No.2 arm length: 1/f² (∝ effective mass) interpolated linearly in payload
+  (extrapolated down to 0 kg) and f linearly in the arm length, clamped to the measured range.
+
+The static pose is evaluated once per :meth:`ArmDynamics.step`; the vibration is integrated in
+sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1). Pure numpy, no rclpy.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from flexarm_control.kinematics import ArmGeometry
+from flexarm_sim.plant import Plant
+
+
+@dataclass(frozen=True)
+class NaturalFrequency:
+    """Table 6: natural frequency [Hz] over payload [kg] × No.2 arm length [m]."""
+
+    payloads: np.ndarray      # (2,) or more, increasing
+    extensions: np.ndarray    # (k,), increasing
+    hz: np.ndarray            # (payloads, extensions)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> NaturalFrequency:
+        table = cls(np.asarray(d['payloads'], dtype=float),
+                    np.asarray(d['extensions'], dtype=float), np.asarray(d['hz'], dtype=float))
+        if table.hz.shape != (table.payloads.size, table.extensions.size) or np.any(
+                table.hz <= 0) or table.payloads.size < 2:
+            raise ValueError('natural_frequency.hz must be positive, payloads x extensions')
+        return table
+
+    def __call__(self, payload: float, extension: float) -> float:
+        ext = float(np.clip(extension, self.extensions[0], self.extensions[-1]))
+        per_payload = [np.interp(ext, self.extensions, row) for row in self.hz]
+        inv_sq = 1.0 / np.square(per_payload)
+        p = self.payloads
+        i = int(np.clip(np.searchsorted(p, payload) - 1, 0, p.size - 2))
+        slope = (inv_sq[i + 1] - inv_sq[i]) / (p[i + 1] - p[i])
+        value = inv_sq[i] + slope * (min(payload, p[-1]) - p[i])
+        return float(1.0 / math.sqrt(max(value, 1e-12)))
+
+
+@dataclass
+class ArmState:
+    joint_positions: np.ndarray   # (4,) [rad, m, rad, rad]
+    joint_velocities: np.ndarray  # (4,)
+    tip_pose: np.ndarray          # (3,) actual (deflected, vibrating) [m, m, rad]
+    tip_velocity: np.ndarray      # (3,) [m/s, m/s, rad/s]
+    is_moving: bool               # a joint is still travelling to its command
+
+
+class ArmDynamics:
+    """Joint trajectories + tip vibration; ``command`` a target, ``step`` time forward."""
+
+    def __init__(self, plant: Plant, geometry: ArmGeometry, params: Mapping[str, Any],
+                 initial: np.ndarray) -> None:
+        self.plant = plant
+        self._vmax = geometry.velocity * float(params['speed_scale'])
+        self._amax = np.asarray(params['acceleration'], dtype=float)
+        self._zeta = float(params['damping_ratio'])
+        self._max_step = float(params['max_step'])
+        self._frequency = NaturalFrequency.from_dict(params['natural_frequency'])
+        if self._amax.shape != (4,) or np.any(self._amax <= 0) or np.any(self._vmax <= 0):
+            raise ValueError('dynamics needs 4 positive accelerations and speed_scale > 0')
+        if not 0 < self._zeta < 1 or self._max_step <= 0:
+            raise ValueError('dynamics needs 0 < damping_ratio < 1 and max_step > 0')
+        self._q = np.asarray(initial, dtype=float).copy()
+        self._qd = np.zeros(4)
+        self._target = self._q.copy()
+        self._static = plant.pose(self._q)
+        self._static_vel = np.zeros(3)
+        self._z = np.zeros(3)
+        self._zd = np.zeros(3)
+
+    def command(self, target: np.ndarray) -> None:
+        """New joint target (already checked against the limits by the caller)."""
+        self._target = np.asarray(target, dtype=float).copy()
+
+    def hold(self) -> None:
+        """Stop where the arm is now (decelerating at the configured rate)."""
+        qd, a = self._qd, self._amax
+        self._target = self._q + np.sign(qd) * qd * qd / (2 * a)
+
+    def natural_frequency(self) -> float:
+        """[Hz] of the tip mode at the current payload and No.2 arm length."""
+        return self._frequency(self.plant.payload, self._q[1])
+
+    def step(self, dt: float) -> None:
+        """Advance ``dt`` seconds of simulated time."""
+        self._advance_joints(dt)
+        static = self.plant.pose(self._q)
+        delta = static - self._static
+        delta[2] = (delta[2] + math.pi) % (2 * math.pi) - math.pi
+        static_vel = delta / dt
+        accel = (static_vel - self._static_vel) / dt
+        self._static, self._static_vel = static, static_vel
+        omega = 2 * math.pi * self.natural_frequency()
+        n = max(1, math.ceil(dt / self._max_step))
+        h = dt / n
+        for _ in range(n):
+            self._zd += h * (-accel - 2 * self._zeta * omega * self._zd - omega ** 2 * self._z)
+            self._z += h * self._zd
+
+    def _advance_joints(self, dt: float) -> None:
+        error = self._target - self._q
+        # Time-optimal speed toward the target: limited by speed and by braking distance.
+        desired = np.sign(error) * np.minimum(self._vmax, np.sqrt(2 * self._amax * np.abs(error)))
+        self._qd += np.clip(desired - self._qd, -self._amax * dt, self._amax * dt)
+        step = self._qd * dt
+        arrive = np.abs(step) >= np.abs(error)
+        self._q = np.where(arrive & (np.sign(step) == np.sign(error)), self._target,
+                           self._q + step)
+        self._qd = np.where(self._q == self._target, 0.0, self._qd)
+
+    @property
+    def state(self) -> ArmState:
+        return ArmState(joint_positions=self._q.copy(), joint_velocities=self._qd.copy(),
+                        tip_pose=self._static + self._z,
+                        tip_velocity=self._static_vel + self._zd,
+                        is_moving=bool(np.any(self._q != self._target)))

@@ -1,0 +1,72 @@
+"""Joint motion at the Table 1 speeds and the Table 6 tip vibration."""
+import math
+
+import numpy as np
+import pytest
+
+from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.params import load_config
+from flexarm_sim.dynamics import ArmDynamics, NaturalFrequency
+from flexarm_sim.plant import Plant
+
+
+@pytest.fixture(scope='module')
+def config():
+    return load_config('arm.yaml', 'sim.yaml')
+
+
+def make(config, payload=0.0, initial=(0.0, 0.6, -0.5, -0.5)) -> ArmDynamics:
+    geometry = ArmGeometry.from_dict(config['arm'])
+    plant = Plant.from_dict({**config['plant'], 'payload': payload}, geometry)
+    return ArmDynamics(plant, geometry, config['dynamics'], np.array(initial))
+
+
+def test_natural_frequency_reproduces_table_6(config):
+    table = NaturalFrequency.from_dict(config['dynamics']['natural_frequency'])
+    for payload, ext, hz in [(0.2, 0.16, 12.41), (0.2, 0.4, 11.85), (0.2, 0.8, 9.93),
+                             (5.0, 0.16, 3.86), (5.0, 0.4, 3.77), (5.0, 0.8, 3.60)]:
+        assert table(payload, ext) == pytest.approx(hz, rel=1e-9)
+    assert table(5.0, 0.8) < table(2.0, 0.8) < table(0.2, 0.8) < table(0.0, 0.8)
+
+
+def test_joints_travel_at_the_table_1_speeds(config):
+    arm = make(config)
+    arm.command(np.array([0.5, 0.6, -0.5, -0.5]))      # joint1 by 0.5 rad at 10 deg/s
+    speeds, t = [], 0.0
+    while arm.state.is_moving and t < 20:
+        arm.step(0.01)
+        t += 0.01
+        speeds.append(arm.state.joint_velocities[0])
+    assert not arm.state.is_moving
+    assert max(speeds) == pytest.approx(math.radians(10), rel=1e-6)
+    assert 0.5 / math.radians(10) < t < 0.5 / math.radians(10) + 1.5
+    np.testing.assert_array_equal(arm.state.joint_positions, [0.5, 0.6, -0.5, -0.5])
+
+
+def test_tip_rings_after_a_move_then_settles_on_the_static_pose(config):
+    arm = make(config, payload=5.0)
+    target = np.array([0.3, 0.7, -0.6, -0.2])
+    arm.command(target)
+    while arm.state.is_moving:
+        arm.step(0.005)
+    static = arm.plant.pose(target)
+    early = []
+    for _ in range(200):                                # 1 s after arrival
+        arm.step(0.005)
+        early.append(arm.state.tip_pose - static)
+    early = np.array(early)
+    assert np.ptp(early[:, 1]) > 1e-5                   # visible ringing
+    for _ in range(4000):                               # 20 s more
+        arm.step(0.005)
+    np.testing.assert_allclose(arm.state.tip_pose, static, atol=1e-7)
+
+
+def test_hold_stops_short_of_the_target(config):
+    arm = make(config)
+    arm.command(np.array([1.0, 0.6, -0.5, -0.5]))
+    for _ in range(100):
+        arm.step(0.01)
+    arm.hold()
+    while arm.state.is_moving:
+        arm.step(0.01)
+    assert 0.0 < arm.state.joint_positions[0] < 0.5

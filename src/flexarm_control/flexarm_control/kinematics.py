@@ -152,7 +152,8 @@ def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = N
         if not geometry.lower[1] <= extension <= geometry.upper[1]:
             raise UnreachableError(f'joint2 = {extension:.4f} m outside its limits')
     else:
-        grid = np.arange(geometry.lower[1], geometry.upper[1] + 1e-12, geometry.extension_step)
+        lo, hi = geometry.lower[1], geometry.upper[1]
+        grid = np.linspace(lo, hi, int(round((hi - lo) / geometry.extension_step)) + 1)
         grid = grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]
         candidates = np.concatenate([[geometry.preferred_extension], grid])
     q = _solve(geometry, pose, candidates)

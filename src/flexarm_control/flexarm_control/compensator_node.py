@@ -5,7 +5,8 @@ of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip 
 the target from the measured error until within tolerance (beyond the paper). The algorithm
 lives in :mod:`flexarm_control.compensator`; this node validates goals, moves the arm through
 :class:`~flexarm_control.arm_interface.ArmInterface`, reports feedback and results, and
-hot-reloads the predictor the learner announces on ``/learner/model``.
+hot-reloads the predictor the learner announces on ``/learner/model`` and republishes the one
+it uses on the latched ``/compensator/active_model``.
 
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Every
 accepted goal is validated before anything moves and aborted with an error code and reason if
@@ -90,9 +91,10 @@ class CompensatorNode(Node):
         self._predictor: Predictor | None = None
         self._model_version = ''
         self._busy = threading.Lock()
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
         if model_path and Path(model_path).exists():
             self._load_model(model_path, 'start-up')
-        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.create_subscription(ModelInfo, topics.MODEL, self._on_model, latched,
                                  callback_group=self._group)
         self._outcomes = self.create_publisher(GoalOutcome, topics.OUTCOMES, 10)
@@ -104,16 +106,18 @@ class CompensatorNode(Node):
     # --- model hot reload -------------------------------------------------------------------
     def _on_model(self, msg: ModelInfo) -> None:
         if msg.version != self._model_version:
-            self._load_model(msg.path, f'version {msg.version}', msg.version)
+            self._load_model(msg.path, f'version {msg.version}', msg)
 
-    def _load_model(self, path: str, what: str, version: str = '') -> None:
+    def _load_model(self, path: str, what: str, info: ModelInfo | None = None) -> None:
         try:
             predictor = load_predictor(path)
-        except (OSError, ValueError) as exc:
+        except (OSError, ValueError, KeyError) as exc:
             self.get_logger().error(f'cannot load model {what} from {path}: {exc}; '
                                     'keeping the previous one')
             return
-        self._predictor, self._model_version = predictor, version or path
+        info = info or ModelInfo(version=path, kind=predictor.kind, path=path)
+        self._predictor, self._model_version = predictor, info.version
+        self._active_pub.publish(info)
         self.get_logger().info(f'predictor {what} loaded ({predictor.kind}) from {path}')
 
     # --- goal policy ------------------------------------------------------------------------
@@ -195,10 +199,8 @@ class CompensatorNode(Node):
                                 f'{self._measure_timeout:.0f} s after the move')
                 result.error_string = 'moved; no valid settled tip measurement'
                 return result
-            error = pose_error(target, outcome)
             result.measured, result.measured_pose = True, planar(outcome)
-            result.position_error = float(math.hypot(error[0], error[1]))
-            result.angle_error = float(abs(error[2]))
+            result.position_error, result.angle_error = pose_error(target, outcome)
             within = result.position_error <= pos_tol and result.angle_error <= ang_tol
             if goal.mode != Goal.MODE_CLOSED_LOOP or within:
                 return result
@@ -243,11 +245,9 @@ class CompensatorNode(Node):
                   goal: Goal | None = None) -> None:
         fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
         if measured is not None and goal is not None:
-            error = pose_error(np.array([goal.target.x, goal.target.y, goal.target.phi]),
-                               measured)
             fb.measured, fb.measured_pose = True, planar(measured)
-            fb.position_error = float(math.hypot(error[0], error[1]))
-            fb.angle_error = float(abs(error[2]))
+            fb.position_error, fb.angle_error = pose_error(
+                np.array([goal.target.x, goal.target.y, goal.target.phi]), measured)
         handle.publish_feedback(fb)
 
     def _publish_outcome(self, goal: Goal, result: Result) -> None:

@@ -100,6 +100,7 @@ class NodeProcess:
         self._log: IO[bytes] | None = None
         self.process: subprocess.Popen[bytes] | None = None
         self.restarts = 0
+        self.reported = False     # its death was reported and it stays down
 
     def start(self) -> None:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)

@@ -14,6 +14,7 @@ TIP_POSE_TRUTH = '/sim/tip_pose_truth'                      # flexarm_msgs/TipPo
 SAMPLES = '/learner/samples'                                # flexarm_msgs/DeflectionSample
 MODEL = '/learner/model'                                    # flexarm_msgs/ModelInfo, latched
 OUTCOMES = '/compensator/outcomes'                          # flexarm_msgs/GoalOutcome
+ACTIVE_MODEL = '/compensator/active_model'                  # flexarm_msgs/ModelInfo, latched
 
 MOVE_TO_POSE = '/move_to_pose'                              # flexarm_msgs/action/MoveToPose
 COLLECT_SAMPLES = '/collect_samples'                        # flexarm_msgs/action/CollectSamples

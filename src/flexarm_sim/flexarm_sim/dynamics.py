@@ -31,16 +31,16 @@ class NaturalFrequency:
 
     payloads: np.ndarray      # (2,) or more, increasing
     extensions: np.ndarray    # (k,), increasing
-    hz: np.ndarray            # (payloads, extensions)
+    hz: np.ndarray            # (payloads, extensions); config: flat, payload-major
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> NaturalFrequency:
-        table = cls(np.asarray(d['payloads'], dtype=float),
-                    np.asarray(d['extensions'], dtype=float), np.asarray(d['hz'], dtype=float))
-        if table.hz.shape != (table.payloads.size, table.extensions.size) or np.any(
-                table.hz <= 0) or table.payloads.size < 2:
-            raise ValueError('natural_frequency.hz must be positive, payloads x extensions')
-        return table
+        payloads = np.asarray(d['payloads'], dtype=float)
+        extensions = np.asarray(d['extensions'], dtype=float)
+        hz = np.asarray(d['hz'], dtype=float)
+        if hz.size != payloads.size * extensions.size or np.any(hz <= 0) or payloads.size < 2:
+            raise ValueError('natural_frequency.hz: positive, payloads x extensions values')
+        return cls(payloads, extensions, hz.reshape(payloads.size, extensions.size))
 
     def __call__(self, payload: float, extension: float) -> float:
         ext = float(np.clip(extension, self.extensions[0], self.extensions[-1]))

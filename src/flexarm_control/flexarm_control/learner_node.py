@@ -1,0 +1,297 @@
+"""Learner: collects deflection samples (``/collect_samples``) and trains the predictor
+(``/train``), seed section 2-1 steps 2-3.
+
+Collection moves the arm through the controller's command topic to space-filling poses of a
+region (:mod:`flexarm_control.sampling`), waits until the joints arrive and the tip is settled,
+averages a few valid ``/tip_pose`` frames and appends the sample to the dataset — on disk,
+fsync'ed — before the next move; the sample is also published on ``/learner/samples`` for bags.
+A failed measurement is retried, then the pose is skipped and counted, never stored. Cancel
+holds the arm and keeps every sample collected.
+
+Training cross-validates, fits on the whole dataset, writes the model atomically and announces
+it on the latched ``/learner/model``; on any failure the previous model stays active. The
+current model is also remembered in ``<model_directory>/current.json`` and re-announced when
+the learner restarts. One collection at a time; training may run while nothing collects.
+"""
+from __future__ import annotations
+
+import json
+import threading
+from pathlib import Path
+
+import numpy as np
+import rclpy
+from builtin_interfaces.msg import Time as TimeMsg
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action.server import ServerGoalHandle
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
+from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+
+from flexarm_control import topics
+from flexarm_control.arm_interface import ArmInterface
+from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
+from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_control.node_params import declare, declare_tree
+from flexarm_control.params import CONFIG_DIR
+from flexarm_control.predictors import KINDS
+from flexarm_control.predictors.base import atomic_write
+from flexarm_control.sampling import STRATEGIES, regions_from_dict, sample_poses
+from flexarm_control.training import Metrics, train
+from flexarm_msgs.action import CollectSamples
+from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
+from flexarm_msgs.srv import Train
+
+REPO = CONFIG_DIR.parent
+Goal = CollectSamples.Goal
+Result = CollectSamples.Result
+Feedback = CollectSamples.Feedback
+
+
+def planar(pose: np.ndarray) -> PlanarPose:
+    return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
+
+
+def metrics_msg(m: Metrics) -> PredictionMetrics:
+    return PredictionMetrics(
+        validation=m.validation, samples=m.samples, max_error_x=m.max_error_x,
+        max_error_y=m.max_error_y, max_error_phi=m.max_error_phi, mean_error_x=m.mean_error_x,
+        mean_error_y=m.mean_error_y, mean_error_phi=m.mean_error_phi)
+
+
+def repo_path(value: str) -> Path:
+    path = Path(value).expanduser()
+    return path if path.is_absolute() else REPO / path
+
+
+class LearnerNode(Node):
+
+    def __init__(self) -> None:
+        super().__init__('flexarm_learner')
+        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        self._regions = regions_from_dict(declare_tree(self, 'regions', 'config/learner.yaml'))
+        self._data_dir = repo_path(declare(self, 'data_directory', 'data',
+                                           'datasets directory (relative: to the repository)'))
+        self._model_dir = repo_path(declare(self, 'model_directory', 'models',
+                                            'models directory (relative: to the repository)'))
+        self._default_dataset = declare(self, 'default_dataset', 'default', 'dataset name')
+        self._payload = declare(self, 'payload', 0.0, '[kg] payload carried by the arm')
+        self._default_region = declare(self, 'default_region', 'AB', 'region preset')
+        self._default_strategy = declare(self, 'default_strategy', 'sobol',
+                                         f'one of {", ".join(STRATEGIES)}')
+        self._max_count = declare(self, 'max_count', 2000, 'largest count accepted')
+        self._frames = declare(self, 'measurement_frames', 3, 'tip poses averaged per sample')
+        self._measure_timeout = declare(self, 'measurement_timeout', 20.0,
+                                        '[s] wait for a valid settled measurement')
+        self._retries = declare(self, 'measurement_retries', 2,
+                                'extra measurement attempts before a pose is skipped')
+        self._joint_tol = np.array(declare(self, 'arrival_tolerance',
+                                           [1e-4, 1e-5, 1e-4, 1e-4],
+                                           '[rad, m, rad, rad] joints count as arrived'))
+        self._move_margin = declare(self, 'move_timeout_margin', 10.0,
+                                    '[s] added to the slowest joint travel time')
+        self._default_kind = declare(self, 'default_kind', 'mlp', f'one of {", ".join(KINDS)}')
+        self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds')
+        if self._default_region not in self._regions:
+            raise ValueError(f'default_region {self._default_region} is not in regions')
+
+        self._collecting = threading.Lock()
+        self._training = threading.Lock()
+        group = ReentrantCallbackGroup()
+        self._arm = ArmInterface(self, group)
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self._model_pub = self.create_publisher(ModelInfo, topics.MODEL, latched)
+        self._sample_pub = self.create_publisher(DeflectionSample, topics.SAMPLES, 100)
+        self._collect_server = ActionServer(
+            self, CollectSamples, topics.COLLECT_SAMPLES, execute_callback=self._collect,
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=group)
+        self.create_service(Train, topics.TRAIN, self._train,
+                            callback_group=MutuallyExclusiveCallbackGroup())
+        self._announce_current()
+
+    def dataset_path(self, name: str) -> Path:
+        return self._data_dir / f'{name or self._default_dataset}.jsonl'
+
+    # --- collection -------------------------------------------------------------------------
+    def _on_goal(self, goal: Goal) -> GoalResponse:
+        if self._collecting.locked():
+            self.get_logger().warn('collection goal rejected: another collection is running')
+            return GoalResponse.REJECT
+        return GoalResponse.ACCEPT
+
+    def _goal_error(self, goal: Goal) -> str | None:
+        if not 1 <= goal.count <= self._max_count:
+            return f'count must be 1..{self._max_count}, got {goal.count}'
+        if (goal.region or self._default_region) not in self._regions:
+            return f'unknown region "{goal.region}"; known: {", ".join(self._regions)}'
+        if (goal.strategy or self._default_strategy) not in STRATEGIES:
+            return f'unknown strategy "{goal.strategy}"; known: {", ".join(STRATEGIES)}'
+        if goal.dataset and not goal.dataset.replace('-', '').replace('_', '').isalnum():
+            return f'dataset name "{goal.dataset}" must be letters, digits, - and _'
+        return None
+
+    def _collect(self, handle: ServerGoalHandle) -> Result:
+        goal: Goal = handle.request
+        with self._collecting:
+            result = self._run_collection(handle, goal)
+        if result.error_code == Result.SUCCESSFUL:
+            handle.succeed()
+        elif result.error_code == Result.CANCELED:
+            handle.canceled()
+        else:
+            handle.abort()
+        self.get_logger().info(f'collection ended ({result.error_code}): {result.collected} '
+                               f'collected, {result.skipped} skipped, {result.total} in '
+                               f'{result.dataset_path} {result.error_string}')
+        return result
+
+    def _run_collection(self, handle: ServerGoalHandle, goal: Goal) -> Result:
+        path = self.dataset_path(goal.dataset)
+        result = Result(dataset_path=str(path))
+        reason = self._goal_error(goal)
+        if reason is None and not self._arm.wait_for_joints(5.0):
+            reason = 'no /joint_states from the controller'
+        if reason is not None:
+            result.error_code, result.error_string = Result.INVALID_GOAL, reason
+            return result
+        region = self._regions[goal.region or self._default_region]
+        _, plan = sample_poses(self._geometry, region, goal.count,
+                               goal.strategy or self._default_strategy, goal.seed)
+        self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
+                               f' into {path}')
+        with DatasetWriter(path) as writer:
+            result.total = writer.count
+            for k, joints in enumerate(plan, start=1):
+                sample = self._sample_at(joints, handle)
+                if handle.is_cancel_requested:
+                    self._arm.hold()
+                    result.error_code, result.error_string = Result.CANCELED, 'canceled'
+                    return result
+                if sample is None:
+                    result.skipped += 1
+                else:
+                    writer.append(sample)          # on disk before the next move
+                    result.collected += 1
+                    result.total = writer.count
+                msg = self._sample_msg(sample) if sample is not None else DeflectionSample()
+                if sample is not None:
+                    self._sample_pub.publish(msg)
+                handle.publish_feedback(Feedback(k=k, n=goal.count, skipped=result.skipped,
+                                                 last_sample=msg))
+        if result.collected == 0:
+            result.error_code, result.error_string = Result.FAILED, 'no valid measurement'
+        return result
+
+    def _sample_at(self, joints: np.ndarray, handle: ServerGoalHandle) -> Sample | None:
+        """Move to ``joints``, measure; the sample, or None after the retries failed."""
+        current = self._arm.joints.positions
+        travel = float(np.max(np.abs(joints - current) / self._geometry.velocity))
+        cancel = lambda: handle.is_cancel_requested  # noqa: E731
+        for attempt in range(1 + self._retries):
+            if not self._arm.move(joints, self._joint_tol, travel + self._move_margin, cancel):
+                if cancel():
+                    return None
+                self.get_logger().warn(f'joints did not arrive (attempt {attempt + 1})')
+                continue
+            measurement = self._arm.measure(self._frames, self._measure_timeout, cancel)
+            if cancel():
+                return None
+            if measurement is None:
+                self.get_logger().warn(f'no valid settled tip pose (attempt {attempt + 1})')
+                continue
+            reported = self._arm.joints.positions
+            rigid = forward(self._geometry, reported)
+            deflection = measurement.pose - rigid
+            deflection[2] = wrap_angle(deflection[2])
+            stamp = self.get_clock().now().nanoseconds * 1e-9
+            return Sample(stamp=stamp, joints=reported, payload=self._payload,
+                          rigid_pose=rigid, measured_pose=measurement.pose,
+                          deflection=deflection, holes_used=measurement.holes_used,
+                          residual=measurement.residual)
+        return None
+
+    @staticmethod
+    def _sample_msg(sample: Sample) -> DeflectionSample:
+        sec = int(sample.stamp)
+        return DeflectionSample(
+            stamp=TimeMsg(sec=sec, nanosec=int((sample.stamp - sec) * 1e9)),
+            joint_positions=[float(v) for v in sample.joints], payload=float(sample.payload),
+            rigid_pose=planar(sample.rigid_pose), measured_pose=planar(sample.measured_pose),
+            deflection=planar(sample.deflection), holes_used=int(sample.holes_used),
+            residual=float(sample.residual))
+
+    # --- training ---------------------------------------------------------------------------
+    def _train(self, request: Train.Request, response: Train.Response) -> Train.Response:
+        kind = request.kind or self._default_kind
+        path = self.dataset_path(request.dataset)
+        try:
+            settings = json.loads(request.settings_json) if request.settings_json else {}
+            if not isinstance(settings, dict):
+                raise ValueError('settings_json must be a JSON object')
+            if not path.exists():
+                raise ValueError(f'no dataset at {path}: collect samples first')
+            dataset = load_dataset(path)
+            predictor, metrics = train(kind, settings, dataset, folds=self._folds)
+            version = self._next_version()
+            model_path = self._model_dir / (
+                f'{request.dataset or self._default_dataset}-{kind}-v{version}.model')
+            self._model_dir.mkdir(parents=True, exist_ok=True)
+            predictor.save(model_path)
+        except (ValueError, OSError, json.JSONDecodeError) as exc:
+            response.success, response.message = False, f'training failed: {exc}'
+            self.get_logger().error(response.message + '; the previous model stays active')
+            return response
+        info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version), kind=kind,
+                         path=str(model_path), dataset_hash=dataset.hash,
+                         metrics=metrics_msg(metrics))
+        atomic_write(self._model_dir / 'current.json', lambda f: f.write(json.dumps({
+            'version': info.version, 'kind': kind, 'path': info.path,
+            'dataset_hash': dataset.hash}).encode()))
+        self._model_pub.publish(info)
+        response.success, response.model_version = True, info.version
+        response.model_path, response.metrics = info.path, info.metrics
+        self.get_logger().info(
+            f'model v{version} ({kind}, {metrics.samples} samples) announced; validation max '
+            f'|error| x {metrics.max_error_x * 1e3:.3f} mm, y {metrics.max_error_y * 1e3:.3f} mm')
+        return response
+
+    def _next_version(self) -> int:
+        current = self._current()
+        return int(current['version']) + 1 if current else 1
+
+    def _current(self) -> dict | None:
+        try:
+            return json.loads((self._model_dir / 'current.json').read_text())
+        except (OSError, ValueError):
+            return None
+
+    def _announce_current(self) -> None:
+        current = self._current()
+        if current and Path(current['path']).exists():
+            self._model_pub.publish(ModelInfo(
+                stamp=self.get_clock().now().to_msg(), version=current['version'],
+                kind=current['kind'], path=current['path'],
+                dataset_hash=current.get('dataset_hash', '')))
+            self.get_logger().info(f'announced the current model v{current["version"]}')
+
+
+def main(args: list[str] | None = None) -> None:
+    rclpy.init(args=args)
+    node = None
+    try:
+        node = LearnerNode()
+        executor = MultiThreadedExecutor()
+        executor.add_node(node)
+        executor.spin()
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        if node is not None:
+            node.destroy_node()
+        rclpy.try_shutdown()
+
+
+if __name__ == '__main__':
+    main()

@@ -1,0 +1,92 @@
+"""Space-filling learning poses in a working region (pure; scipy.stats.qmc).
+
+A region is a box in task space (x, y, φ). Candidates come from a seeded low-discrepancy
+sequence (scrambled Sobol by default, or Halton, Latin hypercube, plain uniform); those the
+rigid arm cannot reach inside its joint limits are skipped, so the poses stay space-filling on
+the reachable part of the box. Joint positions follow the kinematics' θ2 rule, the same the
+compensator uses, so learning samples lie where goals will be executed.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from scipy.stats import qmc
+
+from flexarm_control.kinematics import ArmGeometry, UnreachableError, inverse
+
+STRATEGIES = ('sobol', 'halton', 'lhs', 'random')
+
+
+@dataclass(frozen=True)
+class Region:
+    name: str
+    lower: np.ndarray   # (3,) x, y [m], φ [rad]
+    upper: np.ndarray
+
+    @classmethod
+    def from_dict(cls, name: str, d: Mapping[str, Any]) -> Region:
+        lower = np.array([d['x'][0], d['y'][0], d['phi'][0]], dtype=float)
+        upper = np.array([d['x'][1], d['y'][1], d['phi'][1]], dtype=float)
+        if np.any(lower >= upper) or not np.all(np.isfinite(lower + upper)):
+            raise ValueError(f'region {name}: each of x, y, phi needs [low, high], low < high')
+        return cls(name, lower, upper)
+
+    def contains(self, pose: np.ndarray) -> bool:
+        return bool(np.all((pose >= self.lower) & (pose <= self.upper)))
+
+    def describe(self) -> str:
+        lo, hi = self.lower, self.upper
+        return (f'{self.name}: x {lo[0] * 1e3:.0f}..{hi[0] * 1e3:.0f} mm, y {lo[1] * 1e3:.0f}..'
+                f'{hi[1] * 1e3:.0f} mm, phi {math.degrees(lo[2]):.0f}..'
+                f'{math.degrees(hi[2]):.0f} deg')
+
+
+def regions_from_dict(d: Mapping[str, Any]) -> dict[str, Region]:
+    return {name: Region.from_dict(name, spec) for name, spec in d.items()}
+
+
+def unit_samples(strategy: str, count: int, seed: int) -> np.ndarray:
+    """``count`` points of the unit cube [0, 1)^3 from ``strategy``."""
+    if strategy == 'sobol':
+        return qmc.Sobol(3, scramble=True, seed=seed).random(count)
+    if strategy == 'halton':
+        return qmc.Halton(3, scramble=True, seed=seed).random(count)
+    if strategy == 'lhs':
+        return qmc.LatinHypercube(3, seed=seed).random(count)
+    if strategy == 'random':
+        return np.random.default_rng(seed).random((count, 3))
+    raise ValueError(f'unknown strategy "{strategy}"; choose one of {", ".join(STRATEGIES)}')
+
+
+def sample_poses(geometry: ArmGeometry, region: Region, count: int, strategy: str = 'sobol',
+                 seed: int = 0, max_candidates: int = 65536) -> tuple[np.ndarray, np.ndarray]:
+    """``count`` reachable poses (count, 3) of ``region`` and their joints (count, 4).
+
+    Deterministic for (region, count, strategy, seed). Raises ValueError if the region has too
+    few reachable poses among ``max_candidates`` candidates.
+    """
+    if count < 1:
+        raise ValueError('count must be at least 1')
+    poses, joints = [], []
+    batch = 1 << max(4, math.ceil(math.log2(count)) + 1)     # powers of 2 suit Sobol
+    while len(poses) < count:
+        if batch > max_candidates:
+            raise ValueError(f'region {region.name} is mostly out of reach: only '
+                             f'{len(poses)} of {count} poses in {max_candidates} candidates')
+        poses, joints = [], []
+        candidates = region.lower + unit_samples(strategy, batch, seed) * (
+            region.upper - region.lower)
+        for pose in candidates:
+            try:
+                joints.append(inverse(geometry, pose))
+            except UnreachableError:
+                continue
+            poses.append(pose)
+            if len(poses) == count:
+                break
+        batch *= 2
+    return np.array(poses), np.array(joints)

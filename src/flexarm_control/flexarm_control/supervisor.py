@@ -1,0 +1,119 @@
+"""The running graph: start every node of config/graph.yaml, wait until it is ready, supervise.
+
+Used by ``flexarm up``, ``flexarm demo``/``benchmark`` and the node-level tests. One log file
+per node in the run folder. A node that dies is reported with its exit code and the last
+lines of its log, and restarted if graph.yaml says so (at most ``max_restarts`` times); the
+rest keeps running. :meth:`Graph.stop` shuts everything down (SIGINT, SIGTERM, SIGKILL) and
+removes stale Fast DDS shared-memory files.
+"""
+from __future__ import annotations
+
+import time
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from typing import Any
+
+from flexarm_control import topics
+from flexarm_control.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
+
+# What "ready" means: (kind, name) pairs that must be discovered in the graph.
+READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
+READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
+READY_SERVICES = (topics.TRAIN,)
+
+
+class Graph:
+    """The node processes of one run, in one ROS domain."""
+
+    def __init__(self, domain_id: int, run_dir: Path, robot: str = 'sim',
+                 parameters: Mapping[str, Mapping[str, Any]] | None = None,
+                 optional: tuple[str, ...] = (), max_restarts: int = 3,
+                 report: Callable[[str], None] = print) -> None:
+        specs = load_graph(robot)
+        extra = load_optional()
+        unknown = set(optional) - set(extra)
+        if unknown:
+            raise ValueError(f'unknown optional nodes {sorted(unknown)}; known: {sorted(extra)}')
+        specs += [extra[name] for name in optional]
+        self.domain_id, self.run_dir = domain_id, run_dir
+        self.max_restarts, self._report = max_restarts, report
+        env = ros_env(domain_id, run_dir / 'ros_log')
+        parameters = parameters or {}
+        self.nodes = {spec.name: NodeProcess(spec, env, run_dir / f'{spec.name}.log',
+                                             parameters.get(spec.name))
+                      for spec in specs}
+
+    def start(self) -> None:
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        for node in self.nodes.values():
+            node.start()
+
+    def wait_ready(self, timeout: float) -> None:
+        """Wait until the topics, actions and services of a working graph are discovered.
+
+        Raises TimeoutError naming what did not come up (and any node that died meanwhile).
+        """
+        import rclpy
+        from rclpy.context import Context
+
+        context = Context()
+        rclpy.init(context=context, domain_id=self.domain_id)
+        node = rclpy.create_node('flexarm_supervisor', context=context)
+        deadline = time.monotonic() + timeout
+        try:
+            while True:
+                missing = self._missing(node)
+                if not missing:
+                    return
+                dead = self.check()
+                if time.monotonic() > deadline or (dead and not self._restartable(dead)):
+                    raise TimeoutError(f'graph not ready after {timeout:.0f} s: missing '
+                                       f'{", ".join(missing)}' + (
+                                           f'; died: {", ".join(dead)}' if dead else ''))
+                time.sleep(0.2)
+        finally:
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
+
+    @staticmethod
+    def _missing(node: Any) -> list[str]:
+        found_topics = {name for name, _ in node.get_topic_names_and_types()}
+        found_services = {name for name, _ in node.get_service_names_and_types()}
+        missing = [t for t in READY_TOPICS
+                   if t not in found_topics or not node.count_publishers(t)]
+        missing += [a for a in READY_ACTIONS if f'{a}/_action/send_goal' not in found_services]
+        missing += [s for s in READY_SERVICES if s not in found_services]
+        return missing
+
+    def _restartable(self, names: list[str]) -> bool:
+        return all(self.nodes[n].spec.restart and self.nodes[n].restarts <= self.max_restarts
+                   for n in names)
+
+    def check(self) -> list[str]:
+        """Report nodes that died since the last check, restart those allowed; their names."""
+        dead = []
+        for name, node in self.nodes.items():
+            code = node.returncode
+            if code is None or node.reported:
+                continue
+            dead.append(name)
+            tail = node.log_tail(8).replace('\n', '\n    ')
+            self._report(f'node {name} exited with code {code}; last log lines:\n    {tail}')
+            if node.spec.restart and node.restarts < self.max_restarts:
+                node.restarts += 1
+                node.close()
+                node.start()
+                self._report(f'node {name} restarted ({node.restarts}/{self.max_restarts})')
+            else:
+                node.reported = True
+        return dead
+
+    def stop(self, timeout: float = 5.0) -> dict[str, int | None]:
+        return stop_all(self.nodes.values(), timeout)
+
+    def __enter__(self) -> Graph:
+        self.start()
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        self.stop()

@@ -13,19 +13,9 @@ import timeit
 import numpy as np
 
 from flexarm_control.kinematics import ArmGeometry, inverse
+from flexarm_control.paper import TABLE_10
 from flexarm_control.params import load_config
 from flexarm_sim.plant import Plant
-
-# Table 10: target (x mm, y mm, phi deg) and the rigid-model result the paper measured.
-TABLE_10 = [
-    ('A1', (1450, -150, -45), (1444.1, -161.6, -46.2)),
-    ('A2', (1550, 0, -22), (1545.8, -15.5, -24.0)),
-    ('A3', (1550, 150, -6), (1548.5, 133.9, -9.8)),    # printed 1448.5: a typo (101 mm off)
-    ('B4', (1000, -500, -100), (1002.1, -505.1, -99.0)),
-    ('B5', (1150, -350, -70), (1147.3, -355.0, -70.3)),
-    ('B6', (1300, -200, -61), (1295.8, -207.1, -61.7)),
-]
-
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -43,16 +33,15 @@ def main() -> None:
     tip_5kg = plant.with_payload(5.0).deflection(horizontal) - plant.deflection(horizontal)
 
     rows = []
-    for name, t, paper in TABLE_10:
-        target = np.array([t[0] / 1e3, t[1] / 1e3, math.radians(t[2])])
-        joints = inverse(geometry, target)
-        err = plant.pose(joints) - target
+    for paper in TABLE_10:
+        joints = inverse(geometry, paper.pose)
+        err = plant.pose(joints) - paper.pose
+        paper_position, paper_angle = paper.rigid_errors
         rows.append({
-            'target': name, 'joint2_mm': 1e3 * joints[1],
+            'target': paper.name, 'joint2_mm': 1e3 * joints[1],
             'position_error_mm': 1e3 * math.hypot(err[0], err[1]),
             'angle_error_deg': math.degrees(err[2]),
-            'paper_position_error_mm': math.hypot(paper[0] - t[0], paper[1] - t[1]),
-            'paper_angle_error_deg': paper[2] - t[2]})
+            'paper_position_error_mm': paper_position, 'paper_angle_error_deg': paper_angle})
     figures = {'pose_us': 1e6 * t_one, 'batch_10000_ms': 1e3 * t_batch,
                'tip_deflection_5kg_mm': -1e3 * tip_5kg[1], 'payload_kg': plant.payload,
                'table10': rows}

@@ -17,6 +17,7 @@ import numpy as np
 from rclpy.callback_groups import CallbackGroup
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
+from rclpy.serialization import deserialize_message
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -29,6 +30,7 @@ from flexarm_msgs.msg import TipPose
 # A wait of T s of sim time may take at most this many times T (+ slack) of wall time.
 _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
+_POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them at once)
 
 
 @dataclass(frozen=True)
@@ -45,22 +47,33 @@ class ArmInterface:
         self._node = node
         self._cond = threading.Condition()
         self._joints: JointSnapshot | None = None
+        self._joints_raw: bytes | None = None     # newest /joint_states, not yet parsed
         self._frames: deque[TipPose] = deque(maxlen=frames_kept)
         self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
+        # Raw: at a 10x real-time factor /joint_states arrives 1000 times a wall second; only
+        # the newest is parsed, when a wait looks at it.
         node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state,
-                                 qos_profile_sensor_data, callback_group=callback_group)
+                                 qos_profile_sensor_data, callback_group=callback_group,
+                                 raw=True)
         node.create_subscription(TipPose, topics.TIP_POSE, self._on_tip_pose, 10,
                                  callback_group=callback_group)
 
     # --- inputs -----------------------------------------------------------------------------
-    def _on_joint_state(self, msg: JointState) -> None:
-        try:
-            positions = np.array([msg.position[msg.name.index(n)] for n in JOINT_NAMES])
-        except (ValueError, IndexError):
-            return
+    def _on_joint_state(self, raw: bytes) -> None:
         with self._cond:
+            self._joints_raw = raw
+
+    def _parse_joints(self) -> JointSnapshot | None:
+        """The newest joint state (call with the lock held)."""
+        if self._joints_raw is not None:
+            msg = deserialize_message(self._joints_raw, JointState)
+            self._joints_raw = None
+            try:
+                positions = np.array([msg.position[msg.name.index(n)] for n in JOINT_NAMES])
+            except (ValueError, IndexError):
+                return self._joints
             self._joints = JointSnapshot(Time.from_msg(msg.header.stamp), positions)
-            self._cond.notify_all()
+        return self._joints
 
     def _on_tip_pose(self, msg: TipPose) -> None:
         with self._cond:
@@ -70,7 +83,7 @@ class ArmInterface:
     @property
     def joints(self) -> JointSnapshot | None:
         with self._cond:
-            return self._joints
+            return self._parse_joints()
 
     def now(self) -> Time:
         return self._node.get_clock().now()
@@ -102,11 +115,11 @@ class ArmInterface:
                     return False
                 if (self.now() - start).nanoseconds * 1e-9 > timeout:
                     return False
-                self._cond.wait(0.05)
+                self._cond.wait(_POLL)
         return True
 
     def wait_for_joints(self, timeout: float) -> bool:
-        return self.wait_until(lambda: self._joints is not None, timeout)
+        return self.wait_until(lambda: self._parse_joints() is not None, timeout)
 
     def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
              abort: Callable[[], bool] = lambda: False) -> bool:
@@ -115,8 +128,9 @@ class ArmInterface:
         target = np.asarray(q, dtype=float)
 
         def arrived() -> bool:
-            return (self._joints is not None
-                    and bool(np.all(np.abs(self._joints.positions - target) <= tolerance)))
+            joints = self._parse_joints()
+            return joints is not None and bool(np.all(np.abs(joints.positions - target)
+                                                      <= tolerance))
         return self.wait_until(arrived, timeout, abort)
 
     def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,

@@ -92,15 +92,143 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+@command
+def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
+    """Start the graph (one process per node), wait until ready, supervise until Ctrl-C."""
+    import signal
+    import time
+
+    from flexarm_control.experiment import REPO, reserved_domain
+    from flexarm_control.supervisor import Graph
+
+    name = args.name or time.strftime('up-%Y%m%d-%H%M%S')
+    params: dict[str, dict[str, Any]] = {'flexarm_sim': {'real_time_factor': args.rtf}}
+    if args.record:
+        params['flexarm_recorder'] = {'bag_name': args.record}
+    signal.signal(signal.SIGTERM, _interrupt)
+    with reserved_domain(args.domain_id) as domain:
+        graph = Graph(domain, REPO / 'runs' / name, robot=args.robot, parameters=params,
+                      optional=('flexarm_recorder',) if args.record else ())
+        started, ready = time.monotonic(), None
+        print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain}; logs in '
+              f'{graph.run_dir}', flush=True)
+        try:
+            graph.start()
+            graph.wait_ready(args.timeout)
+            ready = time.monotonic() - started
+            print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
+                  'flexarm move 1450 -150 -45. Ctrl-C stops everything.', flush=True)
+            while True:
+                time.sleep(0.5)
+                graph.check()
+        except KeyboardInterrupt:
+            pass
+        finally:
+            codes = graph.stop()
+            print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
+    return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
+
+
+def _interrupt(signum: int, frame: Any) -> None:
+    """SIGTERM handler: shut down like Ctrl-C."""
+    raise KeyboardInterrupt
+
+
+def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
+    import time
+
+    from flexarm_control.experiment import (ExperimentSettings, reserved_domain,
+                                            run_experiment, table_text)
+
+    settings = ExperimentSettings(
+        name=args.name or time.strftime(f'{args.command}-%Y%m%d-%H%M%S'),
+        samples=args.samples, kind=args.kind, real_time_factor=args.rtf,
+        record=not args.no_record, seed=args.seed, **overrides)
+    with reserved_domain(args.domain_id) as domain:
+        summary = run_experiment(settings, domain, progress=not args.json)
+    print(table_text(summary))
+    print(f'results in {summary["results"]}' + (
+        f', bag in {summary["bag"]}' if summary['bag'] else '') +
+        f'; {summary["seconds"]:.0f} s in all')
+    out = {k: v for k, v in summary.items() if k != 'trials'}
+    out['ok'] = not summary['nodes_died']
+    return out
+
+
+@command
+def cmd_demo(args: argparse.Namespace) -> dict[str, Any]:
+    """Collect, train and run the paper's Table 10 targets in all three modes."""
+    return _experiment(args)
+
+
+@command
+def cmd_benchmark(args: argparse.Namespace) -> dict[str, Any]:
+    """Tables 9 and 10 plus held-out random targets, side by side with the paper."""
+    return _experiment(args, random_targets=args.random, table9=True)
+
+
+@command
+def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
+    """Collect N deflection samples with the learner."""
+    from tqdm import tqdm
+
+    client = _connect(args, learner=True)
+    bar = tqdm(total=args.count, unit='sample', disable=args.json)
+    try:
+        result = client.collect(args.count, region=args.region, strategy=args.strategy,
+                                seed=args.seed, dataset=args.dataset, timeout=args.timeout,
+                                feedback=lambda fb: bar.update(fb.k - bar.n))
+    finally:
+        bar.close()
+        _shutdown(client)
+    print(f'{result.collected} collected, {result.skipped} skipped; {result.total} samples in '
+          f'{result.dataset_path}' + (f' ({result.error_string})' if result.error_string else ''))
+    return {'ok': result.error_code == 0, 'error_code': result.error_code,
+            'error_string': result.error_string, 'collected': result.collected,
+            'skipped': result.skipped, 'total': result.total,
+            'dataset_path': result.dataset_path}
+
+
+@command
+def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
+    """Train a predictor (mlp, rbf, gp) on a dataset; prints the validation metrics."""
+    client = _connect(args, learner=True)
+    try:
+        settings = json.loads(args.settings) if args.settings else {}
+        response = client.train(args.kind, settings, dataset=args.dataset, timeout=args.timeout)
+    finally:
+        _shutdown(client)
+    m = response.metrics
+    if response.success:
+        print(f'model v{response.model_version} at {response.model_path}\n'
+              f'{m.validation}, {m.samples} samples: max |error| x {mm(m.max_error_x):.3f} mm, '
+              f'y {mm(m.max_error_y):.3f} mm, phi {deg(m.max_error_phi):.4f} deg; mean '
+              f'{mm(m.mean_error_x):.3f} mm, {mm(m.mean_error_y):.3f} mm, '
+              f'{deg(m.mean_error_phi):.4f} deg')
+    else:
+        print(response.message)
+    return {'ok': response.success, 'message': response.message,
+            'model_version': response.model_version, 'model_path': response.model_path,
+            'metrics': {k: getattr(m, k) for k in (
+                'validation', 'samples', 'max_error_x', 'max_error_y', 'max_error_phi',
+                'mean_error_x', 'mean_error_y', 'mean_error_phi')}}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='flexarm', description=__doc__.splitlines()[0])
-    parser.add_argument('--json', action='store_true',
-                        help='end the output with one line of JSON holding the result')
-    parser.add_argument('--domain-id', type=int, default=None,
-                        help='ROS_DOMAIN_ID of the graph (default: from the environment)')
-    parser.add_argument('--wait', type=float, default=30.0,
-                        help='seconds to wait for the graph to be ready')
+    # Global options, accepted before or after the subcommand.
+    common = argparse.ArgumentParser(add_help=False)
+    for p, default in ((parser, None), (common, argparse.SUPPRESS)):
+        p.add_argument('--json', action='store_true', default=default or False,
+                       help='end the output with one line of JSON holding the result')
+        p.add_argument('--domain-id', type=int, default=default,
+                       help='ROS_DOMAIN_ID of the graph (default: from the environment; '
+                            'up/demo/benchmark: a free one)')
+        p.add_argument('--wait', type=float, default=default or 30.0,
+                       help='seconds to wait for the graph to be ready')
     sub = parser.add_subparsers(dest='command', required=True)
+    add_parser = sub.add_parser
+    sub.add_parser = lambda *a, **k: add_parser(*a, parents=[common], **k)  # type: ignore
 
     move = sub.add_parser('move', help=cmd_move.__doc__)
     move.add_argument('x', type=float, help='[mm]')
@@ -115,6 +243,39 @@ def build_parser() -> argparse.ArgumentParser:
     move.add_argument('--max-iterations', type=int, default=0)
     move.add_argument('--trial', default='', help='trial name for logs and bags')
     move.add_argument('--timeout', type=float, default=300.0, help='[s]')
+
+    up = sub.add_parser('up', help=cmd_up.__doc__)
+    up.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
+    up.add_argument('--record', default='', metavar='NAME', help='record bags/NAME/NAME.mcap')
+    up.add_argument('--rtf', type=float, default=1.0, help='simulator real-time factor')
+    up.add_argument('--name', default='', help='run folder name under runs/')
+    up.add_argument('--timeout', type=float, default=60.0, help='[s] to become ready')
+
+    for name, func in (('demo', cmd_demo), ('benchmark', cmd_benchmark)):
+        p = sub.add_parser(name, help=func.__doc__)
+        p.add_argument('--samples', type=int, default=40, help='learning samples per region')
+        p.add_argument('--kind', default='mlp', help='predictor kind')
+        p.add_argument('--rtf', type=float, default=10.0, help='simulator real-time factor')
+        p.add_argument('--seed', type=int, default=1)
+        p.add_argument('--name', default='', help='results/NAME, bags/NAME, runs/NAME')
+        p.add_argument('--no-record', action='store_true', help='do not write a bag')
+        if name == 'benchmark':
+            p.add_argument('--random', type=int, default=50,
+                           help='held-out random targets per region A and B')
+
+    collect = sub.add_parser('collect', help=cmd_collect.__doc__)
+    collect.add_argument('count', type=int)
+    collect.add_argument('--region', default='', help='region preset (config/learner.yaml)')
+    collect.add_argument('--strategy', default='', help='sobol | halton | lhs | random')
+    collect.add_argument('--seed', type=int, default=0)
+    collect.add_argument('--dataset', default='', help='dataset name')
+    collect.add_argument('--timeout', type=float, default=3600.0, help='[s]')
+
+    train = sub.add_parser('train', help=cmd_train.__doc__)
+    train.add_argument('kind', nargs='?', default='mlp', help='mlp | rbf | gp')
+    train.add_argument('--settings', default='', help='JSON object, e.g. \'{"hidden": [10]}\'')
+    train.add_argument('--dataset', default='', help='dataset name')
+    train.add_argument('--timeout', type=float, default=300.0, help='[s]')
     return parser
 
 

@@ -21,11 +21,12 @@ from rclpy.action import ActionClient
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
 
 from flexarm_control import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
-from flexarm_msgs.msg import PlanarPose
+from flexarm_msgs.msg import ModelInfo, PlanarPose
 from flexarm_msgs.srv import Train
 
 MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
@@ -48,6 +49,10 @@ class FlexarmClient(Node):
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self)
         self._goal_handle: Any = None
+        self.active_model: ModelInfo | None = None
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self.create_subscription(ModelInfo, topics.ACTIVE_MODEL,
+                                 lambda msg: setattr(self, 'active_model', msg), latched)
 
     def wait_until_ready(self, timeout: float = 30.0, learner: bool = True) -> None:
         """Wait until the compensator (and the learner) servers are discovered."""
@@ -93,6 +98,21 @@ class FlexarmClient(Node):
                                 dataset=dataset)
         return self._spin_until(self._train.call_async(request), timeout, 'training')
 
+    def wait_for_model(self, version: str, timeout: float = 30.0) -> ModelInfo:
+        """Wait until the compensator uses the model ``version`` (after :meth:`train`)."""
+        deadline = time.monotonic() + timeout
+        while self.active_model is None or self.active_model.version != version:
+            if time.monotonic() > deadline:
+                have = self.active_model.version if self.active_model else 'none'
+                raise TimeoutError(f'compensator still uses model {have}, not {version}, '
+                                   f'after {timeout:.0f} s')
+            self.spin_once(0.05)
+        return self.active_model
+
+    def spin_once(self, timeout: float) -> None:
+        """Process this client's pending callbacks for up to ``timeout`` seconds."""
+        self._executor.spin_once(timeout_sec=timeout)
+
     def cancel(self, timeout: float = 10.0) -> None:
         """Cancel the goal in progress (if any) and wait for the server to acknowledge."""
         if self._goal_handle is not None:
@@ -113,7 +133,8 @@ class FlexarmClient(Node):
         handle = self._spin_until(client.send_goal_async(goal, feedback_callback=callback),
                                   deadline - time.monotonic(), 'goal acceptance')
         if not handle.accepted:
-            raise GoalRejected(f'{client._action_name} rejected the goal')
+            raise GoalRejected(f'{client._action_name} rejected the goal: the server runs one '
+                               'goal at a time and is busy')
         self._goal_handle = handle
         try:
             return self._spin_until(handle.get_result_async(), deadline - time.monotonic(),

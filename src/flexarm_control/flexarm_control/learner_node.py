@@ -2,7 +2,7 @@
 (``/train``), seed section 2-1 steps 2-3.
 
 Collection moves the arm through the controller's command topic to space-filling poses of a
-region (:mod:`flexarm_control.sampling`), waits until the joints arrive and the tip is settled,
+region (:mod:`flexarm_control.sampling`), visited in a short-travel order, waits until the joints arrive and the tip is settled,
 averages a few valid ``/tip_pose`` frames and appends the sample to the dataset — on disk,
 fsync'ed — before the next move; the sample is also published on ``/learner/samples`` for bags.
 A failed measurement is retried, then the pose is skipped and counted, never stored. Cancel
@@ -37,7 +37,8 @@ from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.params import CONFIG_DIR
 from flexarm_control.predictors import KINDS
 from flexarm_control.predictors.base import atomic_write
-from flexarm_control.sampling import STRATEGIES, regions_from_dict, sample_poses
+from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
+                                      travel_order)
 from flexarm_control.training import Metrics, train
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
@@ -159,10 +160,11 @@ class LearnerNode(Node):
         region = self._regions[goal.region or self._default_region]
         _, plan = sample_poses(self._geometry, region, goal.count,
                                goal.strategy or self._default_strategy, goal.seed)
+        plan = plan[travel_order(plan, self._arm.joints.positions, self._geometry.velocity)]
         self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
                                f' into {path}')
+        result.total = len(load_dataset(path)) if path.exists() else 0
         with DatasetWriter(path) as writer:
-            result.total = writer.count
             for k, joints in enumerate(plan, start=1):
                 sample = self._sample_at(joints, handle)
                 if handle.is_cancel_requested:
@@ -174,7 +176,7 @@ class LearnerNode(Node):
                 else:
                     writer.append(sample)          # on disk before the next move
                     result.collected += 1
-                    result.total = writer.count
+                    result.total += 1
                 msg = self._sample_msg(sample) if sample is not None else DeflectionSample()
                 if sample is not None:
                     self._sample_pub.publish(msg)
@@ -239,7 +241,7 @@ class LearnerNode(Node):
                 f'{request.dataset or self._default_dataset}-{kind}-v{version}.model')
             self._model_dir.mkdir(parents=True, exist_ok=True)
             predictor.save(model_path)
-        except (ValueError, OSError, json.JSONDecodeError) as exc:
+        except (ValueError, RuntimeError, OSError) as exc:
             response.success, response.message = False, f'training failed: {exc}'
             self.get_logger().error(response.message + '; the previous model stays active')
             return response

@@ -112,9 +112,10 @@ class SimNode(Node):
             header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
             position=state.joint_positions.tolist(), velocity=state.joint_velocities.tolist()))
         x, y, phi = state.tip_pose
-        self._truth_pub.publish(TipPose(
-            header=self._header(now, BASE_FRAME), pose=PlanarPose(x=x, y=y, phi=phi),
-            valid=True, settled=not state.is_moving, holes_used=0, residual=0.0))
+        if self._truth_pub.get_subscription_count():
+            self._truth_pub.publish(TipPose(
+                header=self._header(now, BASE_FRAME), pose=PlanarPose(x=x, y=y, phi=phi),
+                valid=True, settled=not state.is_moving, holes_used=0, residual=0.0))
         if self._tick % self._camera_every == 0 and self._image_pub.get_subscription_count():
             self._publish_image(now, state)
 

@@ -113,6 +113,14 @@ class CameraModel:
                 xn, yn = xd / factor, yd / factor
         return np.column_stack([xn * self.standoff, -yn * self.standoff])
 
+    def magnification(self, metric: np.ndarray) -> np.ndarray:
+        """Area-equivalent local lens magnification at camera metric points (N, 2) (1 = none)."""
+        k1, k2 = self.intrinsics.k1, self.intrinsics.k2
+        r2 = np.sum(metric * metric, axis=1) / self.standoff ** 2
+        tangential = self._radial(r2)
+        radial = tangential + 2.0 * r2 * (k1 + 2.0 * k2 * r2)
+        return np.sqrt(tangential * radial)
+
     def plate_to_pixels(self, points: np.ndarray, pose: Sequence[float]) -> np.ndarray:
         """Plate points (N, 2) [m] -> pixels (N, 2) for tip pose (x, y, phi)."""
         q = (np.asarray(points, dtype=float) - self.optical_centre(pose)) @ rotation(pose[2])

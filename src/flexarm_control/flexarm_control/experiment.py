@@ -1,0 +1,269 @@
+"""``flexarm demo`` / ``flexarm benchmark``: the paper's experiment on the simulated arm.
+
+Brings the graph up in a private ROS domain (one run folder with every node's log, one bag),
+then per working region: collects learning samples (dataset = the region's name), trains the
+predictor, waits until the compensator has hot-reloaded it, and runs that region's targets in
+RIGID, PREDICTIVE and CLOSED_LOOP modes, judged against the simulator's ground truth.
+
+Decision: one predictor per working region, as the paper's benchmark uses two separate
+working spaces (A, B) — 40 samples over both at once fit 3-5x worse (measured with
+``flexarm study``). The compensator holds one model at a time, so the regions run in turn.
+"""
+from __future__ import annotations
+
+import contextlib
+import csv
+import json
+import math
+import threading
+import time
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+
+from flexarm_control.paper import TABLE_9, TABLE_10
+from flexarm_control.params import CONFIG_DIR, load_config
+from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.supervisor import Graph
+from flexarm_control.trials import MODES, Trial, TruthMonitor, run_trials, summarise
+
+REPO = CONFIG_DIR.parent
+
+
+@dataclass
+class ExperimentSettings:
+    name: str
+    samples: int = 40                 # learning samples per region
+    kind: str = 'mlp'
+    random_targets: int = 0           # held-out random targets per region (A and B)
+    table9: bool = False              # also the Table 9 targets (region 'paper')
+    real_time_factor: float = 10.0
+    record: bool = True               # write bags/<name>/<name>.mcap
+    seed: int = 1
+    modes: tuple[str, ...] = MODES
+    ready_timeout: float = 120.0
+    extra_parameters: dict = field(default_factory=dict)
+
+
+@contextlib.contextmanager
+def reserved_domain(domain_id: int | None) -> Iterator[int]:
+    """The given ROS domain, or a free one reserved for this process."""
+    if domain_id is not None:
+        yield domain_id
+        return
+    from domain_coordinator import domain_id as reserve
+
+    with reserve() as did:
+        yield did
+
+
+def _targets(settings: ExperimentSettings, region: str, geometry: ArmGeometry,
+             regions: dict) -> list[tuple[str, str, str, np.ndarray]]:
+    chosen = [(t.name, 'table10', region, t.pose) for t in TABLE_10 if t.region == region]
+    if region == 'paper':
+        chosen += [(name, 'table9', region, np.array([x / 1e3, y / 1e3, math.radians(phi)]))
+                   for name, (x, y, phi), _, _ in TABLE_9]
+    elif settings.random_targets:
+        poses, _ = sample_poses(geometry, regions[region], settings.random_targets,
+                                strategy='random', seed=10_000 + settings.seed)
+        chosen += [(f'{region}r{i:03d}', 'random', region, p) for i, p in enumerate(poses)]
+    return chosen
+
+
+def run_experiment(settings: ExperimentSettings, domain_id: int,
+                   say: Callable[[str], None] = print, progress: bool = True) -> dict:
+    """Run it; returns the summary and writes results/<name>/ (JSON, CSV, PNG)."""
+    from tqdm import tqdm
+
+    run_dir = REPO / 'runs' / settings.name
+    out_dir = REPO / 'results' / settings.name
+    config = load_config('arm.yaml')
+    geometry = ArmGeometry.from_dict(config['arm'])
+    regions = regions_from_dict(load_config('learner.yaml', node_name='flexarm_learner')[
+        'regions'])
+    parameters = {
+        'flexarm_sim': {'real_time_factor': settings.real_time_factor},
+        'flexarm_learner': {'data_directory': str(run_dir / 'data'),
+                            'model_directory': str(run_dir / 'models')},
+        'flexarm_recorder': {'bag_name': settings.name},
+        **settings.extra_parameters}
+    optional = ('flexarm_recorder',) if settings.record else ()
+    region_names = ['A', 'B'] + (['paper'] if settings.table9 else [])
+    trials: list[Trial] = []
+    learning: dict[str, dict] = {}
+    started = time.monotonic()
+    graph = Graph(domain_id, run_dir, parameters=parameters, optional=optional, report=say)
+    say(f'starting the graph in ROS domain {domain_id}; logs in {run_dir}')
+    watchdog = _Watchdog(graph)
+    with graph, _client(domain_id) as client, contextlib.closing(watchdog):
+        graph.wait_ready(settings.ready_timeout)
+        watchdog.start()
+        say(f'graph ready after {time.monotonic() - started:.1f} s')
+        client.wait_until_ready(timeout=30.0)
+        truth = TruthMonitor(client)
+        for region in region_names:
+            bar = tqdm(total=settings.samples, desc=f'collect {region}', unit='sample',
+                       disable=not progress)
+            collected = client.collect(
+                settings.samples, region=region, dataset=region, seed=settings.seed,
+                feedback=lambda fb: (bar.update(fb.k - bar.n), bar.set_postfix(
+                    skipped=fb.skipped)))
+            bar.close()
+            if collected.error_code != 0:
+                raise RuntimeError(f'collection in {region} failed: {collected.error_string}')
+            trained = client.train(settings.kind, dataset=region)
+            if not trained.success:
+                raise RuntimeError(f'training on {region} failed: {trained.message}')
+            client.wait_for_model(trained.model_version)
+            m = trained.metrics
+            learning[region] = {
+                'samples': collected.total, 'skipped': collected.skipped,
+                'model_version': trained.model_version, 'validation': m.validation,
+                'max_error_x_mm': m.max_error_x * 1e3, 'max_error_y_mm': m.max_error_y * 1e3,
+                'max_error_phi_deg': math.degrees(m.max_error_phi)}
+            say(f'region {region}: {collected.total} samples, model v{trained.model_version}: '
+                f'{m.validation} max |error| {m.max_error_x * 1e3:.3f} mm (x), '
+                f'{m.max_error_y * 1e3:.3f} mm (y), {math.degrees(m.max_error_phi):.4f} deg')
+            targets = _targets(settings, region, geometry, regions)
+            bar = tqdm(total=len(targets) * len(settings.modes), desc=f'targets {region}',
+                       unit='goal', disable=not progress)
+            trials += run_trials(client, truth, targets, settings.modes, settings.name,
+                                 on_trial=lambda t: bar.update(1))
+            bar.close()
+    summary = {'name': settings.name, 'seconds': time.monotonic() - started,
+               'learning': learning, 'summary': summarise(trials),
+               'trials': [t.as_dict() for t in trials],
+               'bag': str(REPO / 'bags' / settings.name) if settings.record else None,
+               'nodes_died': watchdog.dead}
+    write_results(summary, trials, out_dir)
+    summary['results'] = str(out_dir)
+    return summary
+
+
+class _Watchdog:
+    """Checks the graph's processes once a second while the experiment runs."""
+
+    def __init__(self, graph: Graph) -> None:
+        self.dead: list[str] = []
+        self._stop = threading.Event()
+        self._graph = graph
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        while not self._stop.wait(1.0):
+            self.dead += self._graph.check()
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def close(self) -> None:
+        self._stop.set()
+        if self._thread.is_alive():
+            self._thread.join(timeout=5.0)
+
+
+@contextlib.contextmanager
+def _client(domain_id: int):
+    import rclpy
+    from rclpy.context import Context
+
+    from flexarm_control.client import FlexarmClient
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    client = FlexarmClient('flexarm_experiment', context=context)
+    try:
+        yield client
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def table_text(summary: dict) -> str:
+    """Markdown tables: Table 10 (and 9) per target next to the paper, then summaries."""
+    by_key = {(t['name'], t['mode']): t for t in summary['trials']}
+    lines = ['| target | paper rigid | ours rigid | paper NN | ours predictive | ours closed loop |',
+             '|---|---|---|---|---|---|']
+
+    def ours(name: str, mode: str) -> str:
+        t = by_key.get((name, mode))
+        if t is None:
+            return '-'
+        flag = '' if t['error_code'] == 0 else f' (code {t["error_code"]})'
+        return f'{t["position_error"] * 1e3:.3f} mm / {math.degrees(t["angle_error"]):.4f}°{flag}'
+
+    def paper(errors: tuple[float, float | None] | None) -> str:
+        if errors is None:
+            return '-'
+        pos, ang = errors
+        return f'{pos:.2f} mm / ' + ('-' if ang is None else f'{ang:.4g}°')
+
+    for t in TABLE_10:
+        if (t.name, 'rigid') in by_key:
+            lines.append(f'| {t.name} {t.target} | {paper(t.rigid_errors)} | '
+                         f'{ours(t.name, "rigid")} | {paper(t.compensated_errors)} | '
+                         f'{ours(t.name, "predictive")} | {ours(t.name, "closed_loop")} |')
+    for name, target, rigid, nn40 in TABLE_9:
+        if (name, 'rigid') in by_key:
+            lines.append(f'| {name} {target} (Table 9) | {paper(rigid)} | {ours(name, "rigid")}'
+                         f' | {paper(nn40)} | {ours(name, "predictive")} | '
+                         f'{ours(name, "closed_loop")} |')
+    lines += ['', '| group | mode | goals | succeeded | max mm | mean mm | max deg | mean deg |',
+              '|---|---|---|---|---|---|---|---|']
+    for group, modes in summary['summary'].items():
+        for mode, s in modes.items():
+            lines.append(f'| {group} | {mode} | {s["count"]} | {s["succeeded"]} | '
+                         f'{s["max_mm"]:.3f} | {s["mean_mm"]:.3f} | {s["max_deg"]:.4f} | '
+                         f'{s["mean_deg"]:.4f} |')
+    return '\n'.join(lines)
+
+
+def write_results(summary: dict, trials: list[Trial], out_dir: Path) -> None:
+    """summary.json, trials.csv, table.md and errors.png in ``out_dir`` (atomic renames)."""
+    import matplotlib
+    matplotlib.use('Agg')
+    import matplotlib.pyplot as plt
+
+    from flexarm_control.predictors.base import atomic_write
+
+    out_dir.mkdir(parents=True, exist_ok=True)
+    atomic_write(out_dir / 'summary.json', lambda f: f.write(
+        json.dumps(summary, indent=1).encode()))
+    atomic_write(out_dir / 'table.md', lambda f: f.write(table_text(summary).encode()))
+    rows = [t.as_dict() for t in trials]
+
+    def write_csv(f) -> None:
+        import io
+        text = io.StringIO()
+        writer = csv.DictWriter(text, fieldnames=list(rows[0]) if rows else ['name'])
+        writer.writeheader()
+        writer.writerows(rows)
+        f.write(text.getvalue().encode())
+    atomic_write(out_dir / 'trials.csv', write_csv)
+
+    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
+    named = [t for t in trials if t.group != 'random']
+    names = sorted({t.name for t in named}, key=lambda n: (n[0], n))
+    width = 0.8 / len(MODES)
+    for i, mode in enumerate(MODES):
+        by_name = {t.name: t for t in named if t.mode == mode}
+        xs = [j + i * width for j, n in enumerate(names) if n in by_name]
+        axes[0].bar(xs, [by_name[n].position_error * 1e3 for n in names if n in by_name],
+                    width, label=mode)
+        axes[1].bar(xs, [math.degrees(by_name[n].angle_error) for n in names if n in by_name],
+                    width, label=mode)
+    for ax, unit in zip(axes, ('position error [mm]', 'angle error [deg]')):
+        ax.set_yscale('log')
+        ax.set_xticks([j + width for j in range(len(names))], names)
+        ax.set_ylabel(unit)
+        ax.grid(True, which='both', axis='y', alpha=0.3)
+    axes[0].legend()
+    fig.suptitle(f'{summary["name"]}: tip error against ground truth')
+    fig.tight_layout()
+    tmp = out_dir / '.errors.png.tmp'
+    fig.savefig(tmp, dpi=110)
+    plt.close(fig)
+    tmp.replace(out_dir / 'errors.png')

@@ -1,0 +1,39 @@
+"""Deflection predictors Δ(θ) → (dx, dy, dφ) behind one interface (:class:`Predictor`).
+
+``make_predictor(kind, settings)`` builds an unfitted one of ``KINDS``;
+``load_predictor(path)`` reads any saved model (format: :mod:`.base`).
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+from flexarm_control.predictors.base import FORMAT_VERSION, Predictor, read_model, restore
+from flexarm_control.predictors.gp import GpPredictor
+from flexarm_control.predictors.mlp import MlpPredictor
+from flexarm_control.predictors.rbf import RbfPredictor
+
+_CLASSES: dict[str, type[Predictor]] = {
+    cls.kind: cls for cls in (MlpPredictor, RbfPredictor, GpPredictor)}
+KINDS = tuple(_CLASSES)
+
+__all__ = ['FORMAT_VERSION', 'KINDS', 'GpPredictor', 'MlpPredictor', 'Predictor',
+           'RbfPredictor', 'load_predictor', 'make_predictor']
+
+
+def _class_of(kind: str) -> type[Predictor]:
+    if kind not in _CLASSES:
+        raise ValueError(f'unknown predictor kind {kind!r}; known kinds: {", ".join(KINDS)}')
+    return _CLASSES[kind]
+
+
+def make_predictor(kind: str, settings: Mapping[str, Any] | None = None) -> Predictor:
+    """An unfitted predictor of ``kind``; ValueError for an unknown kind or bad settings."""
+    return _class_of(kind)(settings)
+
+
+def load_predictor(path: str | Path) -> Predictor:
+    """The fitted predictor saved at ``path`` by :meth:`Predictor.save`."""
+    metadata, state = read_model(path)
+    return restore(_class_of(metadata['kind']), metadata, state)

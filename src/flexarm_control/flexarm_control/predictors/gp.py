@@ -1,0 +1,78 @@
+"""Gaussian-process predictor (scikit-learn), one GP per output, with predictive std.
+
+Kernel: constant × RBF with one length scale per input (ARD) + white noise, on normalised
+inputs and outputs; hyperparameters by maximum marginal likelihood with ``restarts`` random
+restarts (seeded). The model file stores the normalised training set and the fitted
+hyperparameters (log-θ per output); the GPs are rebuilt on load without re-optimising.
+"""
+from __future__ import annotations
+
+import warnings
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+from sklearn.exceptions import ConvergenceWarning
+from sklearn.gaussian_process import GaussianProcessRegressor
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, WhiteKernel
+
+from flexarm_control.predictors.base import OUTPUTS, Predictor
+
+
+class GpPredictor(Predictor):
+    """Independent GP regression of dx, dy, dφ; :meth:`predict_std` gives their std."""
+
+    kind: ClassVar[str] = 'gp'
+    defaults: ClassVar[dict[str, Any]] = {
+        'length_scale_bounds': [1e-2, 1e3], 'noise_level': 1e-4, 'noise_bounds': [1e-6, 1e-1],
+        'restarts': 0, 'seed': 0, 'payload_input': False}
+
+    def _check_settings(self) -> None:
+        s = self.settings
+        for name in ('length_scale_bounds', 'noise_bounds'):
+            low_high = s[name]
+            if len(low_high) != 2 or not 0 < low_high[0] < low_high[1]:
+                raise ValueError(f'gp {name!r} must be [low, high] with 0 < low < high, '
+                                 f'got {low_high}')
+        if not s['noise_bounds'][0] <= s['noise_level'] <= s['noise_bounds'][1]:
+            raise ValueError("gp 'noise_level' must lie within 'noise_bounds'")
+        if s['restarts'] < 0:
+            raise ValueError("gp 'restarts' must be >= 0")
+
+    def _kernel(self, inputs: int) -> Kernel:
+        s = self.settings
+        return (ConstantKernel(1.0, (1e-3, 1e3))
+                * RBF(np.ones(inputs), tuple(s['length_scale_bounds']))
+                + WhiteKernel(s['noise_level'], tuple(s['noise_bounds'])))
+
+    def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
+        with warnings.catch_warnings():
+            warnings.simplefilter('ignore', ConvergenceWarning)   # hyperparameter at a bound
+            self._gps = [GaussianProcessRegressor(
+                self._kernel(x.shape[1]), n_restarts_optimizer=self.settings['restarts'],
+                random_state=self.settings['seed'] + k).fit(x, y[:, k]) for k in range(OUTPUTS)]
+        self._x, self._y = x, y
+
+    def _predict_normalised(self, x: np.ndarray) -> np.ndarray:
+        return np.column_stack([gp.predict(x) for gp in self._gps])
+
+    def predict_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                    ) -> np.ndarray:
+        """Predictive standard deviation [m, m, rad], shaped like :meth:`predict`."""
+        x, single = self._inputs(joints, payload)
+        normalisation = self._require_fitted()
+        z = normalisation.inputs(x)
+        std = np.column_stack([gp.predict(z, return_std=True)[1] for gp in self._gps])
+        std = std * normalisation.output_std
+        return std[0] if single else std
+
+    def _state(self) -> dict[str, np.ndarray]:
+        return {'x': self._x, 'y': self._y,
+                'theta': np.stack([gp.kernel_.theta for gp in self._gps])}
+
+    def _restore(self, state: Mapping[str, np.ndarray]) -> None:
+        self._x = np.asarray(state['x'], dtype=float)
+        self._y = np.asarray(state['y'], dtype=float)
+        kernel = self._kernel(self._x.shape[1])
+        self._gps = [GaussianProcessRegressor(kernel.clone_with_theta(theta), optimizer=None)
+                     .fit(self._x, self._y[:, k]) for k, theta in enumerate(state['theta'])]

@@ -1,0 +1,175 @@
+"""Deflection predictors: accuracy on a known function, determinism, persistence, errors."""
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flexarm_control.predictors import KINDS, Predictor, load_predictor, make_predictor
+from flexarm_control.predictors import base
+
+LOWER = np.array([-0.5, 0.3, -1.5, -1.0])
+UPPER = np.array([0.5, 0.8, 0.5, 1.0])
+
+
+def sag(joints: np.ndarray, payload: np.ndarray | float = 0.0) -> np.ndarray:
+    """A smooth sag-like deflection (dx, dy [m] up to ~20 mm, dφ [rad] up to ~1.5°)."""
+    t1, t2, t3, t4 = np.asarray(joints).T
+    a3, a4 = t1 + t3, t1 + t3 + t4
+    s = t2 / 0.6 * (1.0 + 0.5 * np.asarray(payload))
+    return np.column_stack([
+        0.006 * np.sin(t1) * np.cos(a3) * s,
+        -0.012 * (0.5 + 0.5 * np.cos(t1) ** 2) * s ** 2 - 0.003 * np.cos(a4),
+        -0.02 * np.cos(a3) * s - 0.01 * np.sin(a4)])
+
+
+def random_joints(n: int, seed: int) -> np.ndarray:
+    return LOWER + (UPPER - LOWER) * np.random.default_rng(seed).random((n, 4))
+
+
+@pytest.fixture(scope='module')
+def fitted() -> dict[str, Predictor]:
+    joints = random_joints(60, seed=1)
+    return {kind: make_predictor(kind).fit(joints, sag(joints)) for kind in KINDS}
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_learns_a_smooth_function(fitted: dict[str, Predictor], kind: str) -> None:
+    joints = random_joints(300, seed=2)
+    truth = sag(joints)
+    errors = np.abs(fitted[kind].predict(joints) - truth)
+    spread = truth.max(axis=0) - truth.min(axis=0)
+    assert np.all(errors.mean(axis=0) < 0.03 * spread), errors.mean(axis=0) / spread
+    assert np.all(errors.max(axis=0) < 0.3 * spread), errors.max(axis=0) / spread
+    np.testing.assert_allclose(fitted[kind].predict(joints[7]), fitted[kind].predict(joints)[7],
+                               rtol=0, atol=1e-12)
+    assert fitted[kind].predict(joints[7]).shape == (3,)
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_deterministic_for_a_seed(fitted: dict[str, Predictor], kind: str) -> None:
+    joints = random_joints(60, seed=1)
+    again = make_predictor(kind).fit(joints, sag(joints))
+    query = random_joints(20, seed=3)
+    np.testing.assert_array_equal(again.predict(query), fitted[kind].predict(query))
+
+
+def test_mlp_seed_changes_the_initialisation() -> None:
+    joints = random_joints(30, seed=1)
+    settings = {'restarts': 1, 'max_iterations': 20}
+    a = make_predictor('mlp', {**settings, 'seed': 1}).fit(joints, sag(joints))
+    b = make_predictor('mlp', {**settings, 'seed': 2}).fit(joints, sag(joints))
+    assert not np.array_equal(a.predict(joints), b.predict(joints))
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_save_load_round_trip(fitted: dict[str, Predictor], kind: str, tmp_path: Path) -> None:
+    path = tmp_path / 'models' / f'{kind}.npz'
+    fitted[kind].save(path)
+    loaded = load_predictor(path)
+    assert type(loaded) is type(fitted[kind])
+    assert loaded.metadata == fitted[kind].metadata
+    assert loaded.metadata['kind'] == kind and loaded.metadata['samples'] == 60
+    query = random_joints(50, seed=4)
+    np.testing.assert_allclose(loaded.predict(query), fitted[kind].predict(query),
+                               rtol=0, atol=1e-12)
+    assert os.listdir(path.parent) == [path.name]
+
+
+def test_failed_save_keeps_the_old_file(fitted: dict[str, Predictor], tmp_path: Path,
+                                        monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / 'model.npz'
+    fitted['rbf'].save(path)
+    before = path.read_bytes()
+
+    def disk_full(file, **arrays) -> None:  # noqa: ANN001
+        file.write(b'PK\x03\x04 half an archive')
+        raise OSError('No space left on device')
+
+    monkeypatch.setattr(base.np, 'savez', disk_full)
+    with pytest.raises(OSError, match='No space'):
+        fitted['mlp'].save(path)
+    assert path.read_bytes() == before
+    assert os.listdir(tmp_path) == ['model.npz']
+    assert load_predictor(path).kind == 'rbf'
+
+
+def test_gp_predictive_std(fitted: dict[str, Predictor]) -> None:
+    gp = fitted['gp']
+    train = random_joints(60, seed=1)
+    far = train + np.array([2.0, 0.5, 2.0, 2.0])
+    near_std, far_std = gp.predict_std(train), gp.predict_std(far)
+    assert near_std.shape == far_std.shape == (60, 3)
+    assert np.all(near_std > 0) and np.all(far_std.mean(axis=0) > 10 * near_std.mean(axis=0))
+    assert gp.predict_std(train[0]).shape == (3,)
+
+
+def test_payload_as_input() -> None:
+    joints = random_joints(80, seed=5)
+    payload = np.random.default_rng(6).uniform(0.0, 2.0, 80)
+    model = make_predictor('rbf', {'payload_input': True}).fit(
+        joints, sag(joints, payload), payload)
+    query = random_joints(100, seed=7)
+    light, heavy = model.predict(query, 0.2), model.predict(query, np.full(100, 1.8))
+    errors = np.abs(heavy - sag(query, 1.8))
+    assert errors[:, 1].mean() < 0.1 * np.abs(heavy[:, 1] - light[:, 1]).mean()
+    with pytest.raises(ValueError, match='payload'):
+        model.predict(query)
+    with pytest.raises(ValueError, match='payload'):
+        model.predict(query, np.ones(3))
+
+
+def test_constant_input_is_dropped() -> None:
+    joints = random_joints(40, seed=8)
+    joints[:, 1] = 0.6   # the paper's simulation keeps the No.2 arm at 600 mm
+    for kind in KINDS:
+        model = make_predictor(kind).fit(joints, sag(joints))
+        assert model.metadata['normalisation']['active_inputs'] == [True, False, True, True]
+        assert np.all(np.isfinite(model.predict(random_joints(5, seed=9))))
+
+
+def test_unknown_kind_lists_the_kinds() -> None:
+    with pytest.raises(ValueError, match='mlp, rbf, gp'):
+        make_predictor('svm')
+
+
+@pytest.mark.parametrize('kind, settings, match', [
+    ('mlp', {'hidden': [0]}, 'hidden'),
+    ('mlp', {'hidden': 10}, 'must be a list'),
+    ('mlp', {'activation': 'step'}, 'activation'),
+    ('mlp', {'restarts': 1.5}, 'restarts'),
+    ('mlp', {'payload_input': 1}, 'payload_input'),
+    ('mlp', {'learning_rate': 0.1}, 'unknown mlp settings'),
+    ('rbf', {'kernel': 'bessel'}, 'kernel'),
+    ('rbf', {'kernel': 'quintic', 'degree': 1}, 'degree'),
+    ('rbf', {'smoothing': -1}, 'smoothing'),
+    ('gp', {'noise_bounds': [1e-2, 1e-3]}, 'noise_bounds'),
+    ('gp', {'noise_level': 1.0}, 'noise_level'),
+])
+def test_bad_settings(kind: str, settings: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        make_predictor(kind, settings)
+
+
+def test_settings_accept_json_numbers() -> None:
+    model = make_predictor('mlp', {'weight_decay': 0, 'hidden': (5, 5)})
+    assert model.settings['weight_decay'] == 0.0 and model.settings['hidden'] == [5, 5]
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_bad_data(kind: str) -> None:
+    joints = random_joints(20, seed=10)
+    deflections = sag(joints)
+    model = make_predictor(kind)
+    with pytest.raises(RuntimeError, match='not fitted'):
+        model.predict(joints)
+    with pytest.raises(ValueError, match='joints must have shape'):
+        model.fit(joints[:, :3], deflections)
+    with pytest.raises(ValueError, match='deflections must have shape'):
+        model.fit(joints, deflections[:-1])
+    deflections[4, 1] = np.nan
+    with pytest.raises(ValueError, match='NaN'):
+        model.fit(joints, deflections)
+    assert not model.fitted

@@ -1,0 +1,265 @@
+"""MCAP bags: the pure writer and tools, and the recorder node as its own process.
+
+Bags are read back with the independent ``mcap`` readers and ``mcap_ros2`` decoder.
+"""
+from __future__ import annotations
+
+import csv
+import shutil
+import signal
+from pathlib import Path
+from typing import Any
+
+import pytest
+import yaml
+from builtin_interfaces.msg import Time
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
+from mcap.exceptions import EndOfFile
+from mcap.reader import make_reader
+from mcap.records import Message
+from mcap.stream_reader import StreamReader
+from mcap_ros2.decoder import DecoderFactory
+from rclpy.serialization import serialize_message
+from sensor_msgs.msg import JointState
+
+from flexarm_control import topics
+from flexarm_control.bag_tools import bag_info, export_trials, read_messages
+from flexarm_control.bag_writer import BagWriter
+
+QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
+       'durability': 'transient_local', 'deadline': {'sec': 0, 'nsec': 0},
+       'lifespan': {'sec': 0, 'nsec': 0}, 'liveliness': 'automatic',
+       'liveliness_lease_duration': {'sec': 0, 'nsec': 0},
+       'avoid_ros_namespace_conventions': False}
+T0 = 1_700_000_000_000_000_000
+
+
+def _stamp(ns: int) -> Time:
+    return Time(sec=ns // 10**9, nanosec=ns % 10**9)
+
+
+def _joint_state(i: int) -> bytes:
+    return serialize_message(JointState(name=['joint1'], position=[0.001 * i]))
+
+
+def _decoded(path: Path) -> list[tuple[str, str, Any]]:
+    """(topic, schema name, decoded message) of a closed bag, in log time order."""
+    with open(path, 'rb') as f:
+        reader = make_reader(f, decoder_factories=[DecoderFactory()])
+        return [(c.topic, s.name, m) for s, c, _, m in reader.iter_decoded_messages()]
+
+
+def _stream_messages(path: Path) -> list[Message]:
+    """Messages of a possibly truncated file, read with mcap's StreamReader until it ends."""
+    messages = []
+    with open(path, 'rb') as f:
+        try:
+            for record in StreamReader(f).records:
+                if isinstance(record, Message):
+                    messages.append(record)
+        except EndOfFile:
+            pass
+    return messages
+
+
+def test_written_bag_reads_back_as_rosbag2_mcap(tmp_path: Path) -> None:
+    bag = tmp_path / 'trial'
+    with BagWriter(bag) as writer:
+        writer.add_topic(topics.JOINT_STATES, 'sensor_msgs/msg/JointState', [QOS, QOS])
+        writer.add_topic(topics.MODEL, 'flexarm_msgs/msg/ModelInfo', [QOS], type_hash='RIHS01_x')
+        writer.add_topic(topics.TIP_POSE, 'flexarm_msgs/msg/TipPose')
+        for i in range(25):
+            writer.write(topics.JOINT_STATES, _joint_state(i), T0 + i * 10**6)
+        writer.write(topics.MODEL, serialize_message(ModelInfo(version='7', kind='mlp')),
+                     T0 + 5 * 10**6, publish_time_ns=T0)
+
+    path = bag / 'trial.mcap'
+    decoded = _decoded(path)
+    assert [t for t, _, _ in decoded].count(topics.JOINT_STATES) == 25
+    assert [m.position[0] for t, _, m in decoded if t == topics.JOINT_STATES] == \
+        pytest.approx([0.001 * i for i in range(25)])
+    [(_, model_type, model)] = [d for d in decoded if d[0] == topics.MODEL]
+    assert (model_type, model.version, model.kind) == ('flexarm_msgs/msg/ModelInfo', '7', 'mlp')
+
+    with open(path, 'rb') as f:
+        reader = make_reader(f)
+        assert reader.get_header().profile == 'ros2'
+        summary = reader.get_summary()
+        channels = {c.topic: c for c in summary.channels.values()}
+        assert {c.message_encoding for c in channels.values()} == {'cdr'}
+        assert {s.encoding for s in summary.schemas.values()} == {'ros2msg'}
+        assert yaml.safe_load(channels[topics.JOINT_STATES].metadata['offered_qos_profiles']) \
+            == [QOS, QOS]
+        assert channels[topics.MODEL].metadata['topic_type_hash'] == 'RIHS01_x'
+        assert channels[topics.TIP_POSE].metadata == {'offered_qos_profiles': ''}
+        [record] = [m for m in reader.iter_metadata() if m.name == 'rosbag2']
+    embedded = yaml.safe_load(record.metadata['serialized_metadata'])
+    on_disk = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert embedded == on_disk
+    assert (on_disk['version'], on_disk['storage_identifier']) == (9, 'mcap')
+    assert on_disk['relative_file_paths'] == ['trial.mcap']
+    assert on_disk['message_count'] == 26
+    assert on_disk['starting_time']['nanoseconds_since_epoch'] == T0
+    assert on_disk['duration']['nanoseconds'] == 24 * 10**6
+    assert {t['topic_metadata']['name']: t['message_count']
+            for t in on_disk['topics_with_message_count']} == \
+        {topics.JOINT_STATES: 25, topics.MODEL: 1, topics.TIP_POSE: 0}
+
+    info = bag_info(bag)
+    assert info['complete'] and info['rosbag2_metadata']
+    assert info['message_count'] == 26
+    assert info['topics'][topics.MODEL] == {'type': 'flexarm_msgs/msg/ModelInfo', 'count': 1}
+
+
+def test_unclosed_bag_is_readable_up_to_its_last_chunk(tmp_path: Path) -> None:
+    writer = BagWriter(tmp_path / 'killed', chunk_size=10**9)
+    writer.add_topic(topics.JOINT_STATES, 'sensor_msgs/msg/JointState', [QOS])
+    for i in range(40):
+        writer.write(topics.JOINT_STATES, _joint_state(i), T0 + i)
+    writer.flush()
+    path = tmp_path / 'killed' / 'killed.mcap'
+    first_chunk_end = path.stat().st_size
+    for i in range(40, 60):
+        writer.write(topics.JOINT_STATES, _joint_state(i), T0 + i)
+    writer.flush()
+    second_chunk_end = path.stat().st_size
+    for i in range(60, 70):                      # still in memory: lost when the process dies
+        writer.write(topics.JOINT_STATES, _joint_state(i), T0 + i)
+
+    assert len(_stream_messages(path)) == 60
+    cut = tmp_path / 'cut.mcap'                  # died while writing the second chunk
+    cut.write_bytes(path.read_bytes()[:(first_chunk_end + second_chunk_end) // 2])
+    assert len(_stream_messages(cut)) == 40
+    assert [m.log_time - T0 for _, _, m in read_messages(cut)] == list(range(40))
+    info = bag_info(path)
+    assert not info['complete']
+    assert info['topics'] == {topics.JOINT_STATES: {'type': 'sensor_msgs/msg/JointState',
+                                                    'count': 60}}
+    on_disk = yaml.safe_load((tmp_path / 'killed' / 'metadata.yaml').read_text())
+    assert on_disk['rosbag2_bagfile_information']['message_count'] == 60
+
+
+def test_writer_refuses_an_existing_bag(tmp_path: Path) -> None:
+    BagWriter(tmp_path / 'b').close()
+    with pytest.raises(FileExistsError):
+        BagWriter(tmp_path / 'b')
+
+
+def _pose(x: float, y: float, phi: float) -> PlanarPose:
+    return PlanarPose(x=x, y=y, phi=phi)
+
+
+def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
+    truths = [(1.0, _pose(0.5, 0.2, 0.1)), (2.0, _pose(0.6, 0.3, 0.0)),
+              (3.5, _pose(9.0, 9.0, 0.0))]
+    outcomes = [
+        GoalOutcome(stamp=_stamp(2 * 10**9 + 10), trial='t1', mode=1,
+                    target=_pose(0.601, 0.3, 0.01), measured_pose=_pose(0.6005, 0.3, 0.0),
+                    measured=True, position_error=0.0005, angle_error=-0.01, iterations=1),
+        GoalOutcome(stamp=_stamp(10**8), trial='t1', mode=0, target=_pose(0.5, 0.2, 0.0)),
+    ]
+    with BagWriter(tmp_path / 'run') as writer:
+        writer.add_topic(topics.TIP_POSE_TRUTH, 'flexarm_msgs/msg/TipPose')
+        writer.add_topic(topics.OUTCOMES, 'flexarm_msgs/msg/GoalOutcome')
+        for t, pose in truths:
+            msg = TipPose(pose=pose, valid=True)
+            msg.header.stamp = _stamp(int(t * 10**9))
+            writer.write(topics.TIP_POSE_TRUTH, serialize_message(msg), T0)
+        for outcome in outcomes:
+            writer.write(topics.OUTCOMES, serialize_message(outcome), T0)
+
+    csv_path, png_path = export_trials(tmp_path / 'run', tmp_path / 'out')
+    rows = list(csv.DictReader(csv_path.open()))
+    assert [r['mode'] for r in rows] == ['PREDICTIVE', 'RIGID']
+    first, second = rows
+    assert float(first['truth_x_mm']) == pytest.approx(600.0)
+    assert float(first['truth_position_error_mm']) == pytest.approx(1.0)
+    assert float(first['truth_angle_error_deg']) == pytest.approx(-0.5729578, abs=1e-6)
+    assert float(first['measured_position_error_mm']) == pytest.approx(0.5)
+    assert second['truth_x_mm'] == '' and second['measured_x_mm'] == ''
+    assert png_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+# ---- node level: flexarm_recorder as its own process --------------------------------------
+
+N = 150
+
+
+def _bag_count(bag: Path) -> int:
+    """Messages the recorder has flushed to disk (its metadata.yaml, rewritten each flush)."""
+    try:
+        meta = yaml.safe_load((bag / 'metadata.yaml').read_text())
+    except (OSError, yaml.YAMLError):
+        return 0
+    return (meta or {}).get('rosbag2_bagfile_information', {}).get('message_count', 0)
+
+
+def _start_and_publish(launch: Any, ros_node: Any, wait_for: Any,
+                       bag_dir: Path) -> tuple[Any, Any]:
+    """Latch a model, start the recorder, publish N joint states and tip poses to it."""
+    from rclpy.qos import DurabilityPolicy, QoSProfile
+
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    model_pub = ros_node.create_publisher(ModelInfo, topics.MODEL, latched)
+    model_pub.publish(ModelInfo(version='v1', kind='mlp'))
+    joint_pub = ros_node.create_publisher(JointState, topics.JOINT_STATES, 2 * N)
+    tip_pub = ros_node.create_publisher(TipPose, topics.TIP_POSE, 2 * N)
+    recorder = launch('flexarm_recorder', bag_directory=str(bag_dir), bag_name='t')
+    wait_for(lambda: all(p.get_subscription_count() for p in (model_pub, joint_pub, tip_pub)),
+             20.0, 'the recorder to subscribe to all three topics')
+    for i in range(N):
+        joint_pub.publish(JointState(name=['joint1'], position=[float(i)]))
+        tip_pub.publish(TipPose(pose=_pose(0.001 * i, 0.0, 0.0), valid=True))
+    wait_for(lambda: _bag_count(bag_dir / 't') == 2 * N + 1, 20.0,
+             f'{2 * N + 1} messages flushed to the bag (log: {recorder.log_path})')
+    return recorder, joint_pub
+
+
+@pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
+def test_recorder_closes_bag_with_every_message_on_signal(
+        launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path, sig: int) -> None:
+    recorder, _ = _start_and_publish(launch, ros_node, wait_for, tmp_path)
+    recorder.signal(sig)
+    assert recorder.process.wait(timeout=10.0) == 0, recorder.log_tail()
+
+    decoded = _decoded(tmp_path / 't' / 't.mcap')
+    by_topic: dict[str, list[Any]] = {}
+    for topic, type_name, msg in decoded:
+        by_topic.setdefault(topic, []).append((type_name, msg))
+    assert {t: len(v) for t, v in by_topic.items()} == \
+        {topics.JOINT_STATES: N, topics.TIP_POSE: N, topics.MODEL: 1}
+    assert [m.position[0] for _, m in by_topic[topics.JOINT_STATES]] == \
+        [float(i) for i in range(N)]
+    assert by_topic[topics.TIP_POSE][0][0] == 'flexarm_msgs/msg/TipPose'
+    assert by_topic[topics.MODEL][0][1].version == 'v1'
+    with open(tmp_path / 't' / 't.mcap', 'rb') as f:
+        channels = {c.topic: c for c in make_reader(f).get_summary().channels.values()}
+    [offered] = yaml.safe_load(channels[topics.MODEL].metadata['offered_qos_profiles'])
+    assert (offered['reliability'], offered['durability']) == ('reliable', 'transient_local')
+    assert channels[topics.TIP_POSE].metadata['topic_type_hash'].startswith('RIHS01_')
+    info = bag_info(tmp_path / 't')
+    assert info['complete'] and info['rosbag2_metadata'] and info['message_count'] == 2 * N + 1
+
+
+def test_recorder_bag_survives_sigkill_up_to_its_last_chunk(
+        launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path) -> None:
+    recorder, joint_pub = _start_and_publish(launch, ros_node, wait_for, tmp_path)
+    for i in range(N, 2 * N):                    # may or may not reach the disk
+        joint_pub.publish(JointState(name=['joint1'], position=[float(i)]))
+    recorder.signal(signal.SIGKILL)
+    recorder.process.wait(timeout=10.0)
+
+    path = tmp_path / 't' / 't.mcap'
+    kept = tmp_path / 'kept.mcap'
+    shutil.copy(path, kept)
+    assert not bag_info(kept)['complete']
+    messages = _stream_messages(kept)
+    assert 2 * N + 1 <= len(messages) <= 3 * N + 1
+    factory = DecoderFactory()
+    by_topic: dict[str, list[Any]] = {}
+    for schema, channel, message in read_messages(kept):
+        decode = factory.decoder_for(channel.message_encoding, schema)
+        by_topic.setdefault(channel.topic, []).append(decode(message.data))
+    positions = [m.position[0] for m in by_topic[topics.JOINT_STATES]]
+    assert positions == [float(i) for i in range(len(positions))]
+    assert len(by_topic[topics.TIP_POSE]) == N and len(by_topic[topics.MODEL]) == 1

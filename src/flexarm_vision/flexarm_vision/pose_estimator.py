@@ -1,0 +1,212 @@
+"""Absolute tip pose from one image of the coded plate (pure).
+
+Pipeline: detect holes (sub-pixel centres, sizes) -> undistort to the camera's metric frame ->
+classify each hole's code symbol by diameter -> find the grid (angle modulo 90 deg, integer
+cell of every hole relative to a reference hole; off-grid blobs are dropped) -> decode: test
+every plate position and quarter-turn of the observed cells against the plate code, demand an
+exact and unambiguous match -> least-squares rigid fit (2-D Kabsch) of the camera's metric
+points to the matched plate holes -> tip pose through the camera-to-tip offset -> residual
+check. Any failure gives ``valid=False`` with a reason, never an exception.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+from flexarm_vision.camera_model import CameraModel, rotation
+from flexarm_vision.hole_detector import DetectorSettings, HoleDetector
+from flexarm_vision.plate import PlateLayout
+
+UNKNOWN = -1              # symbol of a hole whose size lies between two code diameters
+OFF_PLATE = -2            # code value outside the plate: matches no observed hole
+QUARTER_TURN = np.array([[0, 1], [-1, 0]])   # row vectors @ this = turned by +90 deg
+
+
+@dataclass(frozen=True)
+class Estimate:
+    """Result of one image: tip pose (x, y, phi) [m, rad] only when ``valid``."""
+
+    pose: np.ndarray | None
+    valid: bool
+    holes_used: int
+    residual: float       # RMS distance of the matched holes from their fitted plate position [m]
+    status: str           # reason when not valid, '' otherwise
+
+
+@dataclass(frozen=True)
+class FitSettings:
+    min_holes: int                # fewer matched holes: invalid
+    max_residual: float           # [m] RMS fit residual above which the pose is invalid
+    max_hole_residual: float      # [m] largest single-hole residual allowed
+    grid_tolerance: float         # fraction of the pitch a hole may lie off its grid cell
+    min_grid_coherence: float     # agreement of neighbour directions (1 = perfect grid)
+    size_tolerance: float         # [m] diameter deviation still assigned to a code symbol
+    max_code_errors: int          # holes allowed to disagree with the decoded plate code
+    code_margin: int              # extra disagreements the next best plate position must have
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> FitSettings:
+        s = cls(min_holes=int(d['min_holes']), max_residual=float(d['max_residual']),
+                max_hole_residual=float(d['max_hole_residual']),
+                grid_tolerance=float(d['grid_tolerance']),
+                min_grid_coherence=float(d['min_grid_coherence']),
+                size_tolerance=float(d['size_tolerance']),
+                max_code_errors=int(d['max_code_errors']), code_margin=int(d['code_margin']))
+        if (s.min_holes < 3 or min(s.max_residual, s.max_hole_residual, s.size_tolerance) <= 0
+                or not 0 < s.grid_tolerance < 0.5 or s.max_code_errors < 0
+                or s.code_margin < 1):
+            raise ValueError(f'invalid fit settings {s}')
+        return s
+
+
+class TipPoseEstimator:
+    """Image -> absolute tip pose, for one plate and camera."""
+
+    def __init__(self, plate: PlateLayout, camera: CameraModel, fit: FitSettings,
+                 detector: DetectorSettings) -> None:
+        self.plate = plate
+        self.camera = camera
+        self.fit = fit
+        self.detector = HoleDetector(detector, min(plate.diameters) / camera.scale,
+                                     max(plate.diameters) / camera.scale)
+        i, j = plate.shape
+        self._pad = int(math.ceil(math.hypot(camera.intrinsics.width, camera.intrinsics.height)
+                                  * camera.scale / plate.pitch)) + 1
+        self._code = np.full((i + 2 * self._pad, j + 2 * self._pad), OFF_PLATE, np.int8)
+        self._code[self._pad:self._pad + i, self._pad:self._pad + j] = plate.symbols
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Mapping[str, Any]]) -> TipPoseEstimator:
+        """From the ``plate``, ``camera`` (camera.yaml) and ``vision`` (vision.yaml) trees."""
+        return cls(PlateLayout.from_dict(d['plate']), CameraModel.from_dict(d['camera']),
+                   FitSettings.from_dict(d['vision']), DetectorSettings.from_dict(d['vision']))
+
+    def estimate(self, image: Any) -> Estimate:
+        """Tip pose from a mono8 image of the configured size; invalid with a reason if not."""
+        i = self.camera.intrinsics
+        if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 2:
+            kind = (f'{image.dtype} array of shape {image.shape}'
+                    if isinstance(image, np.ndarray) else type(image).__name__)
+            return _invalid(f'expected a 2-D uint8 image, got {kind}')
+        if image.shape != (i.height, i.width):
+            return _invalid(f'expected a {i.width}x{i.height} image, '
+                            f'got {image.shape[1]}x{image.shape[0]}')
+        detection = self.detector.detect(image)
+        if detection.status:
+            return _invalid(detection.status)
+        metric = self.camera.pixels_to_metric(detection.centres)
+        diameters = (detection.diameters * self.camera.scale
+                     / self.camera.magnification(metric))
+        symbols = self._classify(diameters)
+        metric, symbols = metric[symbols != OFF_PLATE], symbols[symbols != OFF_PLATE]
+        if len(metric) < self.fit.min_holes:
+            return _invalid(f'too few holes: {len(metric)} < {self.fit.min_holes}', len(metric))
+        cells, reason = self._grid_cells(metric)
+        if cells is None:
+            return _invalid(reason, len(metric))
+        inliers = cells[:, 0] != np.iinfo(np.int64).min
+        metric, symbols, cells = metric[inliers], symbols[inliers], cells[inliers]
+        if len(metric) < self.fit.min_holes:
+            return _invalid(f'too few holes on the grid: {len(metric)} < {self.fit.min_holes}',
+                            len(metric))
+        plate_points, reason = self._decode(cells, symbols)
+        if plate_points is None:
+            return _invalid(reason, len(metric))
+        return self._fit_pose(metric, plate_points)
+
+    def _classify(self, diameters: np.ndarray) -> np.ndarray:
+        """Code symbol per hole; UNKNOWN between two diameters, OFF_PLATE if no hole size."""
+        reference = np.array(self.plate.diameters)
+        distance = np.abs(diameters[:, None] - reference[None, :])
+        symbols = np.argmin(distance, axis=1).astype(np.int64)
+        close = distance[np.arange(len(diameters)), symbols] <= self.fit.size_tolerance
+        in_range = ((diameters >= reference[0] - self.fit.size_tolerance)
+                    & (diameters <= reference[-1] + self.fit.size_tolerance))
+        return np.where(close, symbols, np.where(in_range, UNKNOWN, OFF_PLATE))
+
+    def _grid_cells(self, metric: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """Integer grid cell (a, b) of each hole relative to a reference hole, in grid axes.
+
+        Rows of off-grid holes are set to int64 min. The grid axes are the camera's axes turned
+        by the grid angle beta (modulo 90 deg): plate = R(k 90 deg) (cell) for some quarter-turn.
+        """
+        pitch = self.plate.pitch
+        tol = self.fit.grid_tolerance
+        delta = metric[None, :, :] - metric[:, None, :]
+        length = np.hypot(delta[..., 0], delta[..., 1])
+        neighbours = np.abs(length - pitch) < tol * pitch
+        if not np.any(neighbours):
+            return None, 'no hole grid: no two holes one pitch apart'
+        theta = np.arctan2(delta[..., 1][neighbours], delta[..., 0][neighbours])
+        mean = np.mean(np.exp(4j * theta))
+        if abs(mean) < self.fit.min_grid_coherence:
+            return None, f'no consistent hole grid (direction coherence {abs(mean):.2f})'
+        beta = np.angle(mean) / 4
+        grid = metric @ rotation(beta) / pitch          # rows: R(-beta) q / pitch
+        offsets = grid[None, :, :] - grid[:, None, :]   # [reference, hole]
+        cells = np.rint(offsets)
+        on_grid = np.all(np.abs(offsets - cells) < tol, axis=2)
+        reference = int(np.argmax(on_grid.sum(axis=1)))
+        result = cells[reference].astype(np.int64)
+        result[~on_grid[reference]] = np.iinfo(np.int64).min
+        kept = result[on_grid[reference]]
+        if len(np.unique(kept, axis=0)) != len(kept):
+            return None, 'two holes on one grid cell'
+        return result, ''
+
+    def _decode(self, cells: np.ndarray,
+                symbols: np.ndarray) -> tuple[np.ndarray | None, str]:
+        """Plate centres of the holes, from the unique plate position matching their code.
+
+        Candidates are (quarter-turn k, plate index of the reference hole); hole after hole,
+        candidates with more disagreements than a valid answer or its closest rival may have
+        are dropped, so the survivors decide both the match and its margin.
+        """
+        ni, nj = self.plate.shape
+        if np.any(np.abs(cells) >= self._pad):
+            return None, 'holes spread wider than the field of view'
+        turned = np.stack([cells @ np.linalg.matrix_power(QUARTER_TURN, k) for k in range(4)])
+        k, i0, j0 = (a.ravel() for a in np.meshgrid(np.arange(4), np.arange(ni), np.arange(nj),
+                                                       indexing='ij'))
+        errors = np.zeros(len(k), np.int64)
+        limit = self.fit.max_code_errors + self.fit.code_margin - 1
+        for n, symbol in enumerate(symbols):
+            code = self._code[self._pad + i0 + turned[k, n, 0], self._pad + j0 + turned[k, n, 1]]
+            errors += (code != symbol) if symbol >= 0 else (code == OFF_PLATE)
+            keep = errors <= limit
+            k, i0, j0, errors = k[keep], i0[keep], j0[keep], errors[keep]
+        order = np.argsort(errors)
+        if len(order) == 0 or errors[order[0]] > self.fit.max_code_errors:
+            return None, 'plate code not found (no place of the plate matches the holes)'
+        if len(order) > 1 and errors[order[1]] - errors[order[0]] < self.fit.code_margin:
+            return None, (f'ambiguous plate code ({errors[order[0]]} and {errors[order[1]]} '
+                          f'disagreeing holes, {int(np.sum(symbols >= 0))} of known code)')
+        best = order[0]
+        index = turned[k[best]] + np.array([i0[best], j0[best]])
+        return self.plate.centre(index[:, 0], index[:, 1]), ''
+
+    def _fit_pose(self, metric: np.ndarray, plate_points: np.ndarray) -> Estimate:
+        """Rigid fit plate = optical centre + R(phi) metric; tip pose; residual checks."""
+        q = metric - metric.mean(axis=0)
+        p = plate_points - plate_points.mean(axis=0)
+        phi = math.atan2(float(np.sum(q[:, 0] * p[:, 1] - q[:, 1] * p[:, 0])),
+                         float(np.sum(q[:, 0] * p[:, 0] + q[:, 1] * p[:, 1])))
+        turn = rotation(phi)
+        centre = plate_points.mean(axis=0) - turn @ metric.mean(axis=0)
+        errors = np.hypot(*(plate_points - (metric @ turn.T + centre)).T)
+        rms = float(np.sqrt(np.mean(errors ** 2)))
+        n = len(metric)
+        if rms > self.fit.max_residual:
+            return _invalid(f'fit residual {rms * 1e3:.3f} mm RMS too large', n, rms)
+        if errors.max() > self.fit.max_hole_residual:
+            return _invalid(f'hole off its fitted position by {errors.max() * 1e3:.3f} mm',
+                            n, rms)
+        return Estimate(self.camera.tip_from_camera(centre, phi), True, n, rms, '')
+
+
+def _invalid(status: str, holes: int = 0, residual: float = 0.0) -> Estimate:
+    return Estimate(None, False, holes, residual, status)

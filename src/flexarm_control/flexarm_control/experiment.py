@@ -264,6 +264,6 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path) -> None:
     fig.suptitle(f'{summary["name"]}: tip error against ground truth')
     fig.tight_layout()
     tmp = out_dir / '.errors.png.tmp'
-    fig.savefig(tmp, dpi=110)
+    fig.savefig(tmp, dpi=110, format='png')
     plt.close(fig)
     tmp.replace(out_dir / 'errors.png')

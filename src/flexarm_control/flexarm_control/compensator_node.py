@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import math
 import threading
-from pathlib import Path
 
 import numpy as np
 import rclpy
@@ -93,7 +92,7 @@ class CompensatorNode(Node):
         self._busy = threading.Lock()
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
-        if model_path and Path(model_path).exists():
+        if model_path:
             self._load_model(model_path, 'start-up')
         self.create_subscription(ModelInfo, topics.MODEL, self._on_model, latched,
                                  callback_group=self._group)

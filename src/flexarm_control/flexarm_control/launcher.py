@@ -1,7 +1,7 @@
 """Start flexarm nodes as OS processes: what ``flexarm up`` and the node-level tests share.
 
 ROS ``launch`` is not available from PyPI, so a node is started as
-``python -m <module> --ros-args -r __node:=<name> --params-file config/<file> -p k:=v`` in a
+``python -m <module> --ros-args -r __node:=<name> --params-file config/<file> ...`` in a
 clean environment (own ROS_DOMAIN_ID, localhost discovery, log directory) and in its own
 session, so that only the supervisor decides when it gets a signal.
 """
@@ -74,18 +74,30 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     return env
 
 
-def _param_value(value: Any) -> str:
-    return yaml.safe_dump(value, default_flow_style=True).strip().removesuffix('...').strip()
+def node_command(spec: NodeSpec, overrides_file: Path | None = None) -> list[str]:
+    """Command line of a node: its module, name, its params files, then ``overrides_file``.
 
-
-def node_command(spec: NodeSpec, extra: Mapping[str, Any] | None = None) -> list[str]:
-    """Command line of a node: its module, name, params files, then ``-p`` overrides."""
+    Per-run parameters go in a params file of their own, last, under the node's name: a
+    ``-p name:=value`` would lose against a node-specific entry of config/ (rcl applies
+    ``-p`` like a ``/**`` entry, and node-specific entries win).
+    """
     cmd = [sys.executable, '-m', spec.module, '--ros-args', '-r', f'__node:={spec.name}']
     for name in spec.params_files:
         cmd += ['--params-file', str(config_path(name))]
-    for key, value in {**spec.parameters, **(extra or {})}.items():
-        cmd += ['-p', f'{key}:={_param_value(value)}']
+    if overrides_file is not None:
+        cmd += ['--params-file', str(overrides_file)]
     return cmd
+
+
+def write_overrides(spec: NodeSpec, extra: Mapping[str, Any] | None, path: Path) -> Path | None:
+    """Write graph.yaml's and the caller's parameters of ``spec`` as a params file."""
+    parameters = {**spec.parameters, **(extra or {})}
+    if not parameters:
+        return None
+    path.parent.mkdir(parents=True, exist_ok=True)
+    path.write_text(yaml.safe_dump({spec.name: {'ros__parameters': parameters}}),
+                    encoding='utf-8')
+    return path
 
 
 class NodeProcess:
@@ -105,8 +117,10 @@ class NodeProcess:
     def start(self) -> None:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(self.log_path, 'ab')
+        overrides = write_overrides(self.spec, self._extra,
+                                    self.log_path.with_suffix('.params.yaml'))
         self.process = subprocess.Popen(
-            node_command(self.spec, self._extra), env=self._env, stdin=subprocess.DEVNULL,
+            node_command(self.spec, overrides), env=self._env, stdin=subprocess.DEVNULL,
             stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)
 
     @property

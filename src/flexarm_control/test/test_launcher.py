@@ -2,20 +2,42 @@
 import sys
 
 import pytest
+import yaml
 
-from flexarm_control.launcher import NodeSpec, load_graph, node_command, ros_env
+from flexarm_control.launcher import NodeSpec, load_graph, node_command, ros_env, write_overrides
 from flexarm_control.params import config_path
 
 
-def test_node_command_names_the_node_and_its_params() -> None:
+def test_node_command_names_the_node_and_its_params(tmp_path) -> None:
     spec = NodeSpec(name='n', module='pkg.mod', params_files=('arm.yaml',),
                     parameters={'use_sim_time': True, 'rate': 2.5})
-    cmd = node_command(spec, {'topics': ['/a', '/b'], 'name': 'x y'})
+    overrides = write_overrides(spec, {'topics': ['/a', '/b'], 'rate': 3.0}, tmp_path / 'n.yaml')
+    cmd = node_command(spec, overrides)
     assert cmd[:5] == [sys.executable, '-m', 'pkg.mod', '--ros-args', '-r']
     assert cmd[5] == '__node:=n'
-    assert cmd[cmd.index('--params-file') + 1] == str(config_path('arm.yaml'))
-    overrides = [cmd[i + 1] for i, a in enumerate(cmd) if a == '-p']
-    assert overrides == ['use_sim_time:=true', 'rate:=2.5', "topics:=[/a, /b]", 'name:=x y']
+    files = [cmd[i + 1] for i, a in enumerate(cmd) if a == '--params-file']
+    assert files == [str(config_path('arm.yaml')), str(overrides)]
+    assert yaml.safe_load(overrides.read_text()) == {'n': {'ros__parameters': {
+        'use_sim_time': True, 'rate': 3.0, 'topics': ['/a', '/b']}}}
+    assert write_overrides(NodeSpec(name='m', module='x'), None, tmp_path / 'm.yaml') is None
+
+
+def test_run_parameters_win_over_node_specific_config_entries(tmp_path) -> None:
+    """rcl gives a node-specific params-file entry precedence over ``-p``; ours come last."""
+    import rclpy
+    from rclpy.context import Context
+
+    spec = {s.name: s for s in load_graph('sim')}['flexarm_learner']
+    overrides = write_overrides(spec, {'data_directory': '/elsewhere'}, tmp_path / 'l.yaml')
+    context = Context()
+    rclpy.init(context=context, args=node_command(spec, overrides)[3:], domain_id=0)
+    try:
+        node = rclpy.create_node('flexarm_learner', context=context,
+                                 automatically_declare_parameters_from_overrides=True)
+        assert node.get_parameter('data_directory').value == '/elsewhere'
+        node.destroy_node()
+    finally:
+        rclpy.try_shutdown(context=context)
 
 
 def test_ros_env_isolates_the_domain_and_drops_the_bootstrap_guard() -> None:

@@ -121,7 +121,7 @@ def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(graph):
     client.cancel()
     thread.join(timeout=30)
     assert outcome['result'].error_code == Result.CANCELED
-    spin_for(client, 1.0)                             # braking is over
+    spin_for(client, 3.0)                             # braking (and settling back) is over
     stopped = joints['q'].copy()
     spin_for(client, 1.0)
     np.testing.assert_allclose(joints['q'], stopped, atol=1e-9)

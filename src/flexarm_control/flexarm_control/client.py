@@ -54,11 +54,13 @@ class FlexarmClient(Node):
         self.create_subscription(ModelInfo, topics.ACTIVE_MODEL,
                                  lambda msg: setattr(self, 'active_model', msg), latched)
 
-    def wait_until_ready(self, timeout: float = 30.0, learner: bool = True) -> None:
-        """Wait until the compensator (and the learner) servers are discovered."""
+    def wait_until_ready(self, timeout: float = 30.0, learner: bool = True,
+                         compensator: bool = True) -> None:
+        """Wait until the compensator's and/or the learner's servers are discovered."""
         deadline = time.monotonic() + timeout
-        waits: list[tuple[str, Callable[[float], bool]]] = [
-            (topics.MOVE_TO_POSE, self._move.wait_for_server)]
+        waits: list[tuple[str, Callable[[float], bool]]] = []
+        if compensator:
+            waits.append((topics.MOVE_TO_POSE, self._move.wait_for_server))
         if learner:
             waits += [(topics.COLLECT_SAMPLES, self._collect.wait_for_server),
                       (topics.TRAIN, self._train.wait_for_service)]

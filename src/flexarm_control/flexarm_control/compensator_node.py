@@ -18,12 +18,11 @@ import math
 import threading
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
-from rclpy.executors import ExternalShutdownException, MultiThreadedExecutor
+from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
@@ -31,6 +30,7 @@ from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.compensator import Compensator, Plan
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
+from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_msgs.action import MoveToPose
@@ -262,19 +262,7 @@ class CompensatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = CompensatorNode()
-        executor = MultiThreadedExecutor()
-        executor.add_node(node)
-        executor.spin()
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run(CompensatorNode, args, MultiThreadedExecutor)
 
 
 if __name__ == '__main__':

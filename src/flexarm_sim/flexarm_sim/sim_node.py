@@ -15,9 +15,7 @@ from __future__ import annotations
 import math
 
 import numpy as np
-import rclpy
 from builtin_interfaces.msg import Time as TimeMsg
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
@@ -26,6 +24,7 @@ from std_msgs.msg import Float64MultiArray, Header
 
 from flexarm_control import topics
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, limit_violation
+from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_sim.camera import CameraRenderer
@@ -57,12 +56,14 @@ class SimNode(Node):
         self._rtf = declare(self, 'real_time_factor', 1.0,
                             'simulated seconds per wall-clock second')
         self._js_rate = declare(self, 'joint_state_rate', 100.0,
-                                '[Hz, sim time] /joint_states, /clock and ground-truth rate')
+                                '[Hz, sim time] /joint_states and ground-truth rate')
+        clock_rate = declare(self, 'clock_rate', 100.0,
+                             '[Hz, wall time] /clock publications (at most one per tick)')
         camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
         seed = declare(self, 'seed', 0, 'seed of the camera noise')
         initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
                           'joint1..joint4 at start [rad, m, rad, rad]')
-        if self._rtf <= 0 or self._js_rate <= 0 or camera_rate <= 0:
+        if min(self._rtf, self._js_rate, camera_rate, clock_rate) <= 0:
             raise ValueError('real_time_factor and all rates must be positive')
 
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
@@ -79,6 +80,9 @@ class SimNode(Node):
         self._camera_every = max(1, round(self._js_rate / camera_rate))
         self._t = 0.0
         self._tick = 0
+        # Every node on sim time handles each /clock message in Python: at 10x real time a
+        # /clock per tick would be 1000 a second; 100 a second (10 ms wall) is plenty for waits.
+        self._clock_every = max(1, round(self._js_rate * self._rtf / clock_rate))
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
@@ -106,7 +110,8 @@ class SimNode(Node):
         self._t += self._dt
         self._tick += 1
         now = stamp(self._t)
-        self._clock_pub.publish(Clock(clock=now))
+        if self._tick % self._clock_every == 0:
+            self._clock_pub.publish(Clock(clock=now))
         state = self._dynamics.state
         self._js_pub.publish(JointState(
             header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
@@ -144,17 +149,7 @@ class SimNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = None
-    try:
-        node = SimNode()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        if node is not None:
-            node.destroy_node()
-        rclpy.try_shutdown()
+    run(SimNode, args)
 
 
 if __name__ == '__main__':

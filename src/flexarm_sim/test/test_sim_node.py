@@ -25,7 +25,8 @@ def sim(launch, ros_node, wait_for):
                                  lambda m: heard.__setitem__('truth', m), 10)
     command = ros_node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
     launch('flexarm_sim', real_time_factor=10.0, initial_positions=START)
-    wait_for(lambda: heard['joints'] is not None and command.get_subscription_count(), 20.0,
+    wait_for(lambda: heard['joints'] is not None and heard['clock'] is not None
+             and command.get_subscription_count(), 20.0,
              'the simulator')
     return heard, command
 

@@ -12,14 +12,13 @@ import math
 import time
 
 import numpy as np
-import rclpy
-from rclpy.executors import ExternalShutdownException
 from rclpy.node import Node
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from flexarm_control import topics
+from flexarm_control.node_main import run
 from flexarm_control.node_params import declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_model import Intrinsics
@@ -123,15 +122,7 @@ class VisionNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    rclpy.init(args=args)
-    node = VisionNode()
-    try:
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        node.destroy_node()
-        rclpy.try_shutdown()
+    run(VisionNode, args)
 
 
 if __name__ == '__main__':

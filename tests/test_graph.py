@@ -1,0 +1,61 @@
+"""Node-level: the whole graph comes up, is supervised, and shuts down leaving nothing behind."""
+import os
+import signal
+from pathlib import Path
+
+import pytest
+
+from flexarm_control.launcher import _lock_is_stale
+from flexarm_control.supervisor import Graph
+
+pytestmark = pytest.mark.node
+
+
+def alive(pid: int) -> bool:
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    return True
+
+
+def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
+    reports: list[str] = []
+    graph = Graph(domain_id, tmp_path / 'run', optional=('flexarm_recorder',),
+                  parameters={'flexarm_sim': {'real_time_factor': 5.0},
+                              'flexarm_recorder': {'bag_directory': str(tmp_path / 'bags'),
+                                                   'bag_name': 'graph'},
+                              'flexarm_learner': {'data_directory': str(tmp_path / 'data')}},
+                  report=reports.append)
+    graph.start()
+    try:
+        graph.wait_ready(60.0)
+        assert set(graph.nodes) == {'flexarm_sim', 'flexarm_vision', 'flexarm_learner',
+                                    'flexarm_compensator', 'flexarm_recorder'}
+        assert all((tmp_path / 'run' / f'{name}.log').exists() for name in graph.nodes)
+
+        vision = graph.nodes['flexarm_vision']          # restart: true in graph.yaml
+        old_pid = vision.process.pid
+        vision.signal(signal.SIGKILL)
+        vision.process.wait(timeout=10)
+        assert graph.check() == ['flexarm_vision']
+        assert any('flexarm_vision exited with code -9' in r for r in reports)
+        assert vision.restarts == 1 and vision.process.pid != old_pid
+        graph.wait_ready(30.0)                           # /tip_pose is back
+
+        sim = graph.nodes['flexarm_sim']                 # restart: false
+        sim.signal(signal.SIGKILL)
+        sim.process.wait(timeout=10)
+        assert graph.check() == ['flexarm_sim'] and sim.returncode == -9
+        assert graph.check() == []                       # reported once, stays down
+        assert all(n.returncode is None for name, n in graph.nodes.items()
+                   if name != 'flexarm_sim')
+    finally:
+        pids = [n.process.pid for n in graph.nodes.values()]
+        codes = graph.stop(timeout=10.0)
+    assert not any(alive(pid) for pid in pids)
+    clean = {name: code for name, code in codes.items() if name != 'flexarm_sim'}
+    assert all(code == 0 for code in clean.values()), clean       # SIGINT: clean exits
+    stale = [p for p in Path('/dev/shm').glob('fastrtps_*_el') if _lock_is_stale(p)]
+    assert stale == []
+    assert (tmp_path / 'bags' / 'graph' / 'metadata.yaml').exists()

@@ -1,0 +1,74 @@
+"""Node-level: collect -> train -> model announced, with the simulator and the vision node."""
+import time
+
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+
+from flexarm_control import topics
+from flexarm_control.client import FlexarmClient
+from flexarm_control.dataset import load_dataset
+from flexarm_msgs.action import CollectSamples
+from flexarm_msgs.msg import DeflectionSample, ModelInfo
+
+pytestmark = pytest.mark.node
+
+
+@pytest.fixture
+def learner(launch, domain_id, tmp_path):
+    launch('flexarm_sim', real_time_factor=10.0)
+    launch('flexarm_vision')
+    launch('flexarm_learner', data_directory=str(tmp_path / 'data'),
+           model_directory=str(tmp_path / 'models'))
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    client = FlexarmClient('test_client', context=context)
+    heard = {'models': [], 'samples': []}
+    latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+    client.create_subscription(ModelInfo, topics.MODEL, heard['models'].append, latched)
+    client.create_subscription(DeflectionSample, topics.SAMPLES, heard['samples'].append, 100)
+    try:
+        client.wait_until_ready(timeout=30.0, compensator=False)
+        yield client, heard, tmp_path
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_collect_train_and_announce(learner):
+    client, heard, tmp = learner
+    result = client.collect(10, region='B', dataset='b', seed=3, timeout=120)
+    assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
+    assert result.collected + result.skipped == 10 and result.collected >= 9
+    dataset = load_dataset(result.dataset_path)
+    assert len(dataset) == result.total == result.collected
+    joints, deflections, payload = dataset.arrays()
+    assert (abs(deflections[:, 1]) > 2e-3).all()              # region B sags 6-14 mm
+    deadline = time.monotonic() + 5
+    while len(heard['samples']) < result.collected and time.monotonic() < deadline:
+        client.spin_once(0.05)
+    assert len(heard['samples']) == result.collected
+
+    trained = client.train('mlp', dataset='b')
+    assert trained.success, trained.message
+    assert trained.metrics.samples == len(dataset) and trained.metrics.max_error_y > 0
+    deadline = time.monotonic() + 5
+    while not heard['models'] and time.monotonic() < deadline:
+        client.spin_once(0.05)
+    assert heard['models'][-1].version == trained.model_version
+    assert heard['models'][-1].dataset_hash == dataset.hash
+
+    for kind, settings, dataset_name in (('svm', {}, 'b'), ('mlp', {'hidden': 'ten'}, 'b'),
+                                         ('mlp', {}, 'missing')):
+        failed = client.train(kind, settings, dataset=dataset_name)
+        assert not failed.success and failed.message
+    client.spin_once(0.2)
+    assert heard['models'][-1].version == trained.model_version   # previous model stays
+
+
+def test_invalid_collection_goal_is_refused(learner):
+    client, _, _ = learner
+    for kwargs in ({'count': 0}, {'count': 3, 'region': 'Z'}, {'count': 3, 'strategy': 'x'}):
+        result = client.collect(timeout=30, **kwargs)
+        assert result.error_code == CollectSamples.Result.INVALID_GOAL and result.error_string

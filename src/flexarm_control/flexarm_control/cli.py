@@ -214,6 +214,21 @@ def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
                 'mean_error_x', 'mean_error_y', 'mean_error_phi')}}
 
 
+@command
+def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
+    """Inspect a recorded bag (info) or export its trials as CSV + PNG (export)."""
+    from flexarm_control.bag_tools import bag_info, export_trials, format_bag_info
+
+    if args.action == 'info':
+        info = bag_info(args.path)
+        print(format_bag_info(info))
+        return {'ok': True, **info}
+    out_dir = args.out or str(args.path).rstrip('/')
+    csv_path, png_path = export_trials(args.path, out_dir)
+    print(f'trials: {csv_path}\nplot:   {png_path}')
+    return {'ok': True, 'csv': str(csv_path), 'png': str(png_path)}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='flexarm', description=__doc__.splitlines()[0])
     # Global options, accepted before or after the subcommand.
@@ -276,6 +291,11 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument('--settings', default='', help='JSON object, e.g. \'{"hidden": [10]}\'')
     train.add_argument('--dataset', default='', help='dataset name')
     train.add_argument('--timeout', type=float, default=300.0, help='[s]')
+
+    bag = sub.add_parser('bag', help=cmd_bag.__doc__)
+    bag.add_argument('action', choices=['info', 'export'])
+    bag.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
+    bag.add_argument('--out', default='', help='export folder (default: the bag folder)')
     return parser
 
 

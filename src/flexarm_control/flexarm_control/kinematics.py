@@ -105,33 +105,30 @@ def pose_error(target: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
     return float(math.hypot(d[0], d[1])), float(abs(wrap_angle(float(d[2]))))
 
 
-def _solve(geometry: ArmGeometry, pose: np.ndarray, extensions: np.ndarray) -> np.ndarray:
-    """Joint solutions (n, 2, 4) for candidate θ2 values (n,), NaN where impossible.
-
-    Index 1 is the elbow branch: 0 = elbow down (θ3 below the joint3 direction, preferred),
-    1 = elbow up.
-    """
+def _solve_fixed(geometry: ArmGeometry, pose: np.ndarray, extension: float
+                 ) -> np.ndarray | None:
+    """Joints for one θ2, or None: elbow-down branch first, then elbow-up (scalar math: the
+    compensator calls it in its inner loop)."""
     x, y, phi = (float(v) for v in pose)
     wx, wy = x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi)
-    r2 = wx * wx + wy * wy
     d, b = geometry.offset, geometry.link3
-    t2 = extensions[:, None]
-    a = np.sqrt(t2 * t2 + d * d)                       # joint1 -> joint3 distance
-    skew = np.arctan2(d, t2)                            # joint3 direction from the arm axis
-    with np.errstate(invalid='ignore'):
-        bend = np.arccos((r2 - a * a - b * b) / (2 * a * b))   # elbow bend, nan out of reach
-    t3 = np.concatenate([skew - bend, skew + bend], axis=1)    # (n, 2)
-    bend = np.concatenate([bend, bend], axis=1)
-    t2 = np.broadcast_to(t2, t3.shape)
-    # Wrist point = R(θ1) [θ2 + b cos θ3, d + b sin θ3]  ->  θ1.
-    px, py = t2 + b * np.cos(t3), d + b * np.sin(t3)
-    t1 = wrap_angle(math.atan2(wy, wx) - np.arctan2(py, px))
-    t4 = wrap_angle(phi - t1 - t3)
-    q = np.stack([t1, t2, t3, t4], axis=-1)
-    ok = (bend >= geometry.min_elbow_bend) & np.all(
-        (q >= geometry.lower) & (q <= geometry.upper), axis=-1)
-    q[~ok] = np.nan
-    return q
+    a2 = extension * extension + d * d
+    cos_bend = (wx * wx + wy * wy - a2 - b * b) / (2 * math.sqrt(a2) * b)
+    if not -1.0 <= cos_bend <= 1.0:
+        return None
+    bend = math.acos(cos_bend)
+    if bend < geometry.min_elbow_bend:
+        return None
+    skew = math.atan2(d, extension)
+    lower, upper = geometry.lower, geometry.upper
+    for t3 in (skew - bend, skew + bend):
+        px, py = extension + b * math.cos(t3), d + b * math.sin(t3)
+        t1 = (math.atan2(wy, wx) - math.atan2(py, px) + math.pi) % (2 * math.pi) - math.pi
+        t4 = (phi - t1 - t3 + math.pi) % (2 * math.pi) - math.pi
+        q = (t1, extension, t3, t4)
+        if all(lower[i] <= q[i] <= upper[i] for i in range(4)):
+            return np.array(q)
+    return None
 
 
 def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = None
@@ -148,20 +145,37 @@ def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = N
     if pose.shape != (3,) or not np.all(np.isfinite(pose)):
         raise UnreachableError(f'target must be 3 finite numbers (x, y, phi), got {pose}')
     if extension is not None:
-        candidates = np.array([float(extension)])
         if not geometry.lower[1] <= extension <= geometry.upper[1]:
             raise UnreachableError(f'joint2 = {extension:.4f} m outside its limits')
-    else:
-        lo, hi = geometry.lower[1], geometry.upper[1]
-        grid = np.linspace(lo, hi, int(round((hi - lo) / geometry.extension_step)) + 1)
-        grid = grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]
-        candidates = np.concatenate([[geometry.preferred_extension], grid])
-    q = _solve(geometry, pose, candidates)
-    valid = ~np.isnan(q[..., 0])
-    if not valid.any():
-        raise UnreachableError(
-            f'pose (x={pose[0]:.4f} m, y={pose[1]:.4f} m, phi={math.degrees(pose[2]):.2f} deg) '
-            'is out of reach of the rigid arm inside its joint limits'
-            + (f' with joint2 = {extension:.4f} m' if extension is not None else ''))
-    i, branch = np.argwhere(valid)[0]
-    return q[i, branch]
+        q = _solve_fixed(geometry, pose, float(extension))
+        if q is None:
+            raise UnreachableError(
+                f'pose (x={pose[0]:.4f} m, y={pose[1]:.4f} m, phi={math.degrees(pose[2]):.2f}'
+                f' deg) is out of reach of the rigid arm with joint2 = {extension:.4f} m')
+        return q
+    for candidate in _extension_candidates(geometry, pose):
+        q = _solve_fixed(geometry, pose, candidate)
+        if q is not None:
+            return q
+    raise UnreachableError(
+        f'pose (x={pose[0]:.4f} m, y={pose[1]:.4f} m, phi={math.degrees(pose[2]):.2f} deg) '
+        'is out of reach of the rigid arm inside its joint limits')
+
+
+def _extension_candidates(geometry: ArmGeometry, pose: np.ndarray) -> list[float]:
+    """θ2 values to try, in the rule's order: the preferred one, then the ``extension_step``
+    grid by distance from it — only where the wrist is within reach with the elbow bent at
+    least ``min_elbow_bend`` (r² = a² + b² + 2ab cos(bend), a² = θ2² + d²)."""
+    x, y, phi = (float(v) for v in pose)
+    r = math.hypot(x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi))
+    b, d, c = geometry.link3, geometry.offset, math.cos(geometry.min_elbow_bend)
+    a_min = max(-b * c + math.sqrt(max(b * b * c * c - b * b + r * r, 0.0)), abs(d))
+    a_max = r + b
+    lo = max(geometry.lower[1], math.sqrt(max(a_min * a_min - d * d, 0.0)) - 1e-9)
+    hi = min(geometry.upper[1], math.sqrt(max(a_max * a_max - d * d, 0.0)) + 1e-9)
+    first, step = geometry.lower[1], geometry.extension_step
+    grid = first + step * np.arange(math.ceil((lo - first) / step - 1e-9),
+                                    math.floor((hi - first) / step + 1e-9) + 1)
+    grid = grid[(grid >= geometry.lower[1]) & (grid <= geometry.upper[1])]
+    grid = grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]
+    return [geometry.preferred_extension, *grid.tolist()]

@@ -91,3 +91,22 @@ def test_geometry_rejects_bad_config():
         ArmGeometry.from_dict({**d, 'lower': d['upper']})
     with pytest.raises(ValueError):
         ArmGeometry.from_dict({**d, 'preferred_extension': 2.0})
+
+
+def test_extension_rule_matches_an_exhaustive_search(geometry):
+    """The reach-interval pruning picks what trying every grid value in order would pick."""
+    from flexarm_control.kinematics import _solve_fixed
+
+    lo, hi, step = geometry.lower[1], geometry.upper[1], geometry.extension_step
+    grid = np.linspace(lo, hi, int(round((hi - lo) / step)) + 1)
+    grid = [geometry.preferred_extension,
+            *grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]]
+    rng = np.random.default_rng(5)
+    for pose in rng.uniform([0.2, -1.0, -math.pi], [1.7, 0.8, math.pi], (150, 3)):
+        expected = next((q for q in (_solve_fixed(geometry, pose, e) for e in grid)
+                         if q is not None), None)
+        if expected is None:
+            with pytest.raises(UnreachableError):
+                inverse(geometry, pose)
+        else:
+            np.testing.assert_allclose(inverse(geometry, pose), expected, atol=1e-12)

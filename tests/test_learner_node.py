@@ -1,4 +1,4 @@
-"""Node-level: collect -> train -> model announced, with the simulator and the vision node."""
+"""Node-level: collect -> train -> model announced and hot-reloaded by the compensator."""
 import time
 
 import pytest
@@ -21,6 +21,7 @@ def learner(launch, domain_id, tmp_path):
     launch('flexarm_vision')
     launch('flexarm_learner', data_directory=str(tmp_path / 'data'),
            model_directory=str(tmp_path / 'models'))
+    launch('flexarm_compensator')
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     client = FlexarmClient('test_client', context=context)
@@ -29,7 +30,7 @@ def learner(launch, domain_id, tmp_path):
     client.create_subscription(ModelInfo, topics.MODEL, heard['models'].append, latched)
     client.create_subscription(DeflectionSample, topics.SAMPLES, heard['samples'].append, 100)
     try:
-        client.wait_until_ready(timeout=30.0, compensator=False)
+        client.wait_until_ready(timeout=30.0)
         yield client, heard, tmp_path
     finally:
         client.destroy_node()
@@ -58,6 +59,7 @@ def test_collect_train_and_announce(learner):
         client.spin_once(0.05)
     assert heard['models'][-1].version == trained.model_version
     assert heard['models'][-1].dataset_hash == dataset.hash
+    assert client.wait_for_model(trained.model_version, timeout=10).path == trained.model_path
 
     for kind, settings, dataset_name in (('svm', {}, 'b'), ('mlp', {'hidden': 'ten'}, 'b'),
                                          ('mlp', {}, 'missing')):

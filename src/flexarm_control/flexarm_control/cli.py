@@ -229,6 +229,16 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
     return {'ok': True, 'csv': str(csv_path), 'png': str(png_path)}
 
 
+@command
+def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
+    """Tables 7 and 8 sensitivity study on the simulator (offline, no graph needed)."""
+    from flexarm_control.study import main as study_main
+
+    argv = ['--region', args.region, '--seeds', str(args.seeds)] + (
+        ['--quick'] if args.quick else [])
+    return {'ok': study_main(argv) == 0}
+
+
 def build_parser() -> argparse.ArgumentParser:
     parser = argparse.ArgumentParser(prog='flexarm', description=__doc__.splitlines()[0])
     # Global options, accepted before or after the subcommand.
@@ -291,6 +301,11 @@ def build_parser() -> argparse.ArgumentParser:
     train.add_argument('--settings', default='', help='JSON object, e.g. \'{"hidden": [10]}\'')
     train.add_argument('--dataset', default='', help='dataset name')
     train.add_argument('--timeout', type=float, default=300.0, help='[s]')
+
+    study = sub.add_parser('study', help=cmd_study.__doc__)
+    study.add_argument('--region', default='paper', help='region preset')
+    study.add_argument('--seeds', type=int, default=3)
+    study.add_argument('--quick', action='store_true', help='small grid, for a smoke run')
 
     bag = sub.add_parser('bag', help=cmd_bag.__doc__)
     bag.add_argument('action', choices=['info', 'export'])

@@ -102,7 +102,9 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_control.supervisor import Graph
 
     name = args.name or time.strftime('up-%Y%m%d-%H%M%S')
-    params: dict[str, dict[str, Any]] = {'flexarm_sim': {'real_time_factor': args.rtf}}
+    simulated = {'real_time_factor': args.rtf}
+    params: dict[str, dict[str, Any]] = {'flexarm_sim': simulated,
+                                         'flexarm_fake_controller': simulated}
     if args.record:
         params['flexarm_recorder'] = {'bag_name': args.record}
     signal.signal(signal.SIGTERM, _interrupt)

@@ -99,6 +99,15 @@ def limit_violation(geometry: ArmGeometry, joints: np.ndarray) -> str | None:
     return None
 
 
+def command_error(values: list[float], geometry: ArmGeometry) -> str | None:
+    """Why a joint command (one value per joint) must be refused, or None if it is valid."""
+    if len(values) != len(JOINT_NAMES):
+        return f'expected {len(JOINT_NAMES)} values ({", ".join(JOINT_NAMES)}), got {len(values)}'
+    if not all(math.isfinite(v) for v in values):
+        return f'non-finite value in {list(values)}'
+    return limit_violation(geometry, np.asarray(values, dtype=float))
+
+
 def pose_error(target: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
     """(position error [m], |angle error| [rad]) of ``pose`` with respect to ``target``."""
     d = np.asarray(pose, dtype=float) - np.asarray(target, dtype=float)

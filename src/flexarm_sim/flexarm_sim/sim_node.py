@@ -23,12 +23,12 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64MultiArray, Header
 
 from flexarm_control import topics
-from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, limit_violation
+from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_sim.camera import CameraRenderer
-from flexarm_sim.dynamics import ArmDynamics
+from flexarm_sim.dynamics import ArmDynamics, ArmState
 from flexarm_sim.plant import Plant
 
 BASE_FRAME = 'base_link'
@@ -40,19 +40,10 @@ def stamp(t: float) -> TimeMsg:
     return TimeMsg(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
 
 
-def command_error(data: list[float], geometry: ArmGeometry) -> str | None:
-    """Why a joint command must be refused, or None if it is acceptable."""
-    if len(data) != len(JOINT_NAMES):
-        return f'expected {len(JOINT_NAMES)} values ({", ".join(JOINT_NAMES)}), got {len(data)}'
-    if not all(math.isfinite(v) for v in data):
-        return f'non-finite value in {list(data)}'
-    return limit_violation(geometry, np.asarray(data, dtype=float))
-
-
 class SimNode(Node):
 
-    def __init__(self) -> None:
-        super().__init__('flexarm_sim')
+    def __init__(self, node_name: str = 'flexarm_sim') -> None:
+        super().__init__(node_name)
         self._rtf = declare(self, 'real_time_factor', 1.0,
                             'simulated seconds per wall-clock second')
         self._js_rate = declare(self, 'joint_state_rate', 100.0,
@@ -86,11 +77,10 @@ class SimNode(Node):
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
-        self._js_pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
         self._truth_pub = self.create_publisher(TipPose, topics.TIP_POSE_TRUTH, 10)
         self._image_pub = self.create_publisher(Image, topics.CAMERA_IMAGE, 5)
         self._info_pub = self.create_publisher(CameraInfo, topics.CAMERA_INFO, latched)
-        self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS, self._on_command, 10)
+        self._setup_joint_io()
         self._camera_info = self._make_camera_info()
         self._info_pub.publish(self._camera_info)
         self.create_timer(self._dt / self._rtf, self._on_tick)
@@ -98,12 +88,29 @@ class SimNode(Node):
             f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
             f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
 
-    def _on_command(self, msg: Float64MultiArray) -> None:
-        reason = command_error(list(msg.data), self._geometry)
+    # --- the controller's joint interface: ROS topics here, TCP in the fake controller ------
+    def _setup_joint_io(self) -> None:
+        self._js_pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
+        self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS,
+                                 lambda msg: self.apply_command(list(msg.data)), 10)
+
+    def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
+        self._js_pub.publish(JointState(
+            header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
+            position=state.joint_positions.tolist(), velocity=state.joint_velocities.tolist()))
+
+    def apply_command(self, values: list[float]) -> str | None:
+        """Execute a joint command; the reason it was refused (arm not moved), or None."""
+        reason = command_error(values, self._geometry)
         if reason is not None:
             self.get_logger().error(f'joint command rejected, arm not moved: {reason}')
-            return
-        self._dynamics.command(np.asarray(msg.data, dtype=float))
+            return reason
+        self._dynamics.command(np.asarray(values, dtype=float))
+        return None
+
+    def hold(self) -> None:
+        """Stop the arm where it is (e.g. when the link to the PC is lost)."""
+        self._dynamics.hold()
 
     def _on_tick(self) -> None:
         self._dynamics.step(self._dt)
@@ -113,9 +120,7 @@ class SimNode(Node):
         if self._tick % self._clock_every == 0:
             self._clock_pub.publish(Clock(clock=now))
         state = self._dynamics.state
-        self._js_pub.publish(JointState(
-            header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
-            position=state.joint_positions.tolist(), velocity=state.joint_velocities.tolist()))
+        self._publish_joints(now, state)
         x, y, phi = state.tip_pose
         if self._truth_pub.get_subscription_count():
             self._truth_pub.publish(TipPose(
@@ -124,7 +129,7 @@ class SimNode(Node):
         if self._tick % self._camera_every == 0 and self._image_pub.get_subscription_count():
             self._publish_image(now, state)
 
-    def _publish_image(self, now: TimeMsg, state) -> None:
+    def _publish_image(self, now: TimeMsg, state: ArmState) -> None:
         pixels = self._camera.render(state.tip_pose, tip_velocity=state.tip_velocity,
                                      rng=self._rng)
         height, width = pixels.shape

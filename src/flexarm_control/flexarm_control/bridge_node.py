@@ -1,0 +1,173 @@
+"""Bridge to a real robot controller: the ros2_control topic contract over the flexarm wire
+protocol (src/flexarm_control/PROTOCOL.md).
+
+Publishes ``/joint_states`` from the controller's JOINT_STATE frames and forwards
+``/forward_position_controller/commands`` as JOINT_COMMAND frames — with the same checks as
+the simulator (length, finite, joint limits from config/arm.yaml): a command that violates
+them is never forwarded. So nothing else in the graph changes between ``--robot sim`` and
+``--robot bridge``.
+
+Link handling (a background thread does all socket I/O; ROS callbacks never block):
+* controller unreachable → logged, retried with exponential backoff (``retry_min`` doubling
+  to ``retry_max``);
+* link lost (closed, error, or no frame for ``heartbeat_timeout``) → logged, commands are
+  dropped (not queued) while it is down, reconnect; after reconnecting the arm moves only on a
+  fresh command — nothing is replayed. The controller holds the arm on link loss (protocol);
+* malformed frames → rejected and logged; the link survives, unless ``max_errors``
+  consecutive errors arrive, then it is reset.
+"""
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+from rclpy.node import Node
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from flexarm_control import controller_protocol as proto
+from flexarm_control import topics
+from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
+from flexarm_control.node_main import run
+from flexarm_control.node_params import declare, declare_tree
+
+
+class BridgeNode(Node):
+
+    def __init__(self) -> None:
+        super().__init__('flexarm_bridge')
+        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        self._host = declare(self, 'host', '127.0.0.1', 'robot controller address')
+        self._port = declare(self, 'port', 47800, 'robot controller TCP port')
+        self._retry_min = declare(self, 'retry_min', 0.2, '[s] first reconnection delay')
+        self._retry_max = declare(self, 'retry_max', 5.0, '[s] longest reconnection delay')
+        self._heartbeat = declare(self, 'heartbeat_period', 0.2, '[s] HEARTBEAT to controller')
+        self._timeout = declare(self, 'heartbeat_timeout', 1.0,
+                                '[s] silence from the controller that counts as link loss')
+        self._max_errors = declare(self, 'max_errors', 20,
+                                   'consecutive malformed frames before the link is reset')
+        self._pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
+        self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS, self._on_command, 10)
+        self._sock: socket.socket | None = None
+        self._lock = threading.Lock()
+        self._seq = 0
+        self._running = True
+        self.link_up = threading.Event()
+        threading.Thread(target=self._link_loop, daemon=True).start()
+
+    # --- PC -> controller --------------------------------------------------------------------
+    def _on_command(self, msg: Float64MultiArray) -> None:
+        values = list(msg.data)
+        reason = command_error(values, self._geometry)
+        if reason is not None:
+            self.get_logger().error(f'joint command rejected, not forwarded: {reason}')
+            return
+        if not self._send(proto.JOINT_COMMAND, positions=values):
+            self.get_logger().error('joint command dropped: no link to the controller '
+                                    '(send a fresh command once it is back)')
+
+    def _send(self, frame_type: int, **fields) -> bool:
+        with self._lock:
+            if self._sock is None:
+                return False
+            self._seq += 1
+            try:
+                self._sock.sendall(proto.encode(frame_type, self._seq, **fields))
+                return True
+            except OSError:
+                return False
+
+    # --- link ---------------------------------------------------------------------------------
+    def _link_loop(self) -> None:
+        delay = self._retry_min
+        while self._running:
+            try:
+                sock = socket.create_connection((self._host, self._port), timeout=2.0)
+            except OSError as exc:
+                self.get_logger().error(
+                    f'controller {self._host}:{self._port} unreachable ({exc}); retrying in '
+                    f'{delay:.1f} s', throttle_duration_sec=5.0)
+                time.sleep(delay)
+                delay = min(2 * delay, self._retry_max)
+                continue
+            delay = self._retry_min
+            sock.settimeout(0.05)
+            with self._lock:
+                self._sock = sock
+            self.get_logger().info(f'connected to the controller at {self._host}:{self._port}')
+            reason = self._receive(sock)
+            with self._lock:
+                self._sock = None
+            self.link_up.clear()
+            sock.close()
+            if self._running:
+                self.get_logger().error(f'link to the controller lost: {reason}; commands are '
+                                        'not forwarded until it is back')
+
+    def _receive(self, sock: socket.socket) -> str:
+        """Read frames until the link fails; the reason it did."""
+        decoder = proto.Decoder()
+        heard = sent = time.monotonic()
+        errors = 0
+        while self._running:
+            now = time.monotonic()
+            if now - sent >= self._heartbeat:
+                self._send(proto.HEARTBEAT, time=now)
+                sent = now
+            if now - heard > self._timeout:
+                return f'no frame for {self._timeout:.1f} s'
+            try:
+                data = sock.recv(65536)
+            except TimeoutError:
+                continue
+            except OSError as exc:
+                return str(exc)
+            if not data:
+                return 'closed by the controller'
+            frames, problems = decoder.feed(data)
+            for problem in problems:
+                self.get_logger().warning(f'rejected from the controller: {problem}')
+            errors = 0 if frames else errors + len(problems)
+            if errors >= self._max_errors:
+                return f'{errors} consecutive malformed frames'
+            for frame in frames:
+                heard = time.monotonic()
+                self._handle(frame)
+        return 'shutting down'
+
+    def _handle(self, frame: proto.Frame) -> None:
+        if frame.type == proto.HELLO:
+            if frame.fields['version'] != proto.VERSION or frame.fields['joints'] != len(
+                    JOINT_NAMES):
+                self.get_logger().error(f'controller speaks {frame.fields}; need version '
+                                        f'{proto.VERSION} with {len(JOINT_NAMES)} joints')
+                return
+            self.link_up.set()
+        elif frame.type == proto.JOINT_STATE and self.link_up.is_set():
+            if len(frame.fields['positions']) != len(JOINT_NAMES):
+                self.get_logger().warning('JOINT_STATE with the wrong number of joints dropped')
+                return
+            msg = JointState(name=list(JOINT_NAMES), position=frame.fields['positions'],
+                             velocity=frame.fields['velocities'])
+            msg.header.stamp = self.get_clock().now().to_msg()
+            msg.header.frame_id = 'base_link'
+            self._pub.publish(msg)
+        elif frame.type == proto.ACK and frame.fields['code'] != proto.OK:
+            self.get_logger().error(f'controller refused command {frame.fields["acked"]} '
+                                    f'(code {frame.fields["code"]})')
+        elif frame.type == proto.ERROR:
+            self.get_logger().error(f'controller error {frame.fields["code"]}: '
+                                    f'{frame.fields["text"]}')
+
+    def destroy_node(self) -> None:
+        self._running = False
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    run(BridgeNode, args)
+
+
+if __name__ == '__main__':
+    main()

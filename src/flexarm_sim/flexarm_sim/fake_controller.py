@@ -1,0 +1,113 @@
+"""A robot controller that speaks the flexarm wire protocol (PROTOCOL.md), for tests and demos.
+
+The simulator (:class:`~flexarm_sim.sim_node.SimNode`) with its joint interface moved from ROS
+topics to a TCP server: it serves JOINT_STATE frames at the joint-state rate and executes
+JOINT_COMMAND frames, so ``flexarm_bridge`` can stand between it and the graph. What the real
+world provides outside a robot controller stays on ROS: ``/clock``, the tip camera and the
+ground truth. Listens on loopback unless ``host`` says otherwise; one PC at a time. On link
+loss (peer closed, or no frame for ``heartbeat_timeout``) it holds the arm, as PROTOCOL.md
+requires of a controller.
+"""
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+from builtin_interfaces.msg import Time as TimeMsg
+
+from flexarm_control import controller_protocol as proto
+from flexarm_control.kinematics import JOINT_NAMES
+from flexarm_control.node_main import run
+from flexarm_control.node_params import declare
+from flexarm_sim.dynamics import ArmState
+from flexarm_sim.sim_node import SimNode
+
+
+class FakeController(SimNode):
+
+    def __init__(self) -> None:
+        super().__init__('flexarm_fake_controller')
+
+    def _setup_joint_io(self) -> None:
+        host = declare(self, 'host', '127.0.0.1', 'address to listen on')
+        port = declare(self, 'port', 47800, 'TCP port to listen on')
+        self._heartbeat_timeout = declare(self, 'heartbeat_timeout', 1.0,
+                                          '[s, wall] silence after which the link is lost')
+        self._client: socket.socket | None = None
+        self._send_lock = threading.Lock()
+        self._seq = 0
+        self._server = socket.create_server((host, port), reuse_port=False)
+        self._server.settimeout(0.2)
+        self._running = True
+        threading.Thread(target=self._serve, daemon=True).start()
+        self.get_logger().info(f'controller protocol v{proto.VERSION} on {host}:{port}')
+
+    def _serve(self) -> None:
+        while self._running:
+            try:
+                conn, peer = self._server.accept()
+            except (TimeoutError, OSError):
+                continue
+            self.get_logger().info(f'PC connected from {peer}')
+            conn.settimeout(0.1)
+            with self._send_lock:
+                self._client = conn
+            self._send(proto.HELLO, version=proto.VERSION, joints=len(JOINT_NAMES))
+            self._talk(conn)
+            with self._send_lock:
+                self._client = None
+            conn.close()
+            self.hold()
+            self.get_logger().warning('link to the PC lost: arm held')
+
+    def _talk(self, conn: socket.socket) -> None:
+        decoder, heard = proto.Decoder(), time.monotonic()
+        while self._running and time.monotonic() - heard < self._heartbeat_timeout:
+            try:
+                data = conn.recv(4096)
+            except TimeoutError:
+                continue
+            except OSError:
+                return
+            if not data:
+                return
+            frames, errors = decoder.feed(data)
+            for error in errors:
+                self.get_logger().warning(f'from the PC: {error}')
+                self._send(proto.ERROR, code=proto.E_MALFORMED, text=error)
+            for frame in frames:
+                heard = time.monotonic()
+                if frame.type == proto.JOINT_COMMAND:
+                    reason = self.apply_command(frame.fields['positions'])
+                    self._send(proto.ACK, acked=frame.seq,
+                               code=proto.OK if reason is None else proto.E_LIMITS)
+
+    def _send(self, frame_type: int, **fields) -> None:
+        with self._send_lock:
+            if self._client is None:
+                return
+            self._seq += 1
+            try:
+                self._client.sendall(proto.encode(frame_type, self._seq, **fields))
+            except OSError:
+                pass      # the reader notices the broken link
+
+    def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
+        self._send(proto.JOINT_STATE, time=now.sec + now.nanosec * 1e-9,
+                   positions=state.joint_positions.tolist(),
+                   velocities=state.joint_velocities.tolist(),
+                   status=proto.STATUS_MOVING if state.is_moving else 0)
+
+    def destroy_node(self) -> None:
+        self._running = False
+        self._server.close()
+        super().destroy_node()
+
+
+def main(args: list[str] | None = None) -> None:
+    run(FakeController, args)
+
+
+if __name__ == '__main__':
+    main()

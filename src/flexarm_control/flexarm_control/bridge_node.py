@@ -92,6 +92,7 @@ class BridgeNode(Node):
                 delay = min(2 * delay, self._retry_max)
                 continue
             delay = self._retry_min
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)   # small frames, now
             sock.settimeout(0.05)
             with self._lock:
                 self._sock = sock

@@ -50,6 +50,7 @@ class FakeController(SimNode):
             except (TimeoutError, OSError):
                 continue
             self.get_logger().info(f'PC connected from {peer}')
+            conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             conn.settimeout(0.1)
             with self._send_lock:
                 self._client = conn

@@ -1,0 +1,67 @@
+"""The controller wire protocol codec: round trips, and survival of any byte stream."""
+import math
+import struct
+
+import pytest
+
+from flexarm_control import controller_protocol as proto
+
+STATE = dict(time=12.5, positions=[0.1, 0.6, -0.5, -0.4], velocities=[0.0, 0.01, 0.0, -0.2],
+             status=proto.STATUS_MOVING)
+
+
+@pytest.mark.parametrize('frame_type, fields', [
+    (proto.HELLO, dict(version=1, joints=4)),
+    (proto.JOINT_STATE, STATE),
+    (proto.JOINT_COMMAND, dict(positions=[0.2, 0.7, -0.1, 0.3])),
+    (proto.ACK, dict(acked=7, code=proto.E_LIMITS)),
+    (proto.ERROR, dict(code=proto.E_MALFORMED, text='bad frame')),
+    (proto.HEARTBEAT, dict(time=3.25)),
+])
+def test_round_trip(frame_type, fields):
+    frames, errors = proto.Decoder().feed(proto.encode(frame_type, 42, **fields))
+    assert errors == [] and len(frames) == 1
+    assert frames[0].type == frame_type and frames[0].seq == 42 and frames[0].fields == fields
+
+
+def test_byte_by_byte_and_back_to_back():
+    stream = b''.join(proto.encode(proto.JOINT_STATE, i, **STATE) for i in range(5))
+    decoder, frames = proto.Decoder(), []
+    for byte in stream:
+        got, errors = decoder.feed(bytes([byte]))
+        assert errors == []
+        frames += got
+    assert [f.seq for f in frames] == [0, 1, 2, 3, 4]
+
+
+def test_garbage_and_corruption_are_skipped_and_reported():
+    good = proto.encode(proto.JOINT_COMMAND, 1, positions=[0.0, 0.5, 0.0, 0.0])
+    corrupt = bytearray(proto.encode(proto.JOINT_COMMAND, 2, positions=[0.0, 0.5, 0.0, 0.0]))
+    corrupt[-6] ^= 0xFF                                        # payload bit flip: bad CRC
+    stream = b'\x00garbage\xfa' + good + bytes(corrupt) + b'\xfaW\xff' + good
+    frames, errors = proto.Decoder().feed(stream)
+    assert [f.seq for f in frames] == [1, 1]
+    assert any('garbage' in e for e in errors) and any('CRC' in e for e in errors)
+
+
+def test_malformed_payloads_are_rejected_with_a_reason():
+    def frame(frame_type, payload, version=proto.VERSION):
+        import zlib
+        head = proto.HEADER.pack(proto.MAGIC, version, frame_type, 9, len(payload)) + payload
+        return head + proto.CRC.pack(zlib.crc32(head))
+
+    nan_command = struct.pack('<B', 2) + struct.pack('<2d', 0.1, math.nan)
+    stream = (frame(proto.JOINT_COMMAND, nan_command) + frame(proto.JOINT_COMMAND, b'\x04')
+              + frame(99, b'') + frame(proto.HEARTBEAT, struct.pack('<d', 1.0), version=7))
+    frames, errors = proto.Decoder().feed(stream)
+    assert frames == []
+    assert len(errors) == 4
+    assert 'non-finite' in errors[0] and 'needs' in errors[1]
+    assert 'unknown' in errors[2] and 'version 7' in errors[3]
+
+
+def test_oversized_length_resynchronises():
+    bogus = proto.HEADER.pack(proto.MAGIC, 1, proto.HEARTBEAT, 0, 60000)
+    good = proto.encode(proto.HEARTBEAT, 5, time=1.0)
+    frames, errors = proto.Decoder().feed(bogus + good)
+    assert [f.seq for f in frames] == [5] and any('exceeds' in e for e in errors)

@@ -1,0 +1,161 @@
+"""Node-level: the bridge + fake controller in place of the simulator node.
+
+A TCP proxy in the test sits between the bridge and the fake controller, so the link can be
+cut and garbage injected.
+"""
+import math
+import socket
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from sensor_msgs.msg import JointState
+from std_msgs.msg import Float64MultiArray
+
+from flexarm_control import topics
+from flexarm_control.client import FlexarmClient
+from flexarm_control.supervisor import Graph
+from flexarm_msgs.action import MoveToPose
+
+pytestmark = pytest.mark.node
+
+
+class Proxy:
+    """Bridge <-> proxy <-> controller; ``cut()`` drops the link, ``inject()`` adds bytes."""
+
+    def __init__(self, listen_port: int, target_port: int) -> None:
+        self._server = socket.create_server(('127.0.0.1', listen_port))
+        self._server.settimeout(0.2)
+        self._target = target_port
+        self._pair: tuple[socket.socket, socket.socket] | None = None
+        self.connections = 0
+        self._running = True
+        threading.Thread(target=self._accept, daemon=True).start()
+
+    def _accept(self) -> None:
+        while self._running:
+            try:
+                bridge, _ = self._server.accept()
+                controller = socket.create_connection(('127.0.0.1', self._target), timeout=2)
+            except OSError:
+                continue
+            self._pair = (bridge, controller)
+            self.connections += 1
+            for a, b in ((bridge, controller), (controller, bridge)):
+                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
+
+    @staticmethod
+    def _pump(src: socket.socket, dst: socket.socket) -> None:
+        try:
+            while data := src.recv(65536):
+                dst.sendall(data)
+        except OSError:
+            pass
+        for s in (src, dst):
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+
+    def inject(self, data: bytes) -> None:
+        self._pair[0].sendall(data)           # towards the bridge
+
+    def cut(self) -> None:
+        for s in self._pair:
+            s.shutdown(socket.SHUT_RDWR)
+
+    def close(self) -> None:
+        self._running = False
+        self._server.close()
+
+
+@pytest.fixture
+def bridged(launch, ros_node, domain_id, wait_for):
+    controller_port, proxy_port = 47000 + 2 * domain_id, 47001 + 2 * domain_id
+    launch('flexarm_fake_controller', robot='bridge', port=controller_port,
+           real_time_factor=2.0, heartbeat_timeout=1.0)
+    time.sleep(1.0)                           # the controller listens before the proxy dials
+    proxy = Proxy(proxy_port, controller_port)
+    bridge = launch('flexarm_bridge', robot='bridge', port=proxy_port, use_sim_time=False)
+    heard = {}
+    ros_node.create_subscription(JointState, topics.JOINT_STATES,
+                                 lambda m: heard.__setitem__('js', (time.monotonic(), m)), 10)
+    command = ros_node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
+    wait_for(lambda: 'js' in heard and command.get_subscription_count(), 30.0,
+             'joint states through the bridge')
+    yield proxy, heard, command, bridge
+    proxy.close()
+
+
+def joints(heard) -> np.ndarray:
+    return np.array(heard['js'][1].position)
+
+
+def test_commands_flow_limits_hold_and_garbage_is_survived(bridged, wait_for):
+    proxy, heard, command, _ = bridged
+    target = [0.1, 0.62, -0.45, -0.5]
+    command.publish(Float64MultiArray(data=target))
+    wait_for(lambda: np.allclose(joints(heard), target, atol=1e-9), 30.0, 'the move')
+    command.publish(Float64MultiArray(data=[0.1, 0.95, -0.45, -0.5]))   # joint2 > 0.8 m
+    proxy.inject(b'\x00\x01garbage\xfaW\x01\x02' + bytes(range(256)))
+    time.sleep(1.0)
+    np.testing.assert_allclose(joints(heard), target, atol=1e-9)
+    assert time.monotonic() - heard['js'][0] < 0.5                     # still streaming
+    assert proxy.connections == 1                                       # link survived
+
+
+def test_link_cut_mid_move_recovers_only_on_a_fresh_command(bridged, wait_for):
+    proxy, heard, command, bridge = bridged
+    start = joints(heard)
+    far = [0.6, 0.6, -0.5, -0.5]                                        # 3.4 s of sim motion
+    command.publish(Float64MultiArray(data=far))
+    wait_for(lambda: abs(joints(heard)[0] - start[0]) > 0.05, 10.0, 'motion')
+    proxy.cut()
+    wait_for(lambda: 'link to the controller lost' in bridge.log_path.read_text(), 10.0,
+             'the bridge to report the link loss')
+    wait_for(lambda: proxy.connections >= 2, 15.0, 'the bridge to reconnect')
+    wait_for(lambda: time.monotonic() - heard['js'][0] < 0.2, 10.0, 'joint states again')
+    time.sleep(1.0)
+    held = joints(heard)
+    assert 0.05 < held[0] - start[0] < far[0] - start[0] - 0.05          # stopped midway
+    time.sleep(1.0)
+    np.testing.assert_allclose(joints(heard), held, atol=1e-9)          # nothing replayed
+    command.publish(Float64MultiArray(data=far))                        # fresh command
+    wait_for(lambda: np.allclose(joints(heard), far, atol=1e-9), 30.0, 'the fresh move')
+
+
+def test_predictive_through_the_bridge(domain_id, tmp_path):
+    """collect -> train -> PREDICTIVE move, whole graph with --robot bridge."""
+    port = 47000 + 2 * domain_id
+    graph = Graph(domain_id, tmp_path / 'run', robot='bridge', report=lambda _: None,
+                  parameters={'flexarm_fake_controller': {'real_time_factor': 10.0,
+                                                          'port': port},
+                              'flexarm_bridge': {'port': port},
+                              'flexarm_learner': {'data_directory': str(tmp_path / 'data'),
+                                                  'model_directory': str(tmp_path / 'm')}})
+    context = Context()
+    with graph:
+        graph.wait_ready(60.0)
+        rclpy.init(context=context, domain_id=domain_id)
+        client = FlexarmClient('bridge_test', context=context)
+        try:
+            client.wait_until_ready(30.0)
+            collected = client.collect(16, region='B', dataset='b', seed=2, timeout=120)
+            assert collected.error_code == 0, collected.error_string
+            trained = client.train('gp', dataset='b', timeout=60)
+            assert trained.success, trained.message
+            client.wait_for_model(trained.model_version, timeout=10)
+            target = (1.3, -0.2, math.radians(-61))
+            rigid = client.move_to(*target, mode='rigid', timeout=120)
+            predictive = client.move_to(*target, mode='predictive', timeout=120)
+        finally:
+            client.destroy_node()
+            rclpy.try_shutdown(context=context)
+    assert rigid.error_code == predictive.error_code == MoveToPose.Result.SUCCESSFUL
+    assert rigid.position_error > 10e-3                     # 13.6 mm, as with the simulator
+    assert predictive.position_error < 1e-3
+    assert Path(collected.dataset_path).exists()

@@ -30,7 +30,7 @@ from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.compensator import Compensator, Plan
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
-from flexarm_control.node_main import run
+from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_msgs.action import MoveToPose
@@ -139,12 +139,8 @@ class CompensatorNode(Node):
             result = self._run(handle, goal)
         finally:
             self._busy.release()
-        if result.error_code == Result.SUCCESSFUL:
-            handle.succeed()
-        elif result.error_code == Result.CANCELED:
-            handle.canceled()
-        else:
-            handle.abort()
+        finish_goal(handle, result.error_code, Result.CANCELED)
+        if result.error_code not in (Result.SUCCESSFUL, Result.CANCELED):
             self.get_logger().warn(f'goal aborted ({result.error_code}): {result.error_string}')
         self._publish_outcome(goal, result)
         return result

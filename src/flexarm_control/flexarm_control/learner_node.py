@@ -34,7 +34,7 @@ from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
-from flexarm_control.node_main import run
+from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.params import CONFIG_DIR
 from flexarm_control.predictors import KINDS
@@ -169,12 +169,7 @@ class LearnerNode(Node):
         goal: Goal = handle.request
         with self._collecting:
             result = self._run_collection(handle, goal)
-        if result.error_code == Result.SUCCESSFUL:
-            handle.succeed()
-        elif result.error_code == Result.CANCELED:
-            handle.canceled()
-        else:
-            handle.abort()
+        finish_goal(handle, result.error_code, Result.CANCELED)
         self.get_logger().info(f'collection ended ({result.error_code}): {result.collected} '
                                f'collected, {result.skipped} skipped, {result.total} in '
                                f'{result.dataset_path} {result.error_string}')

@@ -1,9 +1,11 @@
-"""The ``main()`` every flexarm node shares (Jazzy style, as in ros2/examples)."""
+"""What every flexarm node shares: its ``main()`` (Jazzy style, as in ros2/examples) and the
+end of an action goal."""
 from __future__ import annotations
 
 from collections.abc import Callable
 
 import rclpy
+from rclpy.action.server import ServerGoalHandle
 from rclpy.executors import Executor, ExternalShutdownException
 from rclpy.node import Node
 
@@ -34,3 +36,14 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None,
         if node is not None:
             node.destroy_node()
         rclpy.try_shutdown()
+
+
+def finish_goal(handle: ServerGoalHandle, code: int, canceled_code: int) -> None:
+    """End an action goal by its result code: 0 succeeds, ``canceled_code`` cancels, any
+    other aborts (the control_msgs convention of an error code in the result)."""
+    if code == 0:
+        handle.succeed()
+    elif code == canceled_code:
+        handle.canceled()
+    else:
+        handle.abort()

@@ -74,3 +74,22 @@ def test_invalid_collection_goal_is_refused(learner):
     for kwargs in ({'count': 0}, {'count': 3, 'region': 'Z'}, {'count': 3, 'strategy': 'x'}):
         result = client.collect(timeout=30, **kwargs)
         assert result.error_code == CollectSamples.Result.INVALID_GOAL and result.error_string
+
+
+def test_cancel_keeps_every_collected_sample(learner):
+    import threading
+
+    client, _, _ = learner
+    outcome, progress = {}, []
+    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.collect(
+        30, region='A', dataset='c', timeout=120, feedback=lambda fb: progress.append(fb.k))))
+    thread.start()
+    deadline = time.monotonic() + 60
+    while len(progress) < 3 and time.monotonic() < deadline:
+        time.sleep(0.05)
+    client.cancel()
+    thread.join(timeout=60)
+    result = outcome['result']
+    assert result.error_code == CollectSamples.Result.CANCELED
+    assert 3 <= result.collected < 30
+    assert len(load_dataset(result.dataset_path)) == result.collected == result.total

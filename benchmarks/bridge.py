@@ -1,8 +1,12 @@
 """Latency added by the bridge: a joint command published on ROS until the first
-/joint_states that reflects it, through bridge + fake controller vs the simulator node.
+/joint_states that reflects it (a 0.01 rad step of joint4), through bridge + fake controller vs
+the simulator node; and, with a relay tapping the TCP link in front of the fake controller, where
+the time goes: command -> JOINT_COMMAND frame on the wire at the controller -> first
+JOINT_STATE frame reflecting it on the wire -> /joint_states. The bridge's own cost is the
+first and the last of these legs; the middle one is the controller's.
 
-Both run at real-time factor 1 with joint states at 100 Hz (10 ms period), so the figure
-includes up to one period of waiting for the next state.
+Everything runs at real-time factor 1 with joint states at 100 Hz (10 ms period), so the
+controller's share includes up to one period of waiting for its next tick.
 
     python benchmarks/bridge.py [--moves 40] [--json]
 """
@@ -22,28 +26,73 @@ from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from flexarm_control import controller_protocol as proto
 from flexarm_control import topics
 from flexarm_control.experiment import reserved_domain
 from flexarm_control.launcher import NodeProcess, load_graph, ros_env, stop_all
+from flexarm_control.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
+
+STEP = 0.01          # [rad] joint4
+SETTLE = 0.4         # [s] between steps (a 0.01 rad joint4 step takes 0.24 s)
+STAGES = ('command_on_wire', 'state_on_wire', 'joint_states')
 
 
-def latencies(robot: str, moves: int, domain: int, run_dir: Path) -> list[float]:
+class StepTimer:
+    """Monotonic times at which one joint4 step shows up at each stage after its command."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._step: tuple[float, float] | None = None       # (from, goal) of joint4
+        self.marks: dict[str, float] = {}
+        self.done = threading.Event()
+
+    def begin(self, start: float, goal: float) -> float:
+        with self._lock:
+            self._step, self.marks = (start, goal), {}
+        self.done.clear()
+        return time.monotonic()
+
+    def reflects(self, joint4: float) -> bool:
+        step = self._step
+        return step is not None and (joint4 - step[0]) * (step[1] - step[0]) > 0
+
+    def mark(self, stage: str, t: float) -> None:
+        with self._lock:
+            if self._step is not None and stage not in self.marks:
+                self.marks[stage] = t
+        if stage == 'joint_states':
+            self.done.set()
+
+
+def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path
+                   ) -> list[dict[str, float]]:
+    """Per step: seconds from publishing the command to each stage it was seen at."""
+    controller_port = 47000 + 2 * domain
+    bridge_port = controller_port + 1 if tap else controller_port
+    overrides = {'flexarm_bridge': {'use_sim_time': False, 'port': bridge_port},
+                 'flexarm_fake_controller': {'port': controller_port}}
     env = ros_env(domain, run_dir / 'ros_log')
-    nodes = [NodeProcess(spec, env, run_dir / f'{spec.name}.log',
-                         {'use_sim_time': False} if spec.name == 'flexarm_bridge' else None)
+    nodes = [NodeProcess(spec, env, run_dir / f'{spec.name}.log', overrides.get(spec.name))
              for spec in load_graph(robot)]
+    timer = StepTimer()
+
+    def on_frame(direction: str, t: float, frame: proto.Frame) -> None:
+        if direction == TO_CONTROLLER and frame.type == proto.JOINT_COMMAND:
+            timer.mark('command_on_wire', t)
+        elif (direction == TO_PC and frame.type == proto.JOINT_STATE
+              and timer.reflects(frame.fields['positions'][3])):
+            timer.mark('state_on_wire', t)
+
+    proxy = LinkProxy(bridge_port, controller_port, on_frame) if tap else None
     context = Context()
     rclpy.init(context=context, domain_id=domain)
     node = rclpy.create_node('bench_bridge', context=context)
     latest: dict[str, np.ndarray] = {}
-    changed = threading.Event()
-    target: dict[str, float] = {}
 
     def on_state(msg: JointState) -> None:
         latest['q'] = np.array(msg.position)
-        if 'j4' in target and abs(msg.position[3] - target['j4']) > 1e-12 and np.sign(
-                msg.velocity[3]) == np.sign(target['j4'] - target['from']):
-            changed.set()
+        if timer.reflects(msg.position[3]):
+            timer.mark('joint_states', time.monotonic())
 
     node.create_subscription(JointState, topics.JOINT_STATES, on_state, 10)
     pub = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
@@ -58,23 +107,36 @@ def latencies(robot: str, moves: int, domain: int, run_dir: Path) -> list[float]
         while ('q' not in latest or not pub.get_subscription_count()) and (
                 time.monotonic() < deadline):
             time.sleep(0.05)
+        if 'q' not in latest:
+            raise RuntimeError(f'no /joint_states from robot {robot!r} within 30 s')
+        time.sleep(1.0)                       # let the first states settle
         for i in range(moves):
-            q = latest['q'].copy()
-            goal = q.copy()
-            goal[3] += 0.01 if i % 2 == 0 else -0.01
-            changed.clear()
-            target.update(j4=goal[3], **{'from': q[3]})
-            start = time.monotonic()
+            goal = latest['q'].copy()
+            goal[3] += STEP if i % 2 == 0 else -STEP
+            start = timer.begin(latest['q'][3], goal[3])
             pub.publish(Float64MultiArray(data=goal.tolist()))
-            if changed.wait(2.0):
-                out.append(time.monotonic() - start)
-            time.sleep(0.3)
+            if timer.done.wait(2.0):
+                out.append({stage: t - start for stage, t in timer.marks.items()})
+            time.sleep(SETTLE)
     finally:
         stop_all(nodes)
+        if proxy is not None:
+            proxy.close()
         executor.shutdown(timeout_sec=2)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     return out
+
+
+def summary(seconds: list[float]) -> dict[str, float]:
+    ms = 1e3 * np.asarray(seconds)
+    return {'n': int(ms.size), 'median_ms': float(np.median(ms)),
+            'p95_ms': float(np.percentile(ms, 95))}
+
+
+def line(label: str, figures: dict[str, float]) -> str:
+    return (f'{label:<58} median {figures["median_ms"]:5.2f} ms, p95 {figures["p95_ms"]:5.2f} ms'
+            f' ({figures["n"]} steps)')
 
 
 def main() -> None:
@@ -82,17 +144,30 @@ def main() -> None:
     parser.add_argument('--moves', type=int, default=40)
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
-    figures = {}
+    figures: dict[str, dict] = {}
     with tempfile.TemporaryDirectory() as tmp, reserved_domain(None) as domain:
-        for robot in ('sim', 'bridge'):
-            ms = 1e3 * np.array(latencies(robot, args.moves, domain, Path(tmp) / robot))
-            figures[robot] = {'moves': len(ms), 'median_ms': float(np.median(ms)),
-                              'p95_ms': float(np.percentile(ms, 95))}
-            print(f'{robot:>6}: command -> first joint state moving toward it: median '
-                  f'{figures[robot]["median_ms"]:.1f} ms, p95 {figures[robot]["p95_ms"]:.1f} ms '
-                  f'({len(ms)} moves)', flush=True)
-    added = figures['bridge']['median_ms'] - figures['sim']['median_ms']
-    print(f'added by the bridge: {added:.1f} ms (median)')
+        for label, robot, tap in (('sim', 'sim', False), ('bridge', 'bridge', False),
+                                  ('bridge_tapped', 'bridge', True)):
+            steps = step_latencies(robot, tap, args.moves, domain, Path(tmp) / label)
+            figures[label] = {stage: summary([s[stage] for s in steps if stage in s])
+                              for stage in STAGES if any(stage in s for s in steps)}
+    inbound = [s['joint_states'] - s['state_on_wire'] for s in steps if 'state_on_wire' in s]
+    figures['bridge_tapped']['wire_to_joint_states'] = summary(inbound)
+    print(line('simulator node: command -> /joint_states', figures['sim']['joint_states']))
+    print(line('bridge + fake controller: command -> /joint_states',
+               figures['bridge']['joint_states']))
+    tapped = figures['bridge_tapped']
+    print('with a relay tapping the link in front of the fake controller:')
+    print(line('  command -> JOINT_COMMAND on the wire at the controller',
+               tapped['command_on_wire']))
+    print(line('  command -> first JOINT_STATE reflecting it on the wire',
+               tapped['state_on_wire']))
+    print(line('  command -> /joint_states', tapped['joint_states']))
+    print(line('  JOINT_STATE on the wire -> /joint_states (per step)',
+               tapped['wire_to_joint_states']))
+    added = figures['bridge']['joint_states']['median_ms'] - figures['sim']['joint_states'][
+        'median_ms']
+    print(f'added by the bridge (median, command -> /joint_states): {added:.2f} ms')
     if args.json:
         print(json.dumps({**figures, 'added_median_ms': added}))
 

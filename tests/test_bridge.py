@@ -1,11 +1,9 @@
 """Node-level: the bridge + fake controller in place of the simulator node.
 
-A TCP proxy in the test sits between the bridge and the fake controller, so the link can be
-cut and garbage injected.
+A TCP relay (:class:`~flexarm_control.link_proxy.LinkProxy`) sits between the bridge and the
+fake controller, so the link can be cut and garbage injected.
 """
 import math
-import socket
-import threading
 import time
 from pathlib import Path
 
@@ -18,71 +16,28 @@ from std_msgs.msg import Float64MultiArray
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
+from flexarm_control import controller_protocol as proto
+from flexarm_control.link_proxy import TO_CONTROLLER, LinkProxy
 from flexarm_control.supervisor import Graph
 from flexarm_msgs.action import MoveToPose
 
 pytestmark = pytest.mark.node
 
 
-class Proxy:
-    """Bridge <-> proxy <-> controller; ``cut()`` drops the link, ``inject()`` adds bytes."""
-
-    def __init__(self, listen_port: int, target_port: int) -> None:
-        self._server = socket.create_server(('127.0.0.1', listen_port))
-        self._server.settimeout(0.2)
-        self._target = target_port
-        self._pair: tuple[socket.socket, socket.socket] | None = None
-        self.connections = 0
-        self._running = True
-        threading.Thread(target=self._accept, daemon=True).start()
-
-    def _accept(self) -> None:
-        while self._running:
-            try:
-                bridge, _ = self._server.accept()
-                controller = socket.create_connection(('127.0.0.1', self._target), timeout=2)
-            except OSError:
-                continue
-            self._pair = (bridge, controller)
-            self.connections += 1
-            for a, b in ((bridge, controller), (controller, bridge)):
-                threading.Thread(target=self._pump, args=(a, b), daemon=True).start()
-
-    @staticmethod
-    def _pump(src: socket.socket, dst: socket.socket) -> None:
-        try:
-            while data := src.recv(65536):
-                dst.sendall(data)
-        except OSError:
-            pass
-        for s in (src, dst):
-            try:
-                s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-
-    def inject(self, data: bytes) -> None:
-        self._pair[0].sendall(data)           # towards the bridge
-
-    def cut(self) -> None:
-        for s in self._pair:
-            try:
-                s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass          # that side is already down
-
-    def close(self) -> None:
-        self._running = False
-        self._server.close()
-
-
 @pytest.fixture
 def bridged(launch, ros_node, domain_id, wait_for):
     controller_port, proxy_port = 47000 + 2 * domain_id, 47001 + 2 * domain_id
-    launch('flexarm_fake_controller', robot='bridge', port=controller_port,
-           real_time_factor=2.0, heartbeat_timeout=1.0)
-    time.sleep(1.0)                           # the controller listens before the proxy dials
-    proxy = Proxy(proxy_port, controller_port)
+    controller = launch('flexarm_fake_controller', robot='bridge', port=controller_port,
+                        real_time_factor=2.0, heartbeat_timeout=1.0)
+    wait_for(lambda: 'controller protocol v' in controller.log_path.read_text(), 30.0,
+             'the fake controller to listen')
+    commands = []                             # JOINT_COMMAND frames that reached the wire
+
+    def on_frame(direction: str, _: float, frame: proto.Frame) -> None:
+        if direction == TO_CONTROLLER and frame.type == proto.JOINT_COMMAND:
+            commands.append(frame.fields['positions'])
+
+    proxy = LinkProxy(proxy_port, controller_port, on_frame)
     bridge = launch('flexarm_bridge', robot='bridge', port=proxy_port, use_sim_time=False)
     heard = {}
     ros_node.create_subscription(JointState, topics.JOINT_STATES,
@@ -90,7 +45,7 @@ def bridged(launch, ros_node, domain_id, wait_for):
     command = ros_node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
     wait_for(lambda: 'js' in heard and command.get_subscription_count(), 30.0,
              'joint states through the bridge')
-    yield proxy, heard, command, bridge
+    yield proxy, heard, command, bridge, commands
     proxy.close()
 
 
@@ -99,20 +54,24 @@ def joints(heard) -> np.ndarray:
 
 
 def test_commands_flow_limits_hold_and_garbage_is_survived(bridged, wait_for):
-    proxy, heard, command, _ = bridged
+    proxy, heard, command, bridge, commands = bridged
     target = [0.1, 0.62, -0.45, -0.5]
     command.publish(Float64MultiArray(data=target))
     wait_for(lambda: np.allclose(joints(heard), target, atol=1e-9), 30.0, 'the move')
     command.publish(Float64MultiArray(data=[0.1, 0.95, -0.45, -0.5]))   # joint2 > 0.8 m
+    wait_for(lambda: 'rejected, not forwarded' in bridge.log_path.read_text(), 10.0,
+             'the bridge to reject the command')
     proxy.inject(b'\x00\x01garbage\xfaW\x01\x02' + bytes(range(256)))
     time.sleep(1.0)
     np.testing.assert_allclose(joints(heard), target, atol=1e-9)
+    assert commands == [target]                                         # never on the wire
+    assert 'rejected from the controller' in bridge.log_path.read_text()
     assert time.monotonic() - heard['js'][0] < 0.5                     # still streaming
     assert proxy.connections == 1                                       # link survived
 
 
 def test_link_cut_mid_move_recovers_only_on_a_fresh_command(bridged, wait_for):
-    proxy, heard, command, bridge = bridged
+    proxy, heard, command, bridge, commands = bridged
     start = joints(heard)
     far = [0.6, 0.6, -0.5, -0.5]                                        # 3.4 s of sim motion
     command.publish(Float64MultiArray(data=far))
@@ -128,8 +87,20 @@ def test_link_cut_mid_move_recovers_only_on_a_fresh_command(bridged, wait_for):
     assert 0.05 < held[0] - start[0] < far[0] - start[0] - 0.05          # stopped midway
     time.sleep(1.0)
     np.testing.assert_allclose(joints(heard), held, atol=1e-9)          # nothing replayed
+    assert commands == [far]                                            # (not even sent)
     command.publish(Float64MultiArray(data=far))                        # fresh command
     wait_for(lambda: np.allclose(joints(heard), far, atol=1e-9), 30.0, 'the fresh move')
+
+
+def test_unreachable_controller_is_reported_and_retried(launch, ros_node, domain_id, wait_for):
+    port = 47000 + 2 * domain_id
+    bridge = launch('flexarm_bridge', robot='bridge', port=port, use_sim_time=False,
+                    retry_max=0.5)
+    wait_for(lambda: 'unreachable' in bridge.log_path.read_text(), 30.0, 'the error')
+    heard = []
+    ros_node.create_subscription(JointState, topics.JOINT_STATES, heard.append, 10)
+    launch('flexarm_fake_controller', robot='bridge', port=port)
+    wait_for(lambda: heard, 30.0, 'joint states once the controller is up')
 
 
 def test_predictive_through_the_bridge(domain_id, tmp_path):

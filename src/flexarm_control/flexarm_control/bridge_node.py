@@ -53,7 +53,7 @@ class BridgeNode(Node):
         self._lock = threading.Lock()
         self._seq = 0
         self._running = True
-        self.link_up = threading.Event()
+        self._link_up = threading.Event()     # connected and HELLO accepted
         threading.Thread(target=self._link_loop, daemon=True).start()
 
     # --- PC -> controller --------------------------------------------------------------------
@@ -63,7 +63,7 @@ class BridgeNode(Node):
         if reason is not None:
             self.get_logger().error(f'joint command rejected, not forwarded: {reason}')
             return
-        if not self._send(proto.JOINT_COMMAND, positions=values):
+        if not (self._link_up.is_set() and self._send(proto.JOINT_COMMAND, positions=values)):
             self.get_logger().error('joint command dropped: no link to the controller '
                                     '(send a fresh command once it is back)')
 
@@ -100,7 +100,7 @@ class BridgeNode(Node):
             reason = self._receive(sock)
             with self._lock:
                 self._sock = None
-            self.link_up.clear()
+            self._link_up.clear()
             sock.close()
             if self._running:
                 self.get_logger().error(f'link to the controller lost: {reason}; commands are '
@@ -128,7 +128,8 @@ class BridgeNode(Node):
                 return 'closed by the controller'
             frames, problems = decoder.feed(data)
             for problem in problems:
-                self.get_logger().warning(f'rejected from the controller: {problem}')
+                self.get_logger().warning(f'rejected from the controller: {problem}',
+                                          throttle_duration_sec=1.0)
             errors = 0 if frames else errors + len(problems)
             if errors >= self._max_errors:
                 return f'{errors} consecutive malformed frames'
@@ -139,13 +140,14 @@ class BridgeNode(Node):
 
     def _handle(self, frame: proto.Frame) -> None:
         if frame.type == proto.HELLO:
-            if frame.fields['version'] != proto.VERSION or frame.fields['joints'] != len(
-                    JOINT_NAMES):
+            if (frame.fields['version'] != proto.VERSION
+                    or frame.fields['names'] != list(JOINT_NAMES)):
                 self.get_logger().error(f'controller speaks {frame.fields}; need version '
-                                        f'{proto.VERSION} with {len(JOINT_NAMES)} joints')
+                                        f'{proto.VERSION} with joints {list(JOINT_NAMES)}')
                 return
-            self.link_up.set()
-        elif frame.type == proto.JOINT_STATE and self.link_up.is_set():
+            self._link_up.set()
+            self.get_logger().info('controller HELLO accepted: forwarding fresh commands')
+        elif frame.type == proto.JOINT_STATE and self._link_up.is_set():
             if len(frame.fields['positions']) != len(JOINT_NAMES):
                 self.get_logger().warning('JOINT_STATE with the wrong number of joints dropped')
                 return

@@ -45,7 +45,9 @@ def _floats(n: int) -> struct.Struct:
 def encode(frame_type: int, seq: int, **fields) -> bytes:
     """Bytes of one frame; ``fields`` as documented per type in PROTOCOL.md."""
     if frame_type == HELLO:
-        payload = struct.pack('<HB', fields['version'], fields['joints'])
+        names = [name.encode() for name in fields['names']]
+        payload = struct.pack('<HB', fields['version'], len(names)) + b''.join(
+            struct.pack('<B', len(name)) + name for name in names)
     elif frame_type == JOINT_STATE:
         q, v = fields['positions'], fields['velocities']
         payload = (struct.pack('<dB', fields['time'], len(q)) + _floats(len(q)).pack(*q)
@@ -68,8 +70,15 @@ def encode(frame_type: int, seq: int, **fields) -> bytes:
 def _parse(frame_type: int, payload: bytes) -> dict:
     """Fields of a payload; ValueError with the reason when it is malformed."""
     if frame_type == HELLO:
-        version, joints = struct.unpack('<HB', payload)
-        return {'version': version, 'joints': joints}
+        version, n = struct.unpack_from('<HB', payload)
+        names, offset = [], 3
+        for _ in range(n):
+            size = payload[offset]
+            names.append(payload[offset + 1:offset + 1 + size].decode())
+            offset += 1 + size
+        if offset != len(payload):
+            raise ValueError(f'HELLO of {n} joint names needs {offset} bytes, got {len(payload)}')
+        return {'version': version, 'names': names}
     if frame_type == JOINT_STATE:
         t, n = struct.unpack_from('<dB', payload)
         if len(payload) != 9 + 16 * n + 4:
@@ -146,6 +155,6 @@ class Decoder:
                 continue
             try:
                 frames.append(Frame(frame_type, seq, _parse(frame_type, payload)))
-            except (ValueError, struct.error) as exc:
+            except (ValueError, IndexError, struct.error) as exc:
                 errors.append(f'malformed {TYPE_NAMES.get(frame_type, frame_type)}: {exc}')
         return frames, errors

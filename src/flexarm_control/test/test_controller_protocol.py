@@ -1,7 +1,11 @@
 """The controller wire protocol codec: round trips, and survival of any byte stream."""
 import math
+import re
 import struct
+import zlib
+from pathlib import Path
 
+import numpy as np
 import pytest
 
 from flexarm_control import controller_protocol as proto
@@ -11,7 +15,7 @@ STATE = dict(time=12.5, positions=[0.1, 0.6, -0.5, -0.4], velocities=[0.0, 0.01,
 
 
 @pytest.mark.parametrize('frame_type, fields', [
-    (proto.HELLO, dict(version=1, joints=4)),
+    (proto.HELLO, dict(version=1, names=['joint1', 'joint2', 'joint3', 'joint4'])),
     (proto.JOINT_STATE, STATE),
     (proto.JOINT_COMMAND, dict(positions=[0.2, 0.7, -0.1, 0.3])),
     (proto.ACK, dict(acked=7, code=proto.E_LIMITS)),
@@ -46,18 +50,19 @@ def test_garbage_and_corruption_are_skipped_and_reported():
 
 def test_malformed_payloads_are_rejected_with_a_reason():
     def frame(frame_type, payload, version=proto.VERSION):
-        import zlib
         head = proto.HEADER.pack(proto.MAGIC, version, frame_type, 9, len(payload)) + payload
         return head + proto.CRC.pack(zlib.crc32(head))
 
     nan_command = struct.pack('<B', 2) + struct.pack('<2d', 0.1, math.nan)
+    short_hello = struct.pack('<HB', 1, 2) + b'\x06joint1'             # 2 names, 1 sent
     stream = (frame(proto.JOINT_COMMAND, nan_command) + frame(proto.JOINT_COMMAND, b'\x04')
-              + frame(99, b'') + frame(proto.HEARTBEAT, struct.pack('<d', 1.0), version=7))
+              + frame(99, b'') + frame(proto.HEARTBEAT, struct.pack('<d', 1.0), version=7)
+              + frame(proto.HELLO, short_hello))
     frames, errors = proto.Decoder().feed(stream)
     assert frames == []
-    assert len(errors) == 4
+    assert len(errors) == 5
     assert 'non-finite' in errors[0] and 'needs' in errors[1]
-    assert 'unknown' in errors[2] and 'version 7' in errors[3]
+    assert 'unknown' in errors[2] and 'version 7' in errors[3] and 'HELLO' in errors[4]
 
 
 def test_oversized_length_resynchronises():
@@ -65,3 +70,21 @@ def test_oversized_length_resynchronises():
     good = proto.encode(proto.HEARTBEAT, 5, time=1.0)
     frames, errors = proto.Decoder().feed(bogus + good)
     assert [f.seq for f in frames] == [5] and any('exceeds' in e for e in errors)
+
+
+def test_random_bytes_never_raise_and_good_frames_get_through_after_them():
+    rng = np.random.default_rng(0)
+    decoder = proto.Decoder()
+    for _ in range(200):                      # noise with planted magics and headers
+        noise = bytearray(rng.integers(0, 256, int(rng.integers(1, 300)), dtype=np.uint8))
+        noise[int(rng.integers(0, len(noise))):][:2] = proto.MAGIC
+        decoder.feed(bytes(noise))
+    good = b''.join(proto.encode(proto.HEARTBEAT, seq, time=2.0) for seq in range(100))
+    frames, _ = decoder.feed(good)            # > MAX_PAYLOAD: any pending bogus header fails
+    assert [f.seq for f in frames][-50:] == list(range(50, 100))
+
+
+def test_protocol_document_example_is_what_the_codec_sends():
+    document = (Path(__file__).parents[1] / 'PROTOCOL.md').read_text()
+    example = re.search(r'`(fa 57 [0-9a-f |]+)`', document).group(1)
+    assert bytes.fromhex(example.replace('|', '')) == proto.encode(proto.HEARTBEAT, 5, time=1.0)

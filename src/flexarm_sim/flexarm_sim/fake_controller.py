@@ -54,7 +54,7 @@ class FakeController(SimNode):
             conn.settimeout(0.1)
             with self._send_lock:
                 self._client = conn
-            self._send(proto.HELLO, version=proto.VERSION, joints=len(JOINT_NAMES))
+            self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
             self._talk(conn)
             with self._send_lock:
                 self._client = None

@@ -3,38 +3,57 @@
 Learning data are what the running system would collect: for space-filling poses of a region
 (scrambled Sobol, seeded), the tip camera image rendered at the simulator's actual tip pose
 (with sensor noise) goes through the vision estimator, and measured − rigid pose is the
-deflection sample. Predictors are judged on held-out random poses of the same region against
-the plant's TRUE deflection. Every configuration is repeated over several seeds; the tables
-give the mean of the per-seed maximum errors and the worst of them, so a lucky draw does not
-decide. Table 7's "fitting precision" is read as a normalised error: RMS error / range of the
-true deflection, averaged over x, y, φ. Pure core (no rclpy)::
+deflection sample. Predictors are judged on held-out random poses of the same region (another
+seed) against the plant's TRUE deflection. Every configuration is repeated over several seeds
+(learning poses, image noise, held-out poses and the predictor's own seed all change); the
+tables give the mean of the per-seed maximum errors and the worst of them, so a lucky draw
+does not decide. Table 7's "fitting precision" is read as a normalised error: RMS error /
+range of the true deflection, averaged over x, y, φ. Pure core (no rclpy)::
 
     python -m flexarm_control.study [--region paper] [--seeds 3] [--quick] [--json]
 """
 from __future__ import annotations
 
 import argparse
+import copy
 import csv
 import io
 import json
 import math
 import sys
 import time
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.paper import TABLE_7, TABLE_8
 from flexarm_control.params import CONFIG_DIR, load_config
-from flexarm_control.predictors import make_predictor
+from flexarm_control.predictors import KINDS, make_predictor
 from flexarm_control.predictors.base import atomic_write
 from flexarm_control.sampling import regions_from_dict, sample_poses
 
 FULL_SAMPLES = (10, 20, 30, 40, 50, 80, 120, 160)
 QUICK_SAMPLES = (20, 40)
+PAPER_HIDDEN = 10     # the paper's hidden units in Table 8 and our extended MLP rows
+# Predictor settings of the study, over each kind's defaults. The MLP's: with its default 300
+# L-BFGS iterations × 4 restarts the held-out error grows with the samples (2 mm worst at
+# 160, paper workspace); 1000 iterations, weight decay 1e-4 and 8 restarts avoid that.
+PREDICTOR_SETTINGS = {'mlp': {'max_iterations': 1000, 'weight_decay': 1e-4, 'restarts': 8},
+                      'rbf': {}, 'gp': {}}
+DEFAULTS: dict[str, Any] = {
+    'region': 'paper',            # region preset of config/learner.yaml
+    'seeds': 3,                   # repetitions of every configuration
+    'samples': FULL_SAMPLES,      # learning-set sizes of the extended grid
+    'held_out': 200,              # random held-out poses per seed
+    'kinds': KINDS,               # predictor kinds of the extended grid
+    'paper_tables': True,         # also the Table 7 (hidden units) and Table 8 configurations
+    'predictors': PREDICTOR_SETTINGS,
+}
+HELD_OUT_SEED = 1000              # held-out poses of seed k use seed HELD_OUT_SEED + k
 
 
 @dataclass
@@ -47,8 +66,8 @@ class Row:
     max_x_mm: float           # mean over seeds of the max |error|
     max_y_mm: float
     max_phi_deg: float
-    worst_position_mm: float  # worst over seeds of max |error| in x or y
-    mean_position_mm: float   # mean |error| in x and y, over everything
+    worst_position_mm: float  # worst over seeds of the max |error| in x or y
+    mean_position_mm: float   # mean |error| in x and y, over every seed
     normalised: float         # RMS error / range of the true deflection (Table 7's measure)
 
 
@@ -84,137 +103,201 @@ class World:
         return np.array(kept), np.array(deflections)
 
     def held_out(self, region: str, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+        """Random joints (count, 4) of the region and the plant's true deflections there."""
         _, joints = sample_poses(self.geometry, self.regions[region], count, 'random', seed)
         return joints, self.plant.deflection(joints)
 
 
-def configurations(samples: Sequence[int]) -> list[tuple[str, int | None, int]]:
-    """(kind, hidden units, samples): Table 7, Table 8, then the extended grid."""
-    configs = [('mlp', h, 50) for h in TABLE_7] + [('mlp', 10, n) for n in TABLE_8]
-    configs += [(kind, 10 if kind == 'mlp' else None, n)
-                for kind in ('mlp', 'rbf', 'gp') for n in samples]
-    seen: list[tuple[str, int | None, int]] = []
-    for c in configs:
-        if c not in seen:
-            seen.append(c)
-    return seen
+def study_settings(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """DEFAULTS with ``overrides``; ``predictors`` merge per kind. ValueError if invalid."""
+    given = dict(overrides or {})
+    unknown = sorted(set(given) - set(DEFAULTS))
+    if unknown:
+        raise ValueError(f'unknown study settings {unknown}; known: {sorted(DEFAULTS)}')
+    settings = {**copy.deepcopy(DEFAULTS), **given}
+    predictors = copy.deepcopy(PREDICTOR_SETTINGS)
+    for kind, extra in dict(given.get('predictors') or {}).items():
+        predictors[kind] = {**predictors.get(kind, {}), **extra}
+    settings['predictors'] = predictors
+    settings['samples'] = sorted({int(n) for n in settings['samples']})
+    settings['kinds'] = list(settings['kinds'])
+    for kind in {*settings['kinds'], *predictors}:
+        make_predictor(kind, predictors.get(kind))      # unknown kind or bad settings
+    if settings['seeds'] < 1 or settings['held_out'] < 1 or min(settings['samples']) < 2:
+        raise ValueError('the study needs seeds >= 1, held_out >= 1 and samples >= 2')
+    return settings
 
 
-def run_study(region: str = 'paper', seeds: int = 3, samples: Sequence[int] = FULL_SAMPLES,
-              held_out: int = 200) -> list[Row]:
+def configurations(settings: Mapping[str, Any]) -> list[tuple[str, int | None, int]]:
+    """(kind, hidden units, samples): Table 7, Table 8, then the extended grid; no repeats."""
+    configs = []
+    if settings['paper_tables']:
+        configs += [('mlp', h, 50) for h in TABLE_7] + [('mlp', PAPER_HIDDEN, n) for n in TABLE_8]
+    configs += [(kind, PAPER_HIDDEN if kind == 'mlp' else None, n)
+                for kind in settings['kinds'] for n in settings['samples']]
+    return list(dict.fromkeys(configs))
+
+
+def run_study(settings: Mapping[str, Any] | None = None) -> dict[str, Any]:
+    """The study for ``settings`` (see DEFAULTS): {'settings', 'rows', 'largest_deflection_mm',
+    'elapsed_s'}; rows are :class:`Row` fields as dicts, errors in mm and degrees."""
+    start = time.monotonic()
+    s = study_settings(settings)
     world = World()
-    configs = configurations(samples)
+    if s['region'] not in world.regions:
+        raise ValueError(f"unknown region {s['region']!r}; presets: {', '.join(world.regions)}")
+    configs = configurations(s)
     largest = max(n for _, _, n in configs)
-    data = [world.measured(region, largest, seed) for seed in range(seeds)]
-    tests = [world.held_out(region, held_out, 1000 + seed) for seed in range(seeds)]
-    rows = []
-    for kind, hidden, n in configs:
-        maxima, errors, normalised = [], [], []
-        for (joints, deflections), (test_q, truth) in zip(data, tests):
-            settings = {'hidden': [hidden]} if kind == 'mlp' else {}
-            model = make_predictor(kind, settings).fit(joints[:n], deflections[:n])
-            err = np.abs(model.predict(test_q) - truth)
-            maxima.append(err.max(axis=0))
-            errors.append(err)
-            span = truth.max(axis=0) - truth.min(axis=0)
-            normalised.append(float(np.mean(np.sqrt(np.mean(err ** 2, axis=0)) / span)))
-        maxima, errors = np.array(maxima), np.concatenate(errors)
-        rows.append(Row(region, kind, hidden, n, seeds,
-                        max_x_mm=1e3 * maxima[:, 0].mean(), max_y_mm=1e3 * maxima[:, 1].mean(),
-                        max_phi_deg=math.degrees(maxima[:, 2].mean()),
-                        worst_position_mm=1e3 * maxima[:, :2].max(),
-                        mean_position_mm=1e3 * errors[:, :2].mean(),
-                        normalised=float(np.mean(normalised))))
-    return rows
+    data = [world.measured(s['region'], largest, seed) for seed in range(s['seeds'])]
+    tests = [world.held_out(s['region'], s['held_out'], HELD_OUT_SEED + seed)
+             for seed in range(s['seeds'])]
+    rows = [_evaluate(s, kind, hidden, n, data, tests) for kind, hidden, n in configs]
+    biggest = max(float(np.abs(truth[:, :2]).max()) for _, truth in tests)
+    return {'settings': s, 'rows': [asdict(r) for r in rows],
+            'largest_deflection_mm': 1e3 * biggest, 'elapsed_s': time.monotonic() - start}
 
 
-def table_text(rows: list[Row]) -> str:
-    def find(kind: str, hidden: int | None, n: int) -> Row | None:
-        return next((r for r in rows if (r.kind, r.hidden, r.samples) == (kind, hidden, n)),
-                    None)
+def _evaluate(s: Mapping[str, Any], kind: str, hidden: int | None, n: int,
+              data: list[tuple[np.ndarray, np.ndarray]],
+              tests: list[tuple[np.ndarray, np.ndarray]]) -> Row:
+    """One configuration fitted on each seed's first ``n`` samples, judged on its held-out."""
+    maxima, errors, normalised = [], [], []
+    for seed, ((joints, deflections), (test_q, truth)) in enumerate(zip(data, tests)):
+        predictor_settings = dict(s['predictors'].get(kind, {}))
+        if hidden is not None:
+            predictor_settings['hidden'] = [hidden]
+        if 'seed' in make_predictor(kind).defaults:
+            predictor_settings['seed'] = seed
+        model = make_predictor(kind, predictor_settings).fit(joints[:n], deflections[:n])
+        err = np.abs(model.predict(test_q) - truth)
+        maxima.append(err.max(axis=0))
+        errors.append(err)
+        span = truth.max(axis=0) - truth.min(axis=0)
+        normalised.append(float(np.mean(np.sqrt(np.mean(err ** 2, axis=0)) / span)))
+    maxima, every = np.array(maxima), np.concatenate(errors)
+    return Row(s['region'], kind, hidden, n, len(data),
+               max_x_mm=1e3 * float(maxima[:, 0].mean()),
+               max_y_mm=1e3 * float(maxima[:, 1].mean()),
+               max_phi_deg=math.degrees(float(maxima[:, 2].mean())),
+               worst_position_mm=1e3 * float(maxima[:, :2].max()),
+               mean_position_mm=1e3 * float(every[:, :2].mean()),
+               normalised=float(np.mean(normalised)))
 
-    lines = [f'Region {rows[0].region}, {rows[0].seeds} seeds; errors on held-out poses '
-             'against the true deflection (mean over seeds of the max, [worst]).', '',
-             '**Table 7** (50 samples): normalised error vs hidden units', '',
-             '| hidden units | paper | ours |', '|---|---|---|']
+
+def _find(rows: list[dict[str, Any]], kind: str, hidden: int | None, n: int
+          ) -> dict[str, Any] | None:
+    return next((r for r in rows if (r['kind'], r['hidden'], r['samples']) == (kind, hidden, n)),
+                None)
+
+
+def _errors(r: dict[str, Any] | None) -> str:
+    return ('-' if r is None else f"{r['max_x_mm']:.3f} / {r['max_y_mm']:.3f}, "
+            f"{r['max_phi_deg']:.4f} [{r['worst_position_mm']:.3f}]")
+
+
+def table_text(result: Mapping[str, Any]) -> str:
+    """Markdown: Tables 7 and 8 next to the paper's, then the extended grid."""
+    s, rows = result['settings'], result['rows']
+    predictors = '; '.join(f'{k} {json.dumps(v)}' for k, v in s['predictors'].items() if v)
+    lines = [f"Region {s['region']}, {s['seeds']} seeds, {s['held_out']} held-out random poses "
+             f"per seed; the true deflection there reaches "
+             f"{result['largest_deflection_mm']:.1f} mm. Errors against the true deflection: "
+             'mean over seeds of the max |error| x / y mm, φ °, [worst seed, x or y mm]. '
+             f'Predictor settings over their defaults: {predictors}.', '',
+             '**Table 7** (50 samples): normalised error (RMS error / range of the true '
+             'deflection, mean of x, y, φ) vs hidden units', '',
+             '| hidden units | paper | ours | ours, max error |', '|---|---|---|---|']
     for h, paper in TABLE_7.items():
-        r = find('mlp', h, 50)
-        lines.append(f'| {h} | {paper} | {r.normalised:.4f} |' if r else f'| {h} | {paper} | - |')
-    lines += ['', '**Table 8** (10 hidden units): max prediction error vs samples', '',
-              '| samples | paper x / y mm, φ ° | ours x / y mm, φ ° [worst mm] |', '|---|---|---|']
+        r = _find(rows, 'mlp', h, 50)
+        lines.append(f"| {h} | {paper} | {'-' if r is None else format(r['normalised'], '.4f')}"
+                     f' | {_errors(r)} |')
+    lines += ['', f'**Table 8** ({PAPER_HIDDEN} hidden units): max prediction error vs '
+              'samples', '',
+              '| samples | paper x / y mm, φ ° | ours x / y mm, φ ° [worst mm] |',
+              '|---|---|---|']
     for n, (px, py, pphi) in TABLE_8.items():
-        r = find('mlp', 10, n)
-        ours = (f'{r.max_x_mm:.3f} / {r.max_y_mm:.3f}, {r.max_phi_deg:.4f} '
-                f'[{r.worst_position_mm:.3f}]' if r else '-')
-        lines.append(f'| {n} | {px} / {py}, {pphi} | {ours} |')
-    lines += ['', '**Extended**: max x / y mm, φ ° [worst mm]; mean position mm', '',
-              '| samples | mlp (10 units) | rbf | gp |', '|---|---|---|---|']
-    for n in sorted({r.samples for r in rows if r.kind == 'rbf'}):
+        r = _find(rows, 'mlp', PAPER_HIDDEN, n)
+        lines.append(f'| {n} | {px} / {py}, {pphi} | {_errors(r)} |')
+    kinds = s['kinds']
+    names = [f'mlp ({PAPER_HIDDEN} units)' if k == 'mlp' else k for k in kinds]
+    lines += ['', '**Extended**: max x / y mm, φ ° [worst mm]; mean position error mm', '',
+              '| samples | ' + ' | '.join(names) + ' |', '|---|' + '---|' * len(kinds)]
+    for n in s['samples']:
         cells = []
-        for kind in ('mlp', 'rbf', 'gp'):
-            r = find(kind, 10 if kind == 'mlp' else None, n)
-            cells.append(f'{r.max_x_mm:.3f} / {r.max_y_mm:.3f}, {r.max_phi_deg:.4f} '
-                         f'[{r.worst_position_mm:.3f}]; {r.mean_position_mm:.3f}' if r else '-')
+        for kind in kinds:
+            r = _find(rows, kind, PAPER_HIDDEN if kind == 'mlp' else None, n)
+            cells.append('-' if r is None else f"{_errors(r)}; {r['mean_position_mm']:.3f}")
         lines.append(f'| {n} | ' + ' | '.join(cells) + ' |')
-    return '\n'.join(lines)
+    return '\n'.join(lines) + '\n'
 
 
-def write_study(rows: list[Row], out_dir: Path) -> dict[str, Path]:
-    """table.md, study.csv and learning_curve.png in ``out_dir`` (atomic)."""
+def write_study(result: Mapping[str, Any], out_dir: str | Path) -> dict[str, Path]:
+    """table.md, study.csv and learning_curve.png in ``out_dir``, each written atomically."""
     import matplotlib
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    out_dir.mkdir(parents=True, exist_ok=True)
+    out_dir = Path(out_dir)
     paths = {'table': out_dir / 'table.md', 'csv': out_dir / 'study.csv',
              'plot': out_dir / 'learning_curve.png'}
-    atomic_write(paths['table'], lambda f: f.write(table_text(rows).encode()))
+    rows = result['rows']
+    atomic_write(paths['table'], lambda f: f.write(table_text(result).encode()))
     text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=list(asdict(rows[0])))
+    writer = csv.DictWriter(text, fieldnames=list(Row.__dataclass_fields__))
     writer.writeheader()
-    writer.writerows(asdict(r) for r in rows)
+    writer.writerows(rows)
     atomic_write(paths['csv'], lambda f: f.write(text.getvalue().encode()))
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
-    for kind in ('mlp', 'rbf', 'gp'):
-        chosen = sorted((r for r in rows if r.kind == kind and r.hidden in (10, None)),
-                        key=lambda r: r.samples)
-        ax.plot([r.samples for r in chosen],
-                [max(r.max_x_mm, r.max_y_mm) for r in chosen], 'o-', label=kind)
+    for kind in result['settings']['kinds']:
+        hidden = PAPER_HIDDEN if kind == 'mlp' else None
+        chosen = sorted((r for r in rows if r['kind'] == kind and r['hidden'] == hidden),
+                        key=lambda r: r['samples'])
+        ax.plot([r['samples'] for r in chosen],
+                [max(r['max_x_mm'], r['max_y_mm']) for r in chosen], 'o-', label=kind)
     ax.plot(list(TABLE_8), [max(v[0], v[1]) for v in TABLE_8.values()], 'ks--',
-            label='paper (Table 8, mlp)')
+            label=f'paper (Table 8, mlp {PAPER_HIDDEN} units)')
     ax.set_yscale('log')
     ax.set_xlabel('learning samples')
-    ax.set_ylabel('max position prediction error [mm]')
+    ax.set_ylabel('max position prediction error [mm]\n(mean over seeds of max of x, y)')
     ax.grid(True, which='both', alpha=0.3)
     ax.legend()
-    ax.set_title(f'region {rows[0].region}: held-out error vs samples')
+    ax.set_title(f"region {result['settings']['region']}: held-out error vs samples")
     fig.tight_layout()
-    tmp = out_dir / '.learning_curve.png.tmp'
-    fig.savefig(tmp, dpi=110, format='png')
+    atomic_write(paths['plot'], lambda f: fig.savefig(f, dpi=110, format='png'))
     plt.close(fig)
-    tmp.replace(paths['plot'])
     return paths
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--region', default='paper', help='region preset (config/learner.yaml)')
-    parser.add_argument('--seeds', type=int, default=3)
-    parser.add_argument('--quick', action='store_true', help='small grid for a smoke run')
-    parser.add_argument('--out', default=str(CONFIG_DIR.parent / 'results' / 'study'))
-    parser.add_argument('--json', action='store_true')
+    parser.add_argument('--region', default=DEFAULTS['region'],
+                        help='region preset (config/learner.yaml)')
+    parser.add_argument('--seeds', type=int, default=DEFAULTS['seeds'])
+    parser.add_argument('--quick', action='store_true',
+                        help=f'small grid for a smoke run (samples {QUICK_SAMPLES}, 50 held-out)')
+    parser.add_argument('--predictors', type=json.loads, default={},
+                        help='JSON {kind: settings} over the study\'s predictor settings, '
+                             'e.g. \'{"mlp": {"max_iterations": 300, "weight_decay": 1e-5}}\'')
+    parser.add_argument('--out', default=str(CONFIG_DIR.parent / 'results' / 'study'),
+                        help='results go to OUT/REGION/')
+    parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args(argv)
-    start = time.monotonic()
-    rows = run_study(args.region, args.seeds, QUICK_SAMPLES if args.quick else FULL_SAMPLES,
-                     held_out=50 if args.quick else 200)
-    paths = write_study(rows, Path(args.out) / args.region)
-    print(table_text(rows))
-    print(f'\nwritten: {", ".join(str(p) for p in paths.values())} '
-          f'({time.monotonic() - start:.0f} s)')
+    overrides: dict[str, Any] = {'region': args.region, 'seeds': args.seeds,
+                                 'predictors': args.predictors}
+    if args.quick:
+        overrides.update(samples=QUICK_SAMPLES, held_out=50)
+    try:
+        result = run_study(overrides)
+    except ValueError as error:
+        print(f'flexarm study: {error}', file=sys.stderr)
+        return 2
+    paths = write_study(result, Path(args.out) / args.region)
+    print(table_text(result))
+    print(f"written: {', '.join(str(p) for p in paths.values())} "
+          f"({result['elapsed_s']:.0f} s)")
     if args.json:
-        print(json.dumps({'ok': True, 'rows': [asdict(r) for r in rows],
-                          **{k: str(v) for k, v in paths.items()}}))
+        print(json.dumps({'ok': True, **result, **{k: str(v) for k, v in paths.items()}}))
     return 0
 
 

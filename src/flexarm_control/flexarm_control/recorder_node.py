@@ -16,12 +16,13 @@ in one bag; a trial that wants a bag of its own starts (and stops) a recorder fo
 
 Chunks are flushed every ``flush_period`` (wall clock, also under sim time), so after a
 SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close the bag
-cleanly: the handlers only shut the context down, the bag is closed after spinning stops.
+cleanly: the handlers only stop the spin loop, the bag is closed after spinning stops.
 """
 from __future__ import annotations
 
 import importlib
 import signal
+import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
@@ -29,7 +30,7 @@ from typing import Any
 
 import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
 from rclpy.signals import SignalHandlerOptions
@@ -155,16 +156,27 @@ class RecorderNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
+    """Spin until SIGINT/SIGTERM, then close the bag, destroy the node and shut rclpy down.
+
+    The signal handlers only set a flag: shutting the context down from a handler while the
+    executor is inside a wait or a raw take crashed the process (SIGSEGV) now and then.
+    """
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
     for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: rclpy.try_shutdown())
+        signal.signal(sig, lambda *_: stop.set())
     node = RecorderNode()
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
     try:
-        rclpy.spin(node)
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:
+        executor.remove_node(node)
         node.destroy_node()
+        executor.shutdown(timeout_sec=1.0)
         rclpy.try_shutdown()
 
 

@@ -106,6 +106,8 @@ class ArmInterface:
         """Wait until ``predicate()`` (evaluated under the lock) or ``timeout`` s of node time.
 
         Returns False on timeout or when ``abort()`` becomes true (e.g. a cancel request).
+        Under ``use_sim_time`` the node time is 0 until the first ``/clock`` arrives and then
+        jumps to the simulator's time: the wait starts counting at the first non-zero time.
         """
         start = self.now()
         wall_deadline = time.monotonic() + _WALL_FACTOR * timeout + _WALL_SLACK
@@ -113,7 +115,10 @@ class ArmInterface:
             while not predicate():
                 if abort() or time.monotonic() > wall_deadline:
                     return False
-                if (self.now() - start).nanoseconds * 1e-9 > timeout:
+                now = self.now()
+                if start.nanoseconds == 0:
+                    start = now
+                elif (now - start).nanoseconds * 1e-9 > timeout:
                     return False
                 self._cond.wait(_POLL)
         return True

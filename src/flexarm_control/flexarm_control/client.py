@@ -13,11 +13,13 @@ from __future__ import annotations
 
 import json
 import time
+import uuid
 from collections.abc import Callable, Mapping
 from typing import Any
 
 import rclpy
 from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
@@ -28,6 +30,7 @@ from flexarm_control import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import ModelInfo, PlanarPose
 from flexarm_msgs.srv import Train
+from unique_identifier_msgs.msg import UUID
 
 MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
          'predictive': MoveToPose.Goal.MODE_PREDICTIVE,
@@ -43,9 +46,10 @@ class FlexarmClient(Node):
 
     def __init__(self, node_name: str = 'flexarm_client', context: Context | None = None) -> None:
         super().__init__(node_name, context=context)
+        # The Train client first: see _wait_responsive for why the order matters.
+        self._train = self.create_client(Train, topics.TRAIN)
         self._move = ActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
         self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
-        self._train = self.create_client(Train, topics.TRAIN)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self)
         self._goal_handle: Any = None
@@ -56,7 +60,7 @@ class FlexarmClient(Node):
 
     def wait_until_ready(self, timeout: float = 30.0, learner: bool = True,
                          compensator: bool = True) -> None:
-        """Wait until the compensator's and/or the learner's servers are discovered."""
+        """Wait until the compensator's and/or the learner's servers answer this client."""
         deadline = time.monotonic() + timeout
         waits: list[tuple[str, Callable[[float], bool]]] = []
         if compensator:
@@ -67,6 +71,9 @@ class FlexarmClient(Node):
         for name, wait in waits:
             if not wait(max(0.0, deadline - time.monotonic())):
                 raise TimeoutError(f'{name} not available after {timeout:.0f} s')
+        for wanted, client in ((compensator, self._move), (learner, self._collect)):
+            if wanted:
+                self._wait_responsive(client, deadline)
 
     def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
                 position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
@@ -131,6 +138,7 @@ class FlexarmClient(Node):
         deadline = time.monotonic() + timeout
         if not client.wait_for_server(timeout_sec=min(timeout, 10.0)):
             raise TimeoutError(f'action server {client._action_name} not available')
+        self._wait_responsive(client, deadline)
         callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
         handle = self._spin_until(client.send_goal_async(goal, feedback_callback=callback),
                                   deadline - time.monotonic(), 'goal acceptance')
@@ -146,6 +154,28 @@ class FlexarmClient(Node):
             raise
         finally:
             self._goal_handle = None
+
+    def _wait_responsive(self, client: ActionClient, deadline: float) -> None:
+        """Wait until the action server has answered a request of this client.
+
+        ``wait_for_server`` only means that this client sees the server's request readers.
+        With Fast DDS a response sent before the server has discovered this client's reply
+        readers is dropped ("Failed to send goal response"), and with it the goal, which then
+        never starts while the client waits for its acceptance. The probe is a cancel request
+        for a goal id nobody has (it cancels nothing), repeated until one is answered. Reply
+        readers are announced in the order they were created: the cancel service's comes
+        after the goal service's of the same action and after the Train client's (created
+        first), so an answered probe means those have been discovered too.
+        """
+        probe = ClientGoalHandle(client, UUID(uuid=list(uuid.uuid4().bytes)), None)
+        while True:
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError(f'action server {client._action_name} does not answer')
+            future = probe.cancel_goal_async()
+            self._executor.spin_until_future_complete(future, timeout_sec=min(1.0, remaining))
+            if future.done():
+                return
 
     def _spin_until(self, future: Future, timeout: float, what: str) -> Any:
         self._executor.spin_until_future_complete(future, timeout_sec=max(0.0, timeout))

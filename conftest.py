@@ -51,17 +51,23 @@ def launch(domain_id: int, tmp_path: Path) -> Iterator[Callable[..., Any]]:
 
 
 @pytest.fixture
-def ros_node(domain_id: int) -> Iterator[Any]:
-    """An rclpy node in its own context on the test's domain, spun in a background thread."""
+def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
+    """An rclpy node in its own context on the test's domain, spun in a background thread.
+
+    Parameters of the node: ``@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}],
+    indirect=True)``.
+    """
     import threading
 
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import MultiThreadedExecutor
+    from rclpy.parameter import Parameter
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
-    node = rclpy.create_node('test_client', context=context)
+    node = rclpy.create_node('test_client', context=context, parameter_overrides=[
+        Parameter(name, value=value) for name, value in getattr(request, 'param', {}).items()])
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
     thread = threading.Thread(target=executor.spin, daemon=True)

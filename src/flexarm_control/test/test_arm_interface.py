@@ -5,9 +5,6 @@ import time
 import pytest
 import rclpy
 from rclpy.clock import ClockType
-from rclpy.context import Context
-from rclpy.executors import SingleThreadedExecutor
-from rclpy.parameter import Parameter
 from rosgraph_msgs.msg import Clock
 
 from flexarm_control import topics
@@ -17,27 +14,10 @@ pytestmark = pytest.mark.node
 START = 1000.0      # [s] sim time of the first /clock
 
 
-@pytest.fixture
-def sim_time_node(domain_id):
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    node = rclpy.create_node('arm_interface_test', context=context,
-                             parameter_overrides=[Parameter('use_sim_time', value=True)])
-    executor = SingleThreadedExecutor(context=context)
-    executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
-    try:
-        yield node
-    finally:
-        executor.shutdown(timeout_sec=2.0)
-        node.destroy_node()
-        rclpy.try_shutdown(context=context)
-
-
-def test_a_wait_begun_before_the_first_clock_lasts_its_timeout_in_sim_time(sim_time_node):
-    node = sim_time_node
-    arm = ArmInterface(node)
-    clock = node.create_publisher(Clock, topics.CLOCK, 10)
+@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}], indirect=True)
+def test_a_wait_begun_before_the_first_clock_lasts_its_timeout_in_sim_time(ros_node):
+    arm = ArmInterface(ros_node)
+    clock = ros_node.create_publisher(Clock, topics.CLOCK, 10)
     running = threading.Event()
 
     def publish_clock() -> None:               # 0.3 s of silence, then sim time at 10x
@@ -50,11 +30,11 @@ def test_a_wait_begun_before_the_first_clock_lasts_its_timeout_in_sim_time(sim_t
             time.sleep(0.005)
 
     thread = threading.Thread(target=publish_clock, daemon=True)
-    assert node.get_clock().now().nanoseconds == 0          # no /clock yet
+    assert ros_node.get_clock().now().nanoseconds == 0          # no /clock yet
     thread.start()
     try:
         assert not arm.wait_until(lambda: False, timeout=2.0)
-        ended = node.get_clock().now().nanoseconds * 1e-9
+        ended = ros_node.get_clock().now().nanoseconds * 1e-9
     finally:
         running.set()
         thread.join(timeout=2.0)

@@ -3,9 +3,11 @@
 A bag is a directory ``<dir>/`` holding ``<dir.name>.mcap`` and ``metadata.yaml``, as
 ``ros2 bag record -s mcap`` makes it: profile ``ros2``, one ``ros2msg`` schema per type with
 its full text (:mod:`flexarm_control.bag_schema`), one ``cdr`` channel per topic with the
-``offered_qos_profiles`` (and ``topic_type_hash``) metadata, and on close the ``rosbag2``
-metadata record whose ``serialized_metadata`` is the bag metadata (version 9, Jazzy), the
-same mapping that ``metadata.yaml`` holds under ``rosbag2_bagfile_information``.
+``offered_qos_profiles`` (a YAML string) and ``topic_type_hash`` metadata, and on close the
+``rosbag2`` metadata record whose ``serialized_metadata`` is the bag metadata (version 9,
+Jazzy), the same mapping that ``metadata.yaml`` holds under ``rosbag2_bagfile_information``.
+From version 9 on, rosbag2 reads a topic's ``offered_qos_profiles`` there as a YAML list of
+profiles, not as the string the channel carries.
 
 Messages are grouped in uncompressed chunks. A chunk is written when it reaches
 ``chunk_size`` or on :meth:`BagWriter.flush`; every written chunk stays readable if the
@@ -31,8 +33,6 @@ METADATA_VERSION = 9            # rosbag2 bag metadata version of ROS 2 Jazzy
 ROS_DISTRO = 'jazzy'
 LIBRARY = f'flexarm_control.bag_writer (mcap {mcap.__version__})'
 DEFAULT_CHUNK_SIZE = 512 * 1024
-_COMPRESSION = {'none': CompressionType.NONE, 'lz4': CompressionType.LZ4,
-                'zstd': CompressionType.ZSTD}
 
 
 def offered_qos_yaml(profiles: Sequence[Mapping[str, Any]]) -> str:
@@ -59,7 +59,7 @@ class _Topic:
     name: str
     type: str
     channel_id: int
-    offered_qos_profiles: str
+    offered_qos_profiles: list[dict[str, Any]]
     type_hash: str
     message_count: int = 0
 
@@ -70,8 +70,7 @@ class BagWriter:
     Not thread-safe: call it from one thread (the recorder's executor).
     """
 
-    def __init__(self, bag_dir: str | Path, chunk_size: int = DEFAULT_CHUNK_SIZE,
-                 compression: str = 'none') -> None:
+    def __init__(self, bag_dir: str | Path, chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
         """Create ``bag_dir`` (it must not exist or be empty) and start its MCAP file."""
         self.bag_dir = Path(bag_dir)
         if self.bag_dir.exists() and any(self.bag_dir.iterdir()):
@@ -80,7 +79,7 @@ class BagWriter:
         self.path = self.bag_dir / f'{self.bag_dir.name}.mcap'
         self._file = open(self.path, 'wb')
         self._writer = Writer(self._file, chunk_size=chunk_size,
-                              compression=_COMPRESSION[compression])
+                              compression=CompressionType.NONE)
         self._writer.start(profile='ros2', library=LIBRARY)
         self._schemas: dict[str, int] = {}
         self._topics: dict[str, _Topic] = {}
@@ -103,8 +102,8 @@ class BagWriter:
             schema_id = self._writer.register_schema(
                 type_name, 'ros2msg', message_definition(type_name).encode())
             self._schemas[type_name] = schema_id
-        qos = offered_qos_yaml(qos_profiles)
-        channel_metadata = {'offered_qos_profiles': qos}
+        qos = [dict(p) for p in qos_profiles]
+        channel_metadata = {'offered_qos_profiles': offered_qos_yaml(qos)}
         if type_hash:
             channel_metadata['topic_type_hash'] = type_hash
         channel_id = self._writer.register_channel(topic, 'cdr', schema_id, channel_metadata)

@@ -104,6 +104,10 @@ def test_written_bag_reads_back_as_rosbag2_mcap(tmp_path: Path) -> None:
     assert {t['topic_metadata']['name']: t['message_count']
             for t in on_disk['topics_with_message_count']} == \
         {topics.JOINT_STATES: 25, topics.MODEL: 1, topics.TIP_POSE: 0}
+    # version 9: rosbag2 decodes the profiles here as a YAML list, not a string
+    assert {t['topic_metadata']['name']: t['topic_metadata']['offered_qos_profiles']
+            for t in on_disk['topics_with_message_count']} == \
+        {topics.JOINT_STATES: [QOS, QOS], topics.MODEL: [QOS], topics.TIP_POSE: []}
 
     info = bag_info(bag)
     assert info['complete'] and info['rosbag2_metadata']

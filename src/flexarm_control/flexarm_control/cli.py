@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import json
 import math
+import signal
 import sys
 from collections.abc import Callable, Sequence
 from typing import Any
@@ -95,7 +96,6 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
 @command
 def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     """Start the graph (one process per node), wait until ready, supervise until Ctrl-C."""
-    import signal
     import time
 
     from flexarm_control.experiment import REPO, reserved_domain
@@ -107,7 +107,6 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
                                          'flexarm_fake_controller': simulated}
     if args.record:
         params['flexarm_recorder'] = {'bag_name': args.record}
-    signal.signal(signal.SIGTERM, _interrupt)
     with reserved_domain(args.domain_id) as domain:
         graph = Graph(domain, REPO / 'runs' / name, robot=args.robot, parameters=params,
                       optional=('flexarm_recorder',) if args.record else ())
@@ -318,6 +317,9 @@ def build_parser() -> argparse.ArgumentParser:
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    # SIGTERM stops a command like Ctrl-C does, so that a graph it started is shut down
+    # (its nodes run in sessions of their own and do not get the signal themselves).
+    signal.signal(signal.SIGTERM, _interrupt)
     try:
         result = COMMANDS[args.command](args)
     except (TimeoutError, ValueError, RuntimeError) as exc:

@@ -7,12 +7,15 @@ session, so that only the supervisor decides when it gets a signal.
 """
 from __future__ import annotations
 
+import contextlib
+import ctypes
 import os
 import signal
 import subprocess
 import sys
+import threading
 import time
-from collections.abc import Iterable, Mapping
+from collections.abc import Iterable, Iterator, Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -24,6 +27,10 @@ from flexarm_control.params import config_path
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
 # that inherits it would skip its own re-exec and fail to import rclpy.
 _BOOTSTRAP_GUARD = '_ROS_WHEELS_BOOTSTRAP_COMPLETE'
+_PR_SET_PDEATHSIG = 1
+# Looked up now: between fork and exec the child must not dlopen (another thread may hold
+# the loader's lock).
+_prctl = ctypes.CDLL(None, use_errno=True).prctl
 
 
 @dataclass(frozen=True)
@@ -121,7 +128,8 @@ class NodeProcess:
                                     self.log_path.with_suffix('.params.yaml'))
         self.process = subprocess.Popen(
             node_command(self.spec, overrides), env=self._env, stdin=subprocess.DEVNULL,
-            stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True)
+            stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True,
+            preexec_fn=_terminate_with_parent)
 
     @property
     def returncode(self) -> int | None:
@@ -144,13 +152,42 @@ class NodeProcess:
             self._log = None
 
 
+def _terminate_with_parent() -> None:
+    """In the child before exec: get SIGTERM when the thread that started it dies.
+
+    The backstop for a supervisor killed with SIGKILL, which can stop nothing itself. Linux
+    sends the signal when the starting *thread* ends, so nodes are started from threads that
+    live as long as the graph (the main thread, or a watchdog that ends with the graph).
+    """
+    _prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+
+
+@contextlib.contextmanager
+def _signals_ignored(*signals: int) -> Iterator[None]:
+    """Ignore ``signals`` meanwhile (main thread only): a second Ctrl-C can't cut a shutdown."""
+    if threading.current_thread() is not threading.main_thread():
+        yield
+        return
+    previous = {sig: signal.signal(sig, signal.SIG_IGN) for sig in signals}
+    try:
+        yield
+    finally:
+        for sig, handler in previous.items():
+            signal.signal(sig, handler)
+
+
 def stop_all(nodes: Iterable[NodeProcess], timeout: float = 5.0) -> dict[str, int | None]:
     """SIGINT every node, wait up to ``timeout``, then SIGTERM, then SIGKILL what remains.
 
-    Returns each node's exit code. A node killed with SIGKILL leaves Fast DDS shared-memory
+    Returns each node's exit code. SIGINT and SIGTERM to the caller are ignored meanwhile
+    (the shutdown is bounded). A node killed with SIGKILL leaves Fast DDS shared-memory
     files behind; they are removed by :func:`remove_stale_shm`.
     """
-    nodes = list(nodes)
+    with _signals_ignored(signal.SIGINT, signal.SIGTERM):
+        return _stop_all(list(nodes), timeout)
+
+
+def _stop_all(nodes: list[NodeProcess], timeout: float) -> dict[str, int | None]:
     for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
         alive = [n for n in nodes if n.returncode is None]
         if not alive:

@@ -66,7 +66,7 @@ class Graph:
                 if not missing:
                     return
                 dead = self.check()
-                if time.monotonic() > deadline or (dead and not self._restartable(dead)):
+                if time.monotonic() > deadline or (dead and not self._restarted(dead)):
                     raise TimeoutError(f'graph not ready after {timeout:.0f} s: missing '
                                        f'{", ".join(missing)}' + (
                                            f'; died: {", ".join(dead)}' if dead else ''))
@@ -85,9 +85,9 @@ class Graph:
         missing += [s for s in READY_SERVICES if s not in found_services]
         return missing
 
-    def _restartable(self, names: list[str]) -> bool:
-        return all(self.nodes[n].spec.restart and self.nodes[n].restarts <= self.max_restarts
-                   for n in names)
+    def _restarted(self, names: list[str]) -> bool:
+        """Whether :meth:`check` restarted all these dead nodes (it marks the others)."""
+        return not any(self.nodes[n].reported for n in names)
 
     def check(self) -> list[str]:
         """Report nodes that died since the last check, restart those allowed; their names."""

@@ -1,5 +1,10 @@
-"""Node process specs and environments of the orchestrator."""
+"""Node process specs and environments of the orchestrator, and how nodes are stopped."""
+import os
+import signal
+import subprocess
 import sys
+import textwrap
+import time
 
 import pytest
 import yaml
@@ -54,3 +59,69 @@ def test_graph_has_one_controller_and_the_control_nodes() -> None:
     assert {'flexarm_vision', 'flexarm_learner', 'flexarm_compensator'} <= set(names)
     with pytest.raises(ValueError, match='unknown robot'):
         load_graph('nonexistent')
+
+
+def _supervisor(tmp_path, body: str) -> subprocess.Popen:
+    """A Python process that starts a ``sleeper`` node (which ignores SIGINT) and runs ``body``.
+
+    It prints the node's pid first, then whatever ``body`` prints once the node is ready.
+    """
+    (tmp_path / 'sleeper.py').write_text(
+        'import signal, time\nsignal.signal(signal.SIGINT, signal.SIG_IGN)\nprint("ready")\n'
+        'time.sleep(60)\n')
+    script = textwrap.dedent(f'''
+        import time
+        from pathlib import Path
+        from flexarm_control.launcher import NodeProcess, NodeSpec, ros_env, stop_all
+        env = ros_env(0, base={{'PYTHONPATH': {str(tmp_path)!r}}})
+        node = NodeProcess(NodeSpec(name='sleeper', module='sleeper'), env,
+                           Path({str(tmp_path)!r}) / 'sleeper.log')
+        node.start()
+        print(node.process.pid, flush=True)
+        for _ in range(200):
+            if 'ready' in node.log_tail():
+                break
+            time.sleep(0.05)
+    ''') + textwrap.dedent(body)
+    return subprocess.Popen([sys.executable, '-c', script], stdout=subprocess.PIPE, text=True)
+
+
+def _gone(pid: int, timeout: float) -> bool:
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        try:
+            os.kill(pid, 0)
+        except ProcessLookupError:
+            return True
+        time.sleep(0.05)
+    return False
+
+
+def test_nodes_die_with_a_supervisor_killed_by_sigkill(tmp_path) -> None:
+    supervisor = _supervisor(tmp_path, 'time.sleep(60)\n')
+    try:
+        node_pid = int(supervisor.stdout.readline())
+        supervisor.kill()
+        supervisor.wait(timeout=10)
+        assert _gone(node_pid, 10.0)
+    finally:
+        supervisor.kill()
+        supervisor.stdout.close()
+
+
+def test_a_second_interrupt_does_not_cut_the_shutdown_short(tmp_path) -> None:
+    supervisor = _supervisor(tmp_path, '''
+        print('stopping', flush=True)
+        print(stop_all([node], timeout=3.0)['sleeper'], flush=True)
+    ''')
+    try:
+        node_pid = int(supervisor.stdout.readline())
+        assert supervisor.stdout.readline().strip() == 'stopping'
+        time.sleep(1.0)                       # the node ignores SIGINT: stop_all waits
+        supervisor.send_signal(signal.SIGINT)
+        assert supervisor.stdout.readline().strip() == str(-signal.SIGTERM)
+        assert supervisor.wait(timeout=10) == 0
+        assert _gone(node_pid, 1.0)
+    finally:
+        supervisor.kill()
+        supervisor.stdout.close()

@@ -4,6 +4,8 @@ A TCP relay (:class:`~flexarm_control.link_proxy.LinkProxy`) sits between the br
 fake controller, so the link can be cut and garbage injected.
 """
 import math
+import socket
+import threading
 import time
 from pathlib import Path
 
@@ -101,6 +103,34 @@ def test_unreachable_controller_is_reported_and_retried(launch, ros_node, domain
     ros_node.create_subscription(JointState, topics.JOINT_STATES, heard.append, 10)
     launch('flexarm_fake_controller', robot='bridge', port=port)
     wait_for(lambda: heard, 30.0, 'joint states once the controller is up')
+
+
+def test_a_controller_that_drops_every_connection_is_not_hammered(launch, domain_id,
+                                                                   wait_for):
+    """No HELLO is ever accepted, so the backoff keeps growing: 0.2, 0.4, 0.8, 1.6 s..."""
+    accepted: list[float] = []
+    server = socket.create_server(('127.0.0.1', 47000 + 2 * domain_id))
+    server.settimeout(0.1)
+
+    def serve() -> None:
+        while server.fileno() >= 0:
+            try:
+                conn, _ = server.accept()
+            except OSError:
+                continue
+            accepted.append(time.monotonic())
+            conn.close()
+
+    threading.Thread(target=serve, daemon=True).start()
+    try:
+        launch('flexarm_bridge', robot='bridge', port=47000 + 2 * domain_id,
+               use_sim_time=False, retry_min=0.2, retry_max=5.0)
+        wait_for(lambda: accepted, 30.0, 'the bridge to connect')
+        time.sleep(3.5)
+    finally:
+        server.close()
+    in_window = [t for t in accepted if t - accepted[0] < 3.5]
+    assert 3 <= len(in_window) <= 6, np.diff(in_window)
 
 
 def test_predictive_through_the_bridge(domain_id, tmp_path):

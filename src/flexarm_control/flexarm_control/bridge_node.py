@@ -11,10 +11,13 @@ Link handling (a background thread does all socket I/O; ROS callbacks never bloc
 * controller unreachable → logged, retried with exponential backoff (``retry_min`` doubling
   to ``retry_max``);
 * link lost (closed, error, or no frame for ``heartbeat_timeout``) → logged, commands are
-  dropped (not queued) while it is down, reconnect; after reconnecting the arm moves only on a
-  fresh command — nothing is replayed. The controller holds the arm on link loss (protocol);
+  dropped (not queued) while it is down, reconnect after ``retry_min``; after reconnecting the
+  arm moves only on a fresh command — nothing is replayed. The controller holds the arm on
+  link loss (protocol). The backoff restarts from ``retry_min`` only once a controller's
+  HELLO was accepted, so one that accepts and drops connections is not hammered;
+* commands and joint states pass only once the HELLO of the connection has been accepted;
 * malformed frames → rejected and logged; the link survives, unless ``max_errors``
-  consecutive errors arrive, then it is reset.
+  consecutive frames are rejected, then it is reset.
 """
 from __future__ import annotations
 
@@ -49,11 +52,10 @@ class BridgeNode(Node):
                                    'consecutive malformed frames before the link is reset')
         self._pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
         self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS, self._on_command, 10)
-        self._sock: socket.socket | None = None
-        self._lock = threading.Lock()
+        self._lock = threading.Lock()         # guards _linked, _seq and every send
+        self._linked: socket.socket | None = None    # connected and its HELLO accepted
         self._seq = 0
         self._running = True
-        self._link_up = threading.Event()     # connected and HELLO accepted
         threading.Thread(target=self._link_loop, daemon=True).start()
 
     # --- PC -> controller --------------------------------------------------------------------
@@ -63,20 +65,21 @@ class BridgeNode(Node):
         if reason is not None:
             self.get_logger().error(f'joint command rejected, not forwarded: {reason}')
             return
-        if not (self._link_up.is_set() and self._send(proto.JOINT_COMMAND, positions=values)):
+        with self._lock:
+            sent = self._linked is not None and self._send(self._linked, proto.JOINT_COMMAND,
+                                                           positions=values)
+        if not sent:
             self.get_logger().error('joint command dropped: no link to the controller '
                                     '(send a fresh command once it is back)')
 
-    def _send(self, frame_type: int, **fields) -> bool:
-        with self._lock:
-            if self._sock is None:
-                return False
-            self._seq += 1
-            try:
-                self._sock.sendall(proto.encode(frame_type, self._seq, **fields))
-                return True
-            except OSError:
-                return False
+    def _send(self, sock: socket.socket, frame_type: int, **fields) -> bool:
+        """Send one frame (hold ``_lock``); whether it went out."""
+        self._seq += 1
+        try:
+            sock.sendall(proto.encode(frame_type, self._seq, **fields))
+            return True
+        except OSError:
+            return False
 
     # --- link ---------------------------------------------------------------------------------
     def _link_loop(self) -> None:
@@ -91,20 +94,22 @@ class BridgeNode(Node):
                 time.sleep(delay)
                 delay = min(2 * delay, self._retry_max)
                 continue
-            delay = self._retry_min
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)   # small frames, now
             sock.settimeout(0.05)
-            with self._lock:
-                self._sock = sock
             self.get_logger().info(f'connected to the controller at {self._host}:{self._port}')
             reason = self._receive(sock)
             with self._lock:
-                self._sock = None
-            self._link_up.clear()
+                accepted, self._linked = self._linked is sock, None
             sock.close()
-            if self._running:
-                self.get_logger().error(f'link to the controller lost: {reason}; commands are '
-                                        'not forwarded until it is back')
+            if not self._running:
+                break
+            if accepted:
+                delay = self._retry_min
+            self.get_logger().error(f'link to the controller lost: {reason}; commands are not '
+                                    f'forwarded until it is back; reconnecting in {delay:.1f} s',
+                                    throttle_duration_sec=5.0)
+            time.sleep(delay)
+            delay = min(2 * delay, self._retry_max)
 
     def _receive(self, sock: socket.socket) -> str:
         """Read frames until the link fails; the reason it did."""
@@ -114,7 +119,8 @@ class BridgeNode(Node):
         while self._running:
             now = time.monotonic()
             if now - sent >= self._heartbeat:
-                self._send(proto.HEARTBEAT, time=now)
+                with self._lock:
+                    self._send(sock, proto.HEARTBEAT, time=now)
                 sent = now
             if now - heard > self._timeout:
                 return f'no frame for {self._timeout:.1f} s'
@@ -126,28 +132,30 @@ class BridgeNode(Node):
                 return str(exc)
             if not data:
                 return 'closed by the controller'
+            rejected = decoder.rejected
             frames, problems = decoder.feed(data)
             for problem in problems:
                 self.get_logger().warning(f'rejected from the controller: {problem}',
                                           throttle_duration_sec=1.0)
-            errors = 0 if frames else errors + len(problems)
+            errors = 0 if frames else errors + decoder.rejected - rejected
             if errors >= self._max_errors:
                 return f'{errors} consecutive malformed frames'
             for frame in frames:
                 heard = time.monotonic()
-                self._handle(frame)
+                self._handle(frame, sock)
         return 'shutting down'
 
-    def _handle(self, frame: proto.Frame) -> None:
+    def _handle(self, frame: proto.Frame, sock: socket.socket) -> None:
         if frame.type == proto.HELLO:
             if (frame.fields['version'] != proto.VERSION
                     or frame.fields['names'] != list(JOINT_NAMES)):
                 self.get_logger().error(f'controller speaks {frame.fields}; need version '
                                         f'{proto.VERSION} with joints {list(JOINT_NAMES)}')
                 return
-            self._link_up.set()
+            with self._lock:
+                self._linked = sock
             self.get_logger().info('controller HELLO accepted: forwarding fresh commands')
-        elif frame.type == proto.JOINT_STATE and self._link_up.is_set():
+        elif frame.type == proto.JOINT_STATE and self._linked is sock:
             if len(frame.fields['positions']) != len(JOINT_NAMES):
                 self.get_logger().warning('JOINT_STATE with the wrong number of joints dropped')
                 return

@@ -115,10 +115,15 @@ def _check_finite(values: list[float]) -> None:
 
 
 class Decoder:
-    """Bytes in, frames and errors out; survives any byte stream."""
+    """Bytes in, frames and errors out; survives any byte stream.
+
+    ``rejected`` counts the frames rejected so far (a bad length, CRC, version or payload);
+    skipped garbage between frames is reported but not counted.
+    """
 
     def __init__(self) -> None:
         self._buffer = bytearray()
+        self.rejected = 0
 
     def feed(self, data: bytes) -> tuple[list[Frame], list[str]]:
         self._buffer += data
@@ -138,6 +143,7 @@ class Decoder:
             _, version, frame_type, seq, length = HEADER.unpack_from(self._buffer)
             if length > MAX_PAYLOAD:
                 errors.append(f'frame length {length} exceeds {MAX_PAYLOAD}: resynchronising')
+                self.rejected += 1
                 del self._buffer[:1]
                 continue
             end = HEADER.size + length
@@ -146,15 +152,18 @@ class Decoder:
             crc, = CRC.unpack_from(self._buffer, end)
             if crc != zlib.crc32(self._buffer[:end]):
                 errors.append('CRC mismatch: resynchronising')
+                self.rejected += 1
                 del self._buffer[:1]
                 continue
             payload = bytes(self._buffer[HEADER.size:end])
             del self._buffer[:end + CRC.size]
             if version != VERSION:
                 errors.append(f'protocol version {version} not supported (want {VERSION})')
+                self.rejected += 1
                 continue
             try:
                 frames.append(Frame(frame_type, seq, _parse(frame_type, payload)))
             except (ValueError, IndexError, struct.error) as exc:
                 errors.append(f'malformed {TYPE_NAMES.get(frame_type, frame_type)}: {exc}')
+                self.rejected += 1
         return frames, errors

@@ -43,9 +43,11 @@ def test_garbage_and_corruption_are_skipped_and_reported():
     corrupt = bytearray(proto.encode(proto.JOINT_COMMAND, 2, positions=[0.0, 0.5, 0.0, 0.0]))
     corrupt[-6] ^= 0xFF                                        # payload bit flip: bad CRC
     stream = b'\x00garbage\xfa' + good + bytes(corrupt) + b'\xfaW\xff' + good
-    frames, errors = proto.Decoder().feed(stream)
+    decoder = proto.Decoder()
+    frames, errors = decoder.feed(stream)
     assert [f.seq for f in frames] == [1, 1]
     assert any('garbage' in e for e in errors) and any('CRC' in e for e in errors)
+    assert decoder.rejected == 2          # the corrupt frame and the cut-off b'\xfaW\xff' one
 
 
 def test_malformed_payloads_are_rejected_with_a_reason():
@@ -58,9 +60,10 @@ def test_malformed_payloads_are_rejected_with_a_reason():
     stream = (frame(proto.JOINT_COMMAND, nan_command) + frame(proto.JOINT_COMMAND, b'\x04')
               + frame(99, b'') + frame(proto.HEARTBEAT, struct.pack('<d', 1.0), version=7)
               + frame(proto.HELLO, short_hello))
-    frames, errors = proto.Decoder().feed(stream)
+    decoder = proto.Decoder()
+    frames, errors = decoder.feed(stream)
     assert frames == []
-    assert len(errors) == 5
+    assert len(errors) == 5 and decoder.rejected == 5
     assert 'non-finite' in errors[0] and 'needs' in errors[1]
     assert 'unknown' in errors[2] and 'version 7' in errors[3] and 'HELLO' in errors[4]
 

@@ -35,7 +35,7 @@ class FakeController(SimNode):
         self._heartbeat_timeout = declare(self, 'heartbeat_timeout', 1.0,
                                           '[s, wall] silence after which the link is lost')
         self._client: socket.socket | None = None
-        self._send_lock = threading.Lock()
+        self._send_lock = threading.RLock()
         self._seq = 0
         self._server = socket.create_server((host, port), reuse_port=False)
         self._server.settimeout(0.2)
@@ -52,9 +52,9 @@ class FakeController(SimNode):
             self.get_logger().info(f'PC connected from {peer}')
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             conn.settimeout(0.1)
-            with self._send_lock:
+            with self._send_lock:            # HELLO goes out before any JOINT_STATE
                 self._client = conn
-            self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
+                self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
             self._talk(conn)
             with self._send_lock:
                 self._client = None

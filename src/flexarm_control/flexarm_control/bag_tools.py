@@ -8,6 +8,7 @@ kill is still there.
 from __future__ import annotations
 
 import csv
+import io
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
@@ -21,6 +22,7 @@ from flexarm_msgs.action import MoveToPose
 from mcap_ros2.decoder import DecoderFactory
 
 from flexarm_control import topics
+from flexarm_control.predictors.base import atomic_write
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_')
@@ -220,10 +222,11 @@ def export_trials(path: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
     csv_path = out_dir / f'{file.stem}_trials.csv'
-    with open(csv_path, 'w', newline='', encoding='utf-8') as f:
-        writer = csv.DictWriter(f, fieldnames=CSV_FIELDS)
-        writer.writeheader()
-        writer.writerows(rows)
+    text = io.StringIO(newline='')
+    writer = csv.DictWriter(text, fieldnames=CSV_FIELDS)
+    writer.writeheader()
+    writer.writerows(rows)
+    atomic_write(csv_path, lambda f: f.write(text.getvalue().encode()))
     png_path = out_dir / f'{file.stem}_trials.png'
     plot_trials(rows, png_path, title=file.stem)
     return csv_path, png_path
@@ -253,5 +256,5 @@ def plot_trials(rows: Sequence[dict[str, Any]], png_path: Path, title: str) -> N
     for ax in (ax_pos, ax_ang):
         ax.grid(True, alpha=0.3)
     fig.tight_layout()
-    fig.savefig(png_path, dpi=100)
+    atomic_write(png_path, lambda f: fig.savefig(f, dpi=100, format='png'))
     plt.close(fig)

@@ -263,7 +263,5 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path) -> None:
     axes[0].legend()
     fig.suptitle(f'{summary["name"]}: tip error against ground truth')
     fig.tight_layout()
-    tmp = out_dir / '.errors.png.tmp'
-    fig.savefig(tmp, dpi=110, format='png')
+    atomic_write(out_dir / 'errors.png', lambda f: fig.savefig(f, dpi=110, format='png'))
     plt.close(fig)
-    tmp.replace(out_dir / 'errors.png')

@@ -116,7 +116,8 @@ def pose_error(target: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
 
 def _solve_fixed(geometry: ArmGeometry, pose: np.ndarray, extension: float
                  ) -> np.ndarray | None:
-    """Joints for one θ2, or None: elbow-down branch first, then elbow-up (scalar math: the
+    """Joints for one θ2, or None: elbow-up branch (θ3 = skew − bend: joint3 above the line from
+    the base to joint4 when the arm points forward) first, then elbow-down (scalar math: the
     compensator calls it in its inner loop)."""
     x, y, phi = (float(v) for v in pose)
     wx, wy = x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi)
@@ -147,8 +148,9 @@ def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = N
     ``extension`` fixes θ2 (e.g. to keep the one chosen for an earlier, nearby target); by
     default θ2 follows the redundancy rule: ``preferred_extension`` if it gives a solution,
     else the nearest θ2 on the ``extension_step`` grid that does. Of the two elbow branches
-    the elbow-down one is taken when both are valid. Raises :class:`UnreachableError` with
-    the reason when there is no solution inside the joint limits.
+    the elbow-up one (negative θ3: joint3 above the line from the base to joint4) is taken
+    when both are valid. Raises :class:`UnreachableError` with the reason when there is no
+    solution inside the joint limits.
     """
     pose = np.asarray(pose, dtype=float)
     if pose.shape != (3,) or not np.all(np.isfinite(pose)):

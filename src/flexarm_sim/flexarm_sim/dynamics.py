@@ -7,10 +7,13 @@
   one damped mode per pose coordinate driven by the acceleration of the static pose (base
   excitation): z'' + 2ζω z' + ω² z = −p̈_static. ω is the Table 6 natural frequency for the
   payload and the No.2 arm length: 1/f² (∝ effective mass) interpolated linearly in payload
-  (extrapolated down to 0 kg) and f linearly in the arm length, clamped to the measured range.
+  (extrapolated down to 0 kg, held at the largest tabulated payload above it) and f linearly
+  in the arm length, clamped to the measured range.
 
 The static pose is evaluated once per :meth:`ArmDynamics.step`; the vibration is integrated in
-sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1). Pure numpy, no rclpy.
+sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1). ``command`` and ``hold`` may
+run on another thread than ``step``: they replace the target array, ``step`` reads it once.
+Pure numpy, no rclpy.
 """
 from __future__ import annotations
 
@@ -21,7 +24,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.kinematics import ArmGeometry, command_error, wrap_angle
 from flexarm_sim.plant import Plant
 
 
@@ -29,8 +32,8 @@ from flexarm_sim.plant import Plant
 class NaturalFrequency:
     """Table 6: natural frequency [Hz] over payload [kg] × No.2 arm length [m]."""
 
-    payloads: np.ndarray      # (2,) or more, increasing
-    extensions: np.ndarray    # (k,), increasing
+    payloads: np.ndarray      # (2,) or more, strictly increasing, >= 0
+    extensions: np.ndarray    # (k,), strictly increasing
     hz: np.ndarray            # (payloads, extensions); config: flat, payload-major
 
     @classmethod
@@ -40,9 +43,14 @@ class NaturalFrequency:
         hz = np.asarray(d['hz'], dtype=float)
         if hz.size != payloads.size * extensions.size or np.any(hz <= 0) or payloads.size < 2:
             raise ValueError('natural_frequency.hz: positive, payloads x extensions values')
+        if (extensions.size < 1 or np.any(np.diff(payloads) <= 0)
+                or np.any(np.diff(extensions) <= 0) or payloads[0] < 0):
+            raise ValueError('natural_frequency: payloads (>= 0) and extensions must be '
+                             f'strictly increasing, got {payloads} and {extensions}')
         return cls(payloads, extensions, hz.reshape(payloads.size, extensions.size))
 
     def __call__(self, payload: float, extension: float) -> float:
+        """[Hz]; above the largest tabulated payload the frequency stays at that payload's."""
         ext = float(np.clip(extension, self.extensions[0], self.extensions[-1]))
         per_payload = [np.interp(ext, self.extensions, row) for row in self.hz]
         inv_sq = 1.0 / np.square(per_payload)
@@ -57,7 +65,7 @@ class NaturalFrequency:
 class ArmState:
     joint_positions: np.ndarray   # (4,) [rad, m, rad, rad]
     joint_velocities: np.ndarray  # (4,)
-    tip_pose: np.ndarray          # (3,) actual (deflected, vibrating) [m, m, rad]
+    tip_pose: np.ndarray          # (3,) actual (deflected, vibrating) [m, m, rad], φ wrapped
     tip_velocity: np.ndarray      # (3,) [m/s, m/s, rad/s]
     is_moving: bool               # a joint is still travelling to its command
 
@@ -73,11 +81,15 @@ class ArmDynamics:
         self._zeta = float(params['damping_ratio'])
         self._max_step = float(params['max_step'])
         self._frequency = NaturalFrequency.from_dict(params['natural_frequency'])
+        q = np.asarray(initial, dtype=float)
+        reason = 'not a flat list' if q.ndim != 1 else command_error(q.tolist(), geometry)
+        if reason is not None:
+            raise ValueError(f'initial joint positions: {reason}')
         if self._amax.shape != (4,) or np.any(self._amax <= 0) or np.any(self._vmax <= 0):
             raise ValueError('dynamics needs 4 positive accelerations and speed_scale > 0')
         if not 0 < self._zeta < 1 or self._max_step <= 0:
             raise ValueError('dynamics needs 0 < damping_ratio < 1 and max_step > 0')
-        self._q = np.asarray(initial, dtype=float).copy()
+        self._q = q.copy()
         self._qd = np.zeros(4)
         self._target = self._q.copy()
         self._static = plant.pose(self._q)
@@ -99,8 +111,8 @@ class ArmDynamics:
         return self._frequency(self.plant.payload, self._q[1])
 
     def step(self, dt: float) -> None:
-        """Advance ``dt`` seconds of simulated time."""
-        self._advance_joints(dt)
+        """Advance ``dt`` seconds of simulated time toward the target as it is at the start."""
+        self._advance_joints(dt, self._target)
         static = self.plant.pose(self._q)
         delta = static - self._static
         delta[2] = (delta[2] + math.pi) % (2 * math.pi) - math.pi
@@ -114,20 +126,21 @@ class ArmDynamics:
             self._zd += h * (-accel - 2 * self._zeta * omega * self._zd - omega ** 2 * self._z)
             self._z += h * self._zd
 
-    def _advance_joints(self, dt: float) -> None:
-        error = self._target - self._q
+    def _advance_joints(self, dt: float, target: np.ndarray) -> None:
+        error = target - self._q
         # Time-optimal speed toward the target: limited by speed and by braking distance.
         desired = np.sign(error) * np.minimum(self._vmax, np.sqrt(2 * self._amax * np.abs(error)))
         self._qd += np.clip(desired - self._qd, -self._amax * dt, self._amax * dt)
         step = self._qd * dt
         arrive = np.abs(step) >= np.abs(error)
-        self._q = np.where(arrive & (np.sign(step) == np.sign(error)), self._target,
-                           self._q + step)
-        self._qd = np.where(self._q == self._target, 0.0, self._qd)
+        self._q = np.where(arrive & (np.sign(step) == np.sign(error)), target, self._q + step)
+        self._qd = np.where(self._q == target, 0.0, self._qd)
 
     @property
     def state(self) -> ArmState:
+        tip = self._static + self._z
+        tip[2] = wrap_angle(tip[2])
         return ArmState(joint_positions=self._q.copy(), joint_velocities=self._qd.copy(),
-                        tip_pose=self._static + self._z,
+                        tip_pose=tip,
                         tip_velocity=self._static_vel + self._zd,
                         is_moving=bool(np.any(self._q != self._target)))

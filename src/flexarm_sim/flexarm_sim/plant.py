@@ -22,6 +22,7 @@ vectorised over any leading axes of the joint array; no rclpy.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -72,8 +73,14 @@ class Plant:
     link4_error: float                # [m]
     offset_error: float               # [m]
 
+    def __post_init__(self) -> None:
+        if not (math.isfinite(self.payload) and self.payload >= 0):
+            raise ValueError(f'plant payload must be finite and >= 0 kg, got {self.payload}')
+
     @classmethod
     def from_dict(cls, d: Mapping[str, Any], geometry: ArmGeometry) -> Plant:
+        """From config/sim.yaml ``plant.*``. Any finite payload >= 0 is modelled statically;
+        the dynamics hold the tip frequency at Table 6's largest payload above it."""
         c, f = d['compliance'], d['fabrication']
         scale = float(d['compliance_scale'])
         if scale < 0:
@@ -99,8 +106,8 @@ class Plant:
                    'fourth_arm', 'end_effector'} - set(plant.masses)
         if missing:
             raise ValueError(f'plant.masses lacks {sorted(missing)}')
-        if plant.payload < 0 or plant.backlash.shape != (4,) or np.any(plant.backlash < 0):
-            raise ValueError('plant needs payload >= 0 and 4 non-negative backlash values')
+        if plant.backlash.shape != (4,) or np.any(plant.backlash < 0):
+            raise ValueError('plant needs 4 non-negative backlash values')
         if plant.joint_zero_error.shape != (4,) or plant.backlash_smoothing <= 0:
             raise ValueError('plant needs 4 joint_zero errors and backlash_smoothing > 0')
         return plant

@@ -6,13 +6,12 @@ Publishes ``/joint_states`` and the simulation ``/clock``, executes
 pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for evaluation only.
 
 Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
-dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``); the wall timer runs
+dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), counted in integer
+ticks so that stamps never drift or step back (:func:`tick_time`); the wall timer runs
 ``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it never skips steps;
 ``benchmarks/sim_node.py`` measures the achieved rate.
 """
 from __future__ import annotations
-
-import math
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -35,9 +34,10 @@ BASE_FRAME = 'base_link'
 CAMERA_FRAME = 'tip_camera'
 
 
-def stamp(t: float) -> TimeMsg:
-    sec = math.floor(t)
-    return TimeMsg(sec=int(sec), nanosec=int(round((t - sec) * 1e9)) % 1_000_000_000)
+def tick_time(tick: int, rate: float) -> tuple[int, int]:
+    """(sec, nanosec) after ``tick`` ticks of ``rate`` Hz, in exact integer arithmetic."""
+    numerator, denominator = float(rate).as_integer_ratio()
+    return divmod(tick * 1_000_000_000 * denominator // numerator, 1_000_000_000)
 
 
 class SimNode(Node):
@@ -69,7 +69,6 @@ class SimNode(Node):
 
         self._dt = 1.0 / self._js_rate
         self._camera_every = max(1, round(self._js_rate / camera_rate))
-        self._t = 0.0
         self._tick = 0
         # Every node on sim time handles each /clock message in Python: at 10x real time a
         # /clock per tick would be 1000 a second; 100 a second (10 ms wall) is plenty for waits.
@@ -114,9 +113,8 @@ class SimNode(Node):
 
     def _on_tick(self) -> None:
         self._dynamics.step(self._dt)
-        self._t += self._dt
         self._tick += 1
-        now = stamp(self._t)
+        now = self._now()
         if self._tick % self._clock_every == 0:
             self._clock_pub.publish(Clock(clock=now))
         state = self._dynamics.state
@@ -142,11 +140,15 @@ class SimNode(Node):
     def _make_camera_info(self) -> CameraInfo:
         intr = self._camera.intrinsics
         return CameraInfo(
-            header=self._header(stamp(self._t), CAMERA_FRAME), width=intr.width,
+            header=self._header(self._now(), CAMERA_FRAME), width=intr.width,
             height=intr.height, distortion_model='plumb_bob', d=list(intr.distortion),
             k=[intr.fx, 0.0, intr.cx, 0.0, intr.fy, intr.cy, 0.0, 0.0, 1.0],
             r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
             p=[intr.fx, 0.0, intr.cx, 0.0, 0.0, intr.fy, intr.cy, 0.0, 0.0, 0.0, 1.0, 0.0])
+
+    def _now(self) -> TimeMsg:
+        sec, nanosec = tick_time(self._tick, self._js_rate)
+        return TimeMsg(sec=sec, nanosec=nanosec)
 
     @staticmethod
     def _header(now: TimeMsg, frame_id: str) -> Header:

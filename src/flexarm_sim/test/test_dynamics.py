@@ -1,11 +1,13 @@
 """Joint motion at the Table 1 speeds and the Table 6 tip vibration."""
 import math
+import sys
 
 import numpy as np
 import pytest
 
 from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.params import load_config
+from flexarm_sim import dynamics
 from flexarm_sim.dynamics import ArmDynamics, NaturalFrequency
 from flexarm_sim.plant import Plant
 
@@ -15,7 +17,10 @@ def config():
     return load_config('arm.yaml', 'sim.yaml')
 
 
-def make(config, payload=0.0, initial=(0.0, 0.6, -0.5, -0.5)) -> ArmDynamics:
+START = (0.0, 0.6, -0.5, -0.5)
+
+
+def make(config, payload=0.0, initial=START) -> ArmDynamics:
     geometry = ArmGeometry.from_dict(config['arm'])
     plant = Plant.from_dict({**config['plant'], 'payload': payload}, geometry)
     return ArmDynamics(plant, geometry, config['dynamics'], np.array(initial))
@@ -27,6 +32,63 @@ def test_natural_frequency_reproduces_table_6(config):
                              (5.0, 0.16, 3.86), (5.0, 0.4, 3.77), (5.0, 0.8, 3.60)]:
         assert table(payload, ext) == pytest.approx(hz, rel=1e-9)
     assert table(5.0, 0.8) < table(2.0, 0.8) < table(0.2, 0.8) < table(0.0, 0.8)
+    assert table(8.0, 0.8) == table(5.0, 0.8)          # held above the largest payload
+
+
+@pytest.mark.parametrize('change', [
+    {'payloads': [5.0, 0.2], 'hz': [3.86, 3.77, 3.60, 12.41, 11.85, 9.93]},   # reversed
+    {'extensions': [0.8, 0.4, 0.16]},
+    {'extensions': [0.16, 0.16, 0.8]},
+    {'payloads': [-0.2, 5.0]},
+    {'extensions': [], 'hz': []},
+])
+def test_natural_frequency_table_must_be_ordered(config, change):
+    with pytest.raises(ValueError, match='strictly increasing'):
+        NaturalFrequency.from_dict({**config['dynamics']['natural_frequency'], **change})
+
+
+@pytest.mark.parametrize('initial, reason', [
+    ((0.0, 0.6, -0.5), 'expected 4 values'),
+    ((0.0, math.nan, -0.5, -0.5), 'non-finite'),
+    ((0.0, 0.95, -0.5, -0.5), 'joint2'),
+    (((0.0, 0.6), (-0.5, -0.5)), 'flat'),
+])
+def test_bad_initial_positions_are_refused(config, initial, reason):
+    with pytest.raises(ValueError, match=f'initial joint positions: .*{reason}'):
+        make(config, initial=initial)
+
+
+def test_a_command_landing_mid_step_never_teleports_a_joint(config):
+    """The fake controller commands from its socket thread while ``step`` runs: inject the
+    command between any two lines of ``step`` (as a thread switch could)."""
+    dt = 0.01
+    geometry = ArmGeometry.from_dict(config['arm'])
+    reach = geometry.velocity * float(config['dynamics']['speed_scale']) * dt + 1e-12
+    far = np.array(START) + [1.0, 0.1, 0.5, 0.5]
+    previous = sys.gettrace()
+    k, injected = 1, True
+    while injected:
+        arm, lines, injected = make(config), 0, False
+
+        def tracer(frame, event, arg):
+            nonlocal lines, injected
+            if frame.f_code.co_filename != dynamics.__file__:
+                return None
+            if event == 'line':
+                lines += 1
+                if lines == k:
+                    arm.command(far)
+                    injected = True
+            return tracer
+
+        sys.settrace(tracer)
+        try:
+            arm.step(dt)
+        finally:
+            sys.settrace(previous)
+        assert np.all(np.abs(arm.state.joint_positions - START) <= reach), f'line {k}'
+        k += 1
+    assert k > 10
 
 
 def test_joints_travel_at_the_table_1_speeds(config):
@@ -59,6 +121,20 @@ def test_tip_rings_after_a_move_then_settles_on_the_static_pose(config):
     for _ in range(4000):                               # 20 s more
         arm.step(0.005)
     np.testing.assert_allclose(arm.state.tip_pose, static, atol=1e-7)
+
+
+def test_tip_angle_stays_wrapped_while_ringing(config):
+    target = np.array([1.0, 0.6, 1.0, 1.0])
+    plant = make(config, payload=5.0).plant
+    for _ in range(3):                                  # static tool angle just below π
+        target[3] += math.remainder(math.pi - 1e-4 - plant.pose(target)[2], 2 * math.pi)
+    arm = make(config, payload=5.0, initial=target - [0.1, 0.0, 0.0, 0.0])
+    arm.command(target)                                 # overshoots past π while ringing
+    phis = []
+    for _ in range(400):
+        arm.step(0.005)
+        phis.append(arm.state.tip_pose[2])
+    assert min(phis) < -3.14 and all(-math.pi <= phi < math.pi for phi in phis)
 
 
 def test_hold_stops_short_of_the_target(config):

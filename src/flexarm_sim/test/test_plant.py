@@ -50,6 +50,14 @@ def test_deflection_grows_with_payload_and_reach(plant):
     assert np.all(np.diff(reach) > 0)
 
 
+@pytest.mark.parametrize('payload', [-0.1, math.nan, math.inf])
+def test_bad_payload_is_refused(geometry, plant, payload):
+    with pytest.raises(ValueError, match='payload must be finite and >= 0'):
+        Plant.from_dict({**load_config('sim.yaml')['plant'], 'payload': payload}, geometry)
+    with pytest.raises(ValueError, match='payload must be finite and >= 0'):
+        plant.with_payload(payload)
+
+
 def test_five_kilogram_tip_load_matches_table_4(plant):
     # Table 4 P12/P13: 17.5 mm for 5.1 kg and 4.8 kg; Table 1 design value: 20 mm max.
     increment = plant.with_payload(5.0).deflection(HORIZONTAL) - plant.deflection(HORIZONTAL)

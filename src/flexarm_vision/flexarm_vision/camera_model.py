@@ -121,15 +121,5 @@ class CameraModel:
         radial = tangential + 2.0 * r2 * (k1 + 2.0 * k2 * r2)
         return np.sqrt(tangential * radial)
 
-    def plate_to_pixels(self, points: np.ndarray, pose: Sequence[float]) -> np.ndarray:
-        """Plate points (N, 2) [m] -> pixels (N, 2) for tip pose (x, y, phi)."""
-        q = (np.asarray(points, dtype=float) - self.optical_centre(pose)) @ rotation(pose[2])
-        return self.metric_to_pixels(q)
-
-    def pixels_to_plate(self, pixels: np.ndarray, pose: Sequence[float]) -> np.ndarray:
-        """Pixels (N, 2) -> plate points (N, 2) [m] for tip pose (x, y, phi)."""
-        q = self.pixels_to_metric(np.asarray(pixels, dtype=float))
-        return q @ rotation(pose[2]).T + self.optical_centre(pose)
-
     def _radial(self, r2: np.ndarray) -> np.ndarray:
         return 1.0 + self.intrinsics.k1 * r2 + self.intrinsics.k2 * r2 * r2

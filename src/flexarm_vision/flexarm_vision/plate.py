@@ -15,7 +15,6 @@ from __future__ import annotations
 
 import argparse
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -23,16 +22,6 @@ from numpy.lib.stride_tricks import sliding_window_view
 
 SYMBOLS = 4       # quaternary code: one of four hole diameters
 WINDOW = 3        # side of the hole block that is unique on the plate
-
-
-@dataclass(frozen=True)
-class Hole:
-    """One plate hole: grid index, centre [m], diameter [m] and code symbol."""
-
-    index: tuple[int, int]
-    centre: np.ndarray
-    diameter: float
-    symbol: int
 
 
 class PlateLayout:
@@ -69,24 +58,9 @@ class PlateLayout:
         """(columns, rows)."""
         return self.symbols.shape  # type: ignore[return-value]
 
-    @property
-    def coded(self) -> np.ndarray:
-        """Boolean [i, j]: representative (larger than standard) holes."""
-        return self.symbols > 0
-
-    def contains(self, i: int, j: int) -> bool:
-        return 0 <= i < self.shape[0] and 0 <= j < self.shape[1]
-
     def centre(self, i: int | np.ndarray, j: int | np.ndarray) -> np.ndarray:
         """Centre(s) of hole(s) (i, j) [m]; arrays give (N, 2)."""
         return self.origin + self.pitch * np.stack([i, j], axis=-1).astype(float)
-
-    def hole_at(self, i: int, j: int) -> Hole | None:
-        """The hole of grid index (i, j), None off the plate."""
-        if not self.contains(i, j):
-            return None
-        symbol = int(self.symbols[i, j])
-        return Hole((i, j), self.centre(i, j), self.diameters[symbol], symbol)
 
     def holes_near(self, point: Sequence[float], radius: float) -> tuple[np.ndarray, np.ndarray]:
         """Grid indices (N, 2) and centres (N, 2) of holes within ``radius`` of ``point``."""

@@ -4,12 +4,12 @@ Subscribes ``/camera/image_raw`` (mono8), ``/camera/camera_info`` (checked again
 configured intrinsics) and ``/joint_states`` (joint stillness); publishes one
 ``flexarm_msgs/TipPose`` per image, stamped with the image's capture time. The pose comes from
 :class:`TipPoseEstimator`; whether the arm was at rest from :class:`SettleDetector`.
-An invalid measurement carries NaN coordinates and the reason in ``status``.
+An invalid measurement carries NaN coordinates and the reason in ``status``; every image is
+invalid while the last camera_info disagrees with config/camera.yaml.
 """
 from __future__ import annotations
 
 import math
-import time
 
 import numpy as np
 from rclpy.node import Node
@@ -27,6 +27,7 @@ from flexarm_vision.settling import SettleDetector, SettleSettings
 
 BASE_FRAME = 'base_link'
 INFO_TOLERANCE = 1e-6     # relative mismatch of camera_info values that is reported
+STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
 
 
 def image_to_array(msg: Image) -> tuple[np.ndarray | None, str]:
@@ -58,7 +59,9 @@ def seconds(stamp) -> float:
     return stamp.sec + stamp.nanosec * 1e-9
 
 
-JOINT_PERIOD = 0.01   # [s, wall]
+def without_stamp(raw: bytes) -> bytes:
+    """A serialized message whose first field is a std_msgs/Header, minus its stamp."""
+    return raw[STAMP_END:]
 
 
 class VisionNode(Node):
@@ -77,9 +80,10 @@ class VisionNode(Node):
                                  qos_profile_sensor_data)
         # volatile: matches both a latched (simulator) and a per-frame (driver) camera_info
         self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_info, 1)
-        # Raw and decimated: at a 10x real-time factor /joint_states comes 1000 times a wall
-        # second; parsing one every JOINT_PERIOD wall seconds is enough to see a move.
-        self._joints_parsed = 0.0
+        # Raw: at a 10x real-time factor /joint_states comes 1000 times a wall second; only
+        # a message that differs from the previous one beyond its stamp is parsed (a still
+        # arm repeats itself; any move changes the positions and is never missed).
+        self._last_joints = b''
         self.create_subscription(JointState, topics.JOINT_STATES, self._on_joints, 10,
                                  raw=True)
         i = self._estimator.camera.intrinsics
@@ -93,16 +97,19 @@ class VisionNode(Node):
         self._info_problem = problem
 
     def _on_joints(self, raw: bytes) -> None:
-        now = time.monotonic()
-        if now - self._joints_parsed < JOINT_PERIOD:
+        content = without_stamp(raw)
+        if content == self._last_joints:
             return
-        self._joints_parsed = now
+        self._last_joints = content
         msg = deserialize_message(raw, JointState)
         if msg.velocity:
             self._settle.update_joints(seconds(msg.header.stamp), np.asarray(msg.velocity))
 
     def _on_image(self, msg: Image) -> None:
         image, reason = image_to_array(msg)
+        if self._info_problem:
+            image = None
+            reason = f'camera_info differs from config/camera.yaml: {self._info_problem}'
         estimate = (self._estimator.estimate(image) if image is not None
                     else Estimate(None, False, 0, 0.0, reason))
         unsettled = self._settle.update_estimate(

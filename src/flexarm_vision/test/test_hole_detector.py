@@ -5,10 +5,17 @@ import pytest
 
 from flexarm_control.params import load_config
 from flexarm_sim.camera import CameraRenderer
+from flexarm_vision.camera_model import CameraModel, rotation
 from flexarm_vision.hole_detector import DetectorSettings, HoleDetector
 
 CONFIG = {**load_config('camera.yaml'), **load_config('vision.yaml', node_name='flexarm_vision')}
 SETTINGS = DetectorSettings.from_dict(CONFIG['vision'])
+
+
+def plate_to_pixels(camera: CameraModel, points: np.ndarray, pose) -> np.ndarray:
+    """Plate points (N, 2) [m] -> pixels (N, 2) for tip pose (x, y, phi), per the model."""
+    q = (np.asarray(points, dtype=float) - camera.optical_centre(pose)) @ rotation(pose[2])
+    return camera.metric_to_pixels(q)
 
 
 @pytest.fixture(scope='module')
@@ -27,7 +34,7 @@ def visible_holes(renderer: CameraRenderer, pose: np.ndarray, margin: float) -> 
     """Projected centres [px] and diameters [px] of holes at least ``margin`` px inside."""
     centre = renderer.camera.optical_centre(pose)
     index, centres = renderer.plate.holes_near(centre, 0.3)
-    pixels = renderer.camera.plate_to_pixels(centres, pose)
+    pixels = plate_to_pixels(renderer.camera, centres, pose)
     diameters = (np.array(renderer.plate.diameters)[renderer.plate.symbols[index[:, 0],
                                                                           index[:, 1]]]
                  / renderer.camera.scale)
@@ -62,11 +69,11 @@ def test_holes_cut_by_the_border_are_rejected(renderer: CameraRenderer,
     pose = np.array([1.0, -0.2, 0.0])
     # Shift the view so that one hole centre lies exactly on the left image border.
     _, centres = renderer.plate.holes_near(camera.optical_centre(pose), 0.2)
-    pixels = camera.plate_to_pixels(centres, pose)
+    pixels = plate_to_pixels(camera, centres, pose)
     leftmost = pixels[np.argmin(np.abs(pixels[:, 0] - 20))]
     pose[0] += leftmost[0] * camera.scale
     detection = detector.detect(renderer.render(pose))
-    all_pixels = camera.plate_to_pixels(centres, pose)
+    all_pixels = plate_to_pixels(camera, centres, pose)
     on_border = all_pixels[np.abs(all_pixels[:, 0]) < 1e-6]
     assert len(on_border) >= 1
     assert np.all(match(detection.centres, on_border) > 5)

@@ -1,8 +1,11 @@
 """Vision node as its own process: rendered images in, /tip_pose out."""
+import dataclasses
 import math
 
 import numpy as np
 import pytest
+from builtin_interfaces.msg import Time
+from rclpy.serialization import serialize_message
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 
@@ -11,7 +14,7 @@ from flexarm_control.params import load_config
 from flexarm_msgs.msg import TipPose
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_model import Intrinsics
-from flexarm_vision.vision_node import image_to_array, info_mismatch
+from flexarm_vision.vision_node import image_to_array, info_mismatch, without_stamp
 
 POSE = np.array([1.35, -0.25, -0.6])
 CAMERA = load_config('camera.yaml')
@@ -45,6 +48,17 @@ def test_image_message_conversion() -> None:
     assert image is None and '7 bytes' in reason
 
 
+def test_joint_states_compare_without_their_stamp() -> None:
+    def raw(sec: int, position: float, velocity: float = 0.0) -> bytes:
+        return serialize_message(JointState(
+            header=Header(stamp=Time(sec=sec, nanosec=7), frame_id='base_link'),
+            name=['joint1', 'joint2'], position=[position, 0.6], velocity=[velocity, 0.0]))
+
+    assert without_stamp(raw(1, 0.1)) == without_stamp(raw(2, 0.1))
+    assert without_stamp(raw(1, 0.1)) != without_stamp(raw(1, 0.1 + 1e-12))
+    assert without_stamp(raw(1, 0.1)) != without_stamp(raw(1, 0.1, velocity=0.2))
+
+
 @pytest.mark.node
 def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> None:
     renderer = CameraRenderer.from_dict(CAMERA)
@@ -55,6 +69,7 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
     info_pub = ros_node.create_publisher(CameraInfo, topics.CAMERA_INFO, 1)
     joints_pub = ros_node.create_publisher(JointState, topics.JOINT_STATES, 10)
     black = {'on': False}
+    intrinsics = {'published': renderer.intrinsics}
 
     def publish() -> None:
         stamp = ros_node.get_clock().now().to_msg()
@@ -65,7 +80,7 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
                   else renderer.render(POSE, rng=rng))
         image_pub.publish(Image(header=Header(stamp=stamp), height=480, width=640,
                                 encoding='mono8', step=640, data=pixels.tobytes()))
-        info_pub.publish(camera_info(renderer.intrinsics))
+        info_pub.publish(camera_info(intrinsics['published']))
 
     ros_node.create_timer(0.1, publish)
     launch('flexarm_vision', use_sim_time=False)
@@ -87,3 +102,18 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
 
     msg = wait_for(invalid, 10.0, 'an invalid /tip_pose for a black image')
     assert 'too dark' in msg.status and not msg.settled and math.isnan(msg.pose.x)
+
+    intrinsics['published'] = dataclasses.replace(renderer.intrinsics,
+                                                  fx=renderer.intrinsics.fx + 5.0)
+    black['on'] = False
+    count = len(received)
+
+    def info_refused() -> TipPose | None:
+        return next((m for m in received[count:] if 'camera_info' in m.status), None)
+
+    msg = wait_for(info_refused, 10.0, 'an invalid /tip_pose for a mismatched camera_info')
+    assert not msg.valid and 'fx' in msg.status and math.isnan(msg.pose.x)
+    intrinsics['published'] = renderer.intrinsics
+    count = len(received)
+    wait_for(lambda: next((m for m in received[count:] if m.valid), None), 10.0,
+             'a valid /tip_pose once camera_info agrees again')

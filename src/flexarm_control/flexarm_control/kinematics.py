@@ -72,8 +72,8 @@ class ArmGeometry:
 
 
 def wrap_angle(angle: np.ndarray | float) -> np.ndarray | float:
-    """Angle(s) wrapped to [-π, π); a float for a scalar input."""
-    wrapped = (np.asarray(angle, dtype=float) + np.pi) % (2 * np.pi) - np.pi
+    """Angle(s) wrapped to (-π, π], the range of PlanarPose.phi; a float for a scalar input."""
+    wrapped = np.pi - (np.pi - np.asarray(angle, dtype=float)) % (2 * np.pi)
     return wrapped if wrapped.ndim else float(wrapped)
 
 

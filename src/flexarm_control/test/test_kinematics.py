@@ -83,6 +83,7 @@ def test_limit_violation_names_the_joint(geometry):
 def test_wrap_angle():
     assert wrap_angle(3 * math.pi / 2) == pytest.approx(-math.pi / 2)
     np.testing.assert_allclose(wrap_angle(np.array([0.1, -7.0])), [0.1, -7.0 + 2 * math.pi])
+    assert wrap_angle(math.pi) == wrap_angle(-math.pi) == math.pi      # (-π, π]
 
 
 def test_geometry_rejects_bad_config():

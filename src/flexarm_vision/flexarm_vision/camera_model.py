@@ -20,6 +20,8 @@ from typing import Any
 
 import numpy as np
 
+from flexarm_control.kinematics import wrap_angle
+
 UNDISTORT_ITERATIONS = 8
 
 
@@ -48,12 +50,6 @@ def rotation(phi: float) -> np.ndarray:
     """2-D rotation matrix of angle ``phi`` [rad]."""
     c, s = np.cos(phi), np.sin(phi)
     return np.array([[c, -s], [s, c]])
-
-
-def wrap_angle(phi: float) -> float:
-    """Angle wrapped to (-pi, pi]."""
-    wrapped = float(np.arctan2(np.sin(phi), np.cos(phi)))
-    return np.pi if wrapped == -np.pi else wrapped
 
 
 class CameraModel:

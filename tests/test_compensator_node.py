@@ -7,21 +7,28 @@ judged on the node's behaviour, not on learning.
 import math
 import threading
 import time
+from types import SimpleNamespace
 
 import numpy as np
 import pytest
 import rclpy
+from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
+from rclpy.executors import MultiThreadedExecutor
 from sensor_msgs.msg import JointState
+from std_msgs.msg import Empty
 
 from flexarm_control import topics
-from flexarm_control.client import FlexarmClient, GoalRejected
+from flexarm_control.client import FlexarmClient, GoalFailed, GoalRejected
+from flexarm_control.compensator_node import EXECUTOR_THREADS, CompensatorNode
 from flexarm_control.kinematics import ArmGeometry, inverse
-from flexarm_control.params import load_config
+from flexarm_control.params import config_path, load_config
 from flexarm_control.predictors import make_predictor
 from flexarm_control.sampling import regions_from_dict, sample_poses
 from flexarm_sim.plant import Plant
 from flexarm_msgs.action import MoveToPose
+from flexarm_msgs.msg import GoalOutcome, ModelInfo
 
 pytestmark = pytest.mark.node
 Result = MoveToPose.Result
@@ -101,18 +108,19 @@ def test_invalid_goal_is_refused_and_nothing_moves(graph, target, code):
 def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(graph):
     client, joints = graph
     far = (1.0, -0.5, math.radians(-100))            # B4: a long move from the start pose
-    outcome, phases = {}, []
-    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.move_to(
-        *far, mode='rigid', timeout=120, feedback=lambda fb: phases.append(fb.phase))))
-    thread.start()
-    deadline = time.monotonic() + 20
-    while MoveToPose.Feedback.PHASE_MOVING not in phases and time.monotonic() < deadline:
-        time.sleep(0.02)
-    time.sleep(0.5)                                   # the arm is on its way
     context = Context()
     rclpy.init(context=context, domain_id=client.context.get_domain_id())
     second = FlexarmClient('second_client', context=context)
+    outcome, phases = {}, []
+    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.move_to(
+        *far, mode='rigid', timeout=120, feedback=lambda fb: phases.append(fb.phase))))
     try:
+        second.wait_until_ready(timeout=30.0, learner=False)   # ready before the move starts
+        thread.start()
+        deadline = time.monotonic() + 20
+        while MoveToPose.Feedback.PHASE_MOVING not in phases and time.monotonic() < deadline:
+            time.sleep(0.02)
+        time.sleep(0.5)                               # the arm is on its way
         with pytest.raises(GoalRejected, match='busy'):
             second.move_to(*TARGET, mode='rigid', timeout=20)
     finally:
@@ -127,3 +135,190 @@ def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(graph):
     np.testing.assert_allclose(joints['q'], stopped, atol=1e-9)
     goal = inverse(ArmGeometry.from_dict(load_config('arm.yaml')['arm']), np.array(far))
     assert np.max(np.abs(joints['q'] - goal)) > 0.05
+
+
+@pytest.fixture
+def client(domain_id):
+    """A FlexarmClient of its own context on the test's domain."""
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = FlexarmClient('flexarm_client', context=context)   # ros_node is 'test_client'
+    try:
+        yield node
+    finally:
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def serve(node, execute, goal_callback=None) -> ActionServer:
+    return ActionServer(node, MoveToPose, topics.MOVE_TO_POSE, execute_callback=execute,
+                        goal_callback=goal_callback or (lambda _: GoalResponse.ACCEPT),
+                        cancel_callback=lambda _: CancelResponse.ACCEPT,
+                        callback_group=ReentrantCallbackGroup())
+
+
+def test_client_never_reports_success_for_a_goal_that_did_not_succeed(ros_node, client):
+    def abort_with_empty_result(handle):
+        handle.abort()
+        return Result()   # error_code 0 (SUCCESSFUL), as rclpy sends after an exception
+
+    serve(ros_node, abort_with_empty_result)
+    client.wait_until_ready(timeout=30.0, learner=False)
+    with pytest.raises(GoalFailed, match='ended aborted without an error code'):
+        client.move_to(*TARGET, timeout=30)
+
+
+@pytest.mark.parametrize('when', ['moving', 'before acceptance'])
+def test_ctrl_c_cancels_the_goal(ros_node, client, when, wait_for):
+    canceled = threading.Event()
+    press = ros_node.create_publisher(Empty, 'ctrl_c', 10)
+
+    def accept_slowly(goal):   # Ctrl-C while the client waits for the acceptance
+        press.publish(Empty())
+        time.sleep(0.5)
+        return GoalResponse.ACCEPT
+
+    def move_until_canceled(handle):
+        deadline = time.monotonic() + 20
+        while not handle.is_cancel_requested and time.monotonic() < deadline:
+            handle.publish_feedback(MoveToPose.Feedback(phase='moving'))
+            time.sleep(0.05)
+        if handle.is_cancel_requested:
+            canceled.set()
+            handle.canceled()
+            return Result(error_code=Result.CANCELED)
+        handle.abort()
+        return Result(error_code=Result.CONTROLLER_TIMEOUT)
+
+    pressed = []
+
+    def ctrl_c(_) -> None:   # pressed once
+        if not pressed:
+            pressed.append(True)
+            raise KeyboardInterrupt
+
+    if when == 'moving':
+        serve(ros_node, move_until_canceled)
+    else:
+        serve(ros_node, move_until_canceled, accept_slowly)
+        client.create_subscription(Empty, 'ctrl_c', ctrl_c, 10)
+        wait_for(lambda: press.get_subscription_count() and client.count_publishers('ctrl_c'),
+                 10.0, 'ctrl_c publisher and subscription to see each other')
+    client.wait_until_ready(timeout=30.0, learner=False)
+    with pytest.raises(KeyboardInterrupt):
+        client.move_to(*TARGET, timeout=60, feedback=ctrl_c if when == 'moving' else None)
+    assert canceled.wait(10.0), 'the goal was not canceled'
+
+
+@pytest.fixture
+def in_process(launch, domain_id, client):
+    """The simulator (real time), a compensator node in this process (its internals within
+    reach of the test), a client and the outcomes it heard."""
+    launch('flexarm_sim', real_time_factor=1.0)
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id, args=[
+        '--ros-args', '--params-file', str(config_path('arm.yaml')),
+        '--params-file', str(config_path('compensator.yaml'))])
+    node = CompensatorNode(context=context)
+    executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=context)
+    executor.add_node(node)
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
+    outcomes = []
+    client.create_subscription(GoalOutcome, topics.OUTCOMES, outcomes.append, 10)
+    try:
+        client.wait_until_ready(timeout=30.0, learner=False)
+        yield node, client, outcomes
+    finally:
+        executor.shutdown(timeout_sec=2.0)
+        thread.join(timeout=2.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_unusable_models_are_refused_and_the_previous_one_kept(in_process, model_path,
+                                                               tmp_path):
+    node, _, _ = in_process
+    node._load_model(str(model_path), 'good')
+    good = node._predictor
+    joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
+                                               (20, 4))
+    with_payload = tmp_path / 'payload.model'
+    make_predictor('rbf', {'payload_input': True}).fit(
+        joints, np.zeros((20, 3)) + joints[:, :3] * 1e-3, np.linspace(0, 2, 20)).save(
+        with_payload)
+    empty, truncated = tmp_path / 'empty.model', tmp_path / 'truncated.model'
+    empty.write_bytes(b'')
+    truncated.write_bytes(model_path.read_bytes()[:1000])
+    for version, path in enumerate((with_payload, empty, truncated), start=100):
+        node._on_model(ModelInfo(version=str(version), kind='rbf', path=str(path)))
+        assert node._predictor is good and node._model_version == str(model_path)
+
+
+def test_an_unexpected_error_aborts_with_a_reason(in_process):
+    node, client, outcomes = in_process
+    model = make_predictor('rbf', {'payload_input': True})   # predict needs a payload
+    joints = np.random.default_rng(1).uniform(-0.5, 0.5, (10, 4))
+    node._predictor = model.fit(joints, joints[:, :3], np.linspace(0, 1, 10))
+    result = client.move_to(*TARGET, mode='predictive', timeout=30)
+    assert result.error_code == Result.INVALID_GOAL
+    assert 'internal error: ValueError' in result.error_string, result.error_string
+    deadline = time.monotonic() + 5
+    while not outcomes and time.monotonic() < deadline:
+        client.spin_once(0.05)
+    assert outcomes and outcomes[-1].error_code == Result.INVALID_GOAL
+
+
+def test_a_compensation_that_does_not_converge_is_aborted(in_process):
+    node, client, _ = in_process
+    slow = lambda q: np.array([0.0, -1.2 * 1.3 * (q[0] - 0.16), 0.0])   # noqa: E731
+    node._predictor = SimpleNamespace(predict=slow)
+    result = client.move_to(*TARGET, mode='predictive', timeout=60)
+    assert result.error_code == Result.UNREACHABLE
+    assert 'does not converge' in result.error_string and result.iterations == 0
+
+
+def test_two_goals_passing_the_busy_check_together(in_process, domain_id):
+    node, first, _ = in_process
+    both_checked = threading.Barrier(2)
+    check = node._on_goal
+
+    def check_together(goal):
+        response = check(goal)
+        both_checked.wait(timeout=10.0)   # the second goal is checked before either runs
+        return response
+
+    node._server.register_goal_callback(check_together)
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    second = FlexarmClient('second_client', context=context)
+    results = {}
+    far = (1.0, -0.5, math.radians(-100))   # a 3 s move: the winner is still moving
+
+    def send(name, client):
+        try:
+            results[name] = client.move_to(*far, mode='rigid', timeout=60)
+        except Exception as exc:
+            results[name] = exc
+
+    try:
+        second.wait_until_ready(timeout=30.0, learner=False)
+        threads = [threading.Thread(target=send, args=(name, c))
+                   for name, c in (('first', first), ('second', second))]
+        for t in threads:
+            t.start()
+        deadline = time.monotonic() + 30
+        while not results and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert results, 'neither goal ended'
+        loser = next(iter(results))
+        assert results[loser].error_code == Result.INVALID_GOAL
+        assert 'busy' in results[loser].error_string
+        (first if loser == 'second' else second).cancel()
+        for t in threads:
+            t.join(timeout=30)
+        winner = results['first' if loser == 'second' else 'second']
+        assert winner.error_code in (Result.CANCELED, Result.SUCCESSFUL), winner.error_string
+    finally:
+        second.destroy_node()
+        rclpy.try_shutdown(context=context)

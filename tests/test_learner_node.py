@@ -1,6 +1,8 @@
 """Node-level: collect -> train -> model announced and hot-reloaded by the compensator."""
+import threading
 import time
 
+import numpy as np
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -8,7 +10,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
-from flexarm_control.dataset import load_dataset
+from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
 
@@ -93,3 +95,69 @@ def test_cancel_keeps_every_collected_sample(learner):
     assert result.error_code == CollectSamples.Result.CANCELED
     assert 3 <= result.collected < 30
     assert len(load_dataset(result.dataset_path)) == result.collected == result.total
+
+
+def write_dataset(path, count: int = 12) -> None:
+    joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
+                                               (count, 4))
+    with DatasetWriter(path) as writer:
+        for i, q in enumerate(joints):
+            deflection = np.array([1e-3 * q[0], -0.01 * q[1], 1e-3 * q[3]])
+            writer.append(Sample(i, q, 0.0, np.zeros(3), deflection, deflection, 6, 1e-5))
+
+
+@pytest.fixture
+def bare_learner(launch, domain_id, tmp_path):
+    """Simulator and learner only (no camera: a collection waits for tip poses), datasets
+    ``good`` and ``no_version`` (header without a version), and two clients."""
+    data = tmp_path / 'data'
+    data.mkdir()
+    write_dataset(data / 'good.jsonl')
+    (data / 'no_version.jsonl').write_text('{"format": "flexarm-deflection-dataset"}\n')
+    launch('flexarm_sim', real_time_factor=10.0)
+    launch('flexarm_learner', data_directory=str(data), model_directory=str(tmp_path / 'models'))
+    contexts, clients = [], []
+    try:
+        for name in ('test_client', 'second_client'):
+            contexts.append(Context())
+            rclpy.init(context=contexts[-1], domain_id=domain_id)
+            clients.append(FlexarmClient(name, context=contexts[-1]))
+            clients[-1].wait_until_ready(timeout=30.0, compensator=False)
+        yield clients, tmp_path
+    finally:
+        for client, context in zip(clients, contexts):
+            client.destroy_node()
+            rclpy.try_shutdown(context=context)
+
+
+def test_damaged_dataset_or_outside_name_is_refused_and_the_learner_serves_on(bare_learner):
+    (client, _), tmp = bare_learner
+    result = client.collect(3, dataset='no_version', timeout=30)
+    assert result.error_code == CollectSamples.Result.INVALID_GOAL
+    assert 'no valid version' in result.error_string, result.error_string
+    failed = client.train('rbf', dataset='no_version', timeout=60)
+    assert not failed.success and 'no valid version' in failed.message, failed.message
+    write_dataset(tmp / 'outside.jsonl')
+    escaped = client.train('rbf', dataset='../outside', timeout=60)
+    assert not escaped.success and 'dataset name' in escaped.message, escaped.message
+    trained = client.train('rbf', dataset='good', timeout=60)
+    assert trained.success, trained.message
+
+
+def test_training_is_refused_while_a_collection_runs(bare_learner):
+    (client, second), _ = bare_learner
+    outcome = {}
+    thread = threading.Thread(target=lambda: outcome.setdefault(
+        'result', client.collect(5, region='B', dataset='c', timeout=120)))
+    thread.start()
+    try:
+        deadline = time.monotonic() + 20
+        while client._goal_handle is None and time.monotonic() < deadline:
+            time.sleep(0.05)
+        assert client._goal_handle is not None, 'the collection did not start'
+        refused = second.train('rbf', dataset='good', timeout=60)
+        assert not refused.success and 'busy' in refused.message, refused.message
+    finally:
+        client.cancel()
+        thread.join(timeout=30)
+    assert outcome['result'].error_code == CollectSamples.Result.CANCELED

@@ -6,11 +6,16 @@
     client.destroy_node()
 
 Every call blocks with a timeout (seconds, wall clock) and raises :class:`TimeoutError` when
-it runs out; a goal that the server rejects raises :class:`GoalRejected` with its reason.
+it runs out; a goal that the server rejects raises :class:`GoalRejected` with its reason, and
+one that ends without success but without an error code raises :class:`GoalFailed`. A timeout
+or a Ctrl-C (KeyboardInterrupt) while a goal runs cancels it (bounded wait) before the
+exception goes on, so the arm stops. :func:`init_client` leaves SIGINT to Python: rclpy's own
+handler would shut the context down before the cancel could be sent.
 Units are SI (m, rad); converting from mm/deg is the caller's (the CLI's) business.
 """
 from __future__ import annotations
 
+import contextlib
 import json
 import time
 import uuid
@@ -18,6 +23,7 @@ from collections.abc import Callable, Mapping
 from typing import Any
 
 import rclpy
+from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
 from rclpy.action.client import ClientGoalHandle
 from rclpy.context import Context
@@ -35,10 +41,16 @@ from unique_identifier_msgs.msg import UUID
 MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
          'predictive': MoveToPose.Goal.MODE_PREDICTIVE,
          'closed_loop': MoveToPose.Goal.MODE_CLOSED_LOOP}
+_ENDED = {GoalStatus.STATUS_CANCELED: 'canceled', GoalStatus.STATUS_ABORTED: 'aborted'}
+_SPIN_SLICE = 0.1   # [s] waits spin in slices so that a Ctrl-C is raised at once
 
 
 class GoalRejected(RuntimeError):
     """The server rejected the goal before anything moved."""
+
+
+class GoalFailed(RuntimeError):
+    """The goal ended without success and without an error code in its result."""
 
 
 class FlexarmClient(Node):
@@ -140,20 +152,31 @@ class FlexarmClient(Node):
             raise TimeoutError(f'action server {client._action_name} not available')
         self._wait_responsive(client, deadline)
         callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
-        handle = self._spin_until(client.send_goal_async(goal, feedback_callback=callback),
-                                  deadline - time.monotonic(), 'goal acceptance')
-        if not handle.accepted:
-            raise GoalRejected(f'{client._action_name} rejected the goal: the server runs one '
-                               'goal at a time and is busy')
-        self._goal_handle = handle
+        sent = client.send_goal_async(goal, feedback_callback=callback)
         try:
-            return self._spin_until(handle.get_result_async(), deadline - time.monotonic(),
-                                    'the result').result
+            handle = self._spin_until(sent, deadline - time.monotonic(), 'goal acceptance')
+            if not handle.accepted:
+                raise GoalRejected(f'{client._action_name} rejected the goal: the server runs '
+                                   'one goal at a time and is busy')
+            self._goal_handle = handle
+            response = self._spin_until(handle.get_result_async(),
+                                        deadline - time.monotonic(), 'the result')
         except TimeoutError:
             self.cancel()
             raise
+        except KeyboardInterrupt:   # Ctrl-C, possibly before the acceptance arrived
+            with contextlib.suppress(TimeoutError, RuntimeError):   # no answer, or shut down
+                handle = self._spin_until(sent, 5.0, 'goal acceptance')
+                if handle.accepted:
+                    self._spin_until(handle.cancel_goal_async(), 5.0, 'cancel')
+            raise
         finally:
             self._goal_handle = None
+        if response.status != GoalStatus.STATUS_SUCCEEDED and response.result.error_code == 0:
+            raise GoalFailed(f'{client._action_name}: the goal ended '
+                             f'{_ENDED.get(response.status, f"in status {response.status}")} '
+                             'without an error code (see the server log)')
+        return response.result
 
     def _wait_responsive(self, client: ActionClient, deadline: float) -> None:
         """Wait until the action server has answered a request of this client.
@@ -178,16 +201,19 @@ class FlexarmClient(Node):
                 return
 
     def _spin_until(self, future: Future, timeout: float, what: str) -> Any:
-        self._executor.spin_until_future_complete(future, timeout_sec=max(0.0, timeout))
-        if not future.done():
-            raise TimeoutError(f'timed out after {timeout:.1f} s waiting for {what}')
+        deadline = time.monotonic() + timeout
+        while not future.done():
+            remaining = deadline - time.monotonic()
+            if remaining <= 0:
+                raise TimeoutError(f'timed out after {timeout:.1f} s waiting for {what}')
+            if not self.context.ok():
+                raise RuntimeError(f'ROS was shut down while waiting for {what}')
+            self._executor.spin_until_future_complete(
+                future, timeout_sec=min(remaining, _SPIN_SLICE))
         return future.result()
 
 
 def init_client(domain_id: int | None = None) -> FlexarmClient:
-    """Initialise rclpy (default context) and create a client node."""
-    if domain_id is None:
-        rclpy.init()
-    else:
-        rclpy.init(domain_id=domain_id)
+    """Initialise rclpy (default context, SIGINT left to Python) and create a client node."""
+    rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.SignalHandlerOptions.NO)
     return FlexarmClient()

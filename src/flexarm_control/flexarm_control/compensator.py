@@ -3,7 +3,8 @@ flexible arm's tip lands on the target.
 
 * RIGID: θ = IK(x_d).
 * PREDICTIVE (the paper): θ0 = IK(x_d); x*_{k+1} = x_d − Δ(θ_k), θ_{k+1} = IK(x*_{k+1}),
-  repeated until x* moves less than ``tolerance`` (fixed point x* = x_d − Δ(IK(x*))).
+  repeated until x* moves less than ``tolerance`` (fixed point x* = x_d − Δ(IK(x*))); an
+  iteration still moving more than that after ``max_iterations`` is refused.
 * CLOSED_LOOP (beyond the paper): after a move, the measured error corrects the commanded
   pose, x* ← x* + gain·(x_d − x_measured), and the arm moves again.
 
@@ -32,7 +33,8 @@ Predict = Callable[[np.ndarray], np.ndarray]
 
 
 class CompensationError(UnreachableError):
-    """The compensated target cannot be reached or the fixed-point iteration diverges."""
+    """The compensated target cannot be reached or the fixed-point iteration diverges or
+    does not converge."""
 
 
 @dataclass(frozen=True)
@@ -46,14 +48,14 @@ class Plan:
 
 @dataclass(frozen=True)
 class CompensationSettings:
-    max_iterations: int   # of the fixed point
+    max_iterations: int   # of the fixed point (>= 2: convergence is judged from the second)
     tolerance: float      # [m] converged when x* moves less than this (position part)
     gain: float           # closed-loop correction gain (1 = full measured error)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> CompensationSettings:
         s = cls(int(d['max_iterations']), float(d['tolerance']), float(d['gain']))
-        if s.max_iterations < 1 or s.tolerance <= 0 or not 0 < s.gain <= 1.5:
+        if s.max_iterations < 2 or s.tolerance <= 0 or not 0 < s.gain <= 1.5:
             raise ValueError(f'invalid compensation settings {s}')
         return s
 
@@ -97,6 +99,10 @@ class Compensator:
             raise CompensationError(
                 f'compensation diverges (steps {steps[1] * 1e3:.3g} -> {steps[-1] * 1e3:.3g} mm):'
                 ' the predicted deflection changes faster than the motion (section 3-2)')
+        if not steps[-1] < self.settings.tolerance:
+            raise CompensationError(
+                f'compensation does not converge: x* still moves {steps[-1] * 1e3:.3g} mm after '
+                f'{len(steps)} iterations (tolerance {self.settings.tolerance * 1e3:.3g} mm)')
         return Plan(joints, commanded, np.asarray(predict(joints), dtype=float), len(steps),
                     steps[-1])
 

@@ -8,20 +8,29 @@ lives in :mod:`flexarm_control.compensator`; this node validates goals, moves th
 hot-reloads the predictor the learner announces on ``/learner/model`` and republishes the one
 it uses on the latched ``/compensator/active_model``.
 
-Goal policy: one goal at a time; a goal arriving while another executes is rejected. Every
-accepted goal is validated before anything moves and aborted with an error code and reason if
-invalid. Cancel holds the arm at its current joint positions.
+Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
+arriving together can both pass that check: execution decides, and the one that finds the
+other executing is aborted (INVALID_GOAL, "busy") before anything moves. Every accepted goal
+is validated before anything moves and aborted with an error code and reason if invalid; an
+unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never with an
+empty result. Cancel holds the arm at its current joint positions. A model that takes the
+payload as an input is refused (the compensator does not know the payload): the previous one
+stays active. The executor has ``EXECUTOR_THREADS`` threads, so an executing goal (holding
+one thread until it ends) leaves threads for joint states, tip poses, cancel and new goals.
 """
 from __future__ import annotations
 
 import math
 import threading
+import traceback
+from functools import partial
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
+from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
@@ -36,6 +45,7 @@ from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose
 
+EXECUTOR_THREADS = 4
 Goal = MoveToPose.Goal
 Result = MoveToPose.Result
 Feedback = MoveToPose.Feedback
@@ -62,8 +72,8 @@ def goal_error(goal: Goal) -> str | None:
 
 class CompensatorNode(Node):
 
-    def __init__(self) -> None:
-        super().__init__('flexarm_compensator')
+    def __init__(self, context: Context | None = None) -> None:
+        super().__init__('flexarm_compensator', context=context)
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
         self._compensator = Compensator(self._geometry, declare_tree(
             self, 'compensation', 'config/compensator.yaml'))
@@ -99,8 +109,8 @@ class CompensatorNode(Node):
         self._outcomes = self.create_publisher(GoalOutcome, topics.OUTCOMES, 10)
         self._server = ActionServer(
             self, MoveToPose, topics.MOVE_TO_POSE, execute_callback=self._execute,
-            goal_callback=self._on_goal, handle_accepted_callback=self._on_accepted,
-            cancel_callback=lambda _: CancelResponse.ACCEPT, callback_group=self._group)
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=self._group)
 
     # --- model hot reload -------------------------------------------------------------------
     def _on_model(self, msg: ModelInfo) -> None:
@@ -110,7 +120,10 @@ class CompensatorNode(Node):
     def _load_model(self, path: str, what: str, info: ModelInfo | None = None) -> None:
         try:
             predictor = load_predictor(path)
-        except (OSError, ValueError, KeyError) as exc:
+            if predictor.settings['payload_input']:
+                raise ValueError('it takes the payload as an input, which the compensator does '
+                                 'not know')
+        except (OSError, ValueError) as exc:
             self.get_logger().error(f'cannot load model {what} from {path}: {exc}; '
                                     'keeping the previous one')
             return
@@ -126,19 +139,21 @@ class CompensatorNode(Node):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
-    def _on_accepted(self, handle: ServerGoalHandle) -> None:
-        if not self._busy.acquire(blocking=False):
-            handle.abort()   # lost a race with another accepted goal
-            return
-        handle.execute()
-
     # --- execution --------------------------------------------------------------------------
     def _execute(self, handle: ServerGoalHandle) -> Result:
         goal: Goal = handle.request
-        try:
-            result = self._run(handle, goal)
-        finally:
-            self._busy.release()
+        if not self._busy.acquire(blocking=False):   # lost a race past _on_goal
+            result = Result(error_code=Result.INVALID_GOAL,
+                            error_string='busy: another goal is executing (one at a time)')
+        else:
+            try:
+                result = self._run(handle, goal)
+            except Exception as exc:   # last resort: a reason for the client, never empty
+                self.get_logger().error(f'goal failed: {traceback.format_exc()}')
+                result = Result(error_code=Result.INVALID_GOAL,
+                                error_string=f'internal error: {type(exc).__name__}: {exc}')
+            finally:
+                self._busy.release()
         finish_goal(handle, result.error_code, Result.CANCELED)
         if result.error_code not in (Result.SUCCESSFUL, Result.CANCELED):
             self.get_logger().warn(f'goal aborted ({result.error_code}): {result.error_string}')
@@ -258,7 +273,7 @@ class CompensatorNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    run(CompensatorNode, args, MultiThreadedExecutor)
+    run(CompensatorNode, args, partial(MultiThreadedExecutor, num_threads=EXECUTOR_THREADS))
 
 
 if __name__ == '__main__':

@@ -117,13 +117,16 @@ def _check_header(line: bytes, path: Path) -> None:
     """ValueError unless ``line`` is a complete header of a supported version."""
     try:
         header = json.loads(line)
-        ok = line.endswith(b'\n') and header['format'] == FORMAT
-    except (ValueError, TypeError, KeyError):
-        ok = False
-    if not ok:
+    except ValueError:
+        header = None
+    if not (line.endswith(b'\n') and isinstance(header, dict)
+            and header.get('format') == FORMAT):
         raise ValueError(f'{path} is not a {FORMAT} file (bad header)')
-    if header['version'] > VERSION:
-        raise ValueError(f"{path}: dataset version {header['version']} is newer than the "
+    version = header.get('version')
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ValueError(f'{path}: the {FORMAT} header has no valid version ({version!r})')
+    if version > VERSION:
+        raise ValueError(f'{path}: dataset version {version} is newer than the '
                          f'supported {VERSION}')
 
 
@@ -210,7 +213,7 @@ def _parse_record(line: bytes) -> Sample | None:
         record = json.loads(line)
         sample = Sample.from_dict(record['sample'])
         ok = record['crc32'] == f'{zlib.crc32(_canonical(sample)):08x}'
-    except (ValueError, TypeError, KeyError):
+    except (ValueError, TypeError, KeyError, OverflowError):   # e.g. int(1e999): overflow
         return None
     return sample if ok else None
 

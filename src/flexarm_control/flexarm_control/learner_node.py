@@ -11,14 +11,22 @@ holds the arm and keeps every sample collected.
 Training (in a worker process) cross-validates, fits on the whole dataset, writes the model atomically and announces
 it on the latched ``/learner/model``; on any failure the previous model stays active. The
 current model is also remembered in ``<model_directory>/current.json`` and re-announced when
-the learner restarts. One collection at a time; training may run while nothing collects.
+the learner restarts.
+
+Policy: one collection at a time; a collection goal arriving while another runs is rejected
+(one that wins the race past that check is aborted with FAILED, "busy"). A training request
+while a collection runs is refused (it would slow the collection down; train on the finished
+dataset), as is one while a timed-out training job still occupies the worker. Every failure
+gives an error code or message; nothing escapes a callback. The executor has
+``EXECUTOR_THREADS`` threads, so a running collection and a training request (each holding one
+thread while it waits) leave threads for the joint states, tip poses and cancel requests.
 """
 from __future__ import annotations
 
 import json
-import multiprocessing
 import threading
-from concurrent.futures import ProcessPoolExecutor
+import traceback
+from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -41,12 +49,13 @@ from flexarm_control.predictors import KINDS
 from flexarm_control.predictors.base import atomic_write
 from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
                                       travel_order)
-from flexarm_control.training import Metrics, train
+from flexarm_control.training import Metrics, TrainingWorker, train
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
 from flexarm_msgs.srv import Train
 
 REPO = CONFIG_DIR.parent
+EXECUTOR_THREADS = 4
 Goal = CollectSamples.Goal
 Result = CollectSamples.Result
 Feedback = CollectSamples.Feedback
@@ -93,6 +102,13 @@ def repo_path(value: str) -> Path:
     return path if path.is_absolute() else REPO / path
 
 
+def dataset_name_error(name: str) -> str | None:
+    """Why ``name`` cannot name a dataset in the data directory (e.g. '../x'), or None."""
+    if name and not name.replace('-', '').replace('_', '').isalnum():
+        return f'dataset name "{name}" must be letters, digits, - and _'
+    return None
+
+
 class LearnerNode(Node):
 
     def __init__(self) -> None:
@@ -123,14 +139,11 @@ class LearnerNode(Node):
         self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds')
         self._train_timeout = declare(self, 'training_timeout', 600.0,
                                       '[s, wall] longest a training request may take')
-        self._trainer = ProcessPoolExecutor(
-            max_workers=1, mp_context=multiprocessing.get_context('spawn'),
-            initializer=_warm_up)
+        self._trainer = TrainingWorker(_warm_up)
         if self._default_region not in self._regions:
             raise ValueError(f'default_region {self._default_region} is not in regions')
 
         self._collecting = threading.Lock()
-        self._training = threading.Lock()
         group = ReentrantCallbackGroup()
         self._arm = ArmInterface(self, group)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
@@ -161,43 +174,56 @@ class LearnerNode(Node):
             return f'unknown region "{goal.region}"; known: {", ".join(self._regions)}'
         if (goal.strategy or self._default_strategy) not in STRATEGIES:
             return f'unknown strategy "{goal.strategy}"; known: {", ".join(STRATEGIES)}'
-        if goal.dataset and not goal.dataset.replace('-', '').replace('_', '').isalnum():
-            return f'dataset name "{goal.dataset}" must be letters, digits, - and _'
-        return None
+        return dataset_name_error(goal.dataset)
 
     def _collect(self, handle: ServerGoalHandle) -> Result:
         goal: Goal = handle.request
-        with self._collecting:
-            result = self._run_collection(handle, goal)
+        result = Result(dataset_path=str(self.dataset_path(goal.dataset)))
+        if not self._collecting.acquire(blocking=False):   # lost a race past _on_goal
+            result.error_code = Result.FAILED
+            result.error_string = 'busy: another collection is running'
+        else:
+            try:
+                self._run_collection(handle, goal, result)
+            except Exception as exc:   # last resort: a reason for the client, never a crash
+                self.get_logger().error(f'collection failed: {traceback.format_exc()}')
+                result.error_code = Result.FAILED
+                result.error_string = f'collection failed: {type(exc).__name__}: {exc}'
+            finally:
+                self._collecting.release()
         finish_goal(handle, result.error_code, Result.CANCELED)
         self.get_logger().info(f'collection ended ({result.error_code}): {result.collected} '
                                f'collected, {result.skipped} skipped, {result.total} in '
                                f'{result.dataset_path} {result.error_string}')
         return result
 
-    def _run_collection(self, handle: ServerGoalHandle, goal: Goal) -> Result:
+    def _run_collection(self, handle: ServerGoalHandle, goal: Goal, result: Result) -> None:
+        """Collect into ``result`` (counts, error code and reason)."""
         path = self.dataset_path(goal.dataset)
-        result = Result(dataset_path=str(path))
         reason = self._goal_error(goal)
         if reason is None and not self._arm.wait_for_joints(5.0):
             reason = 'no /joint_states from the controller'
+        if reason is None:
+            try:
+                result.total = len(load_dataset(path)) if path.exists() else 0
+            except ValueError as exc:   # not a dataset (damaged or foreign header)
+                reason = str(exc)
         if reason is not None:
             result.error_code, result.error_string = Result.INVALID_GOAL, reason
-            return result
+            return
         region = self._regions[goal.region or self._default_region]
         _, plan = sample_poses(self._geometry, region, goal.count,
                                goal.strategy or self._default_strategy, goal.seed)
         plan = plan[travel_order(plan, self._arm.joints.positions, self._geometry.velocity)]
         self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
                                f' into {path}')
-        result.total = len(load_dataset(path)) if path.exists() else 0
         with DatasetWriter(path) as writer:
             for k, joints in enumerate(plan, start=1):
                 sample = self._sample_at(joints, handle)
                 if handle.is_cancel_requested:
                     self._arm.hold()
                     result.error_code, result.error_string = Result.CANCELED, 'canceled'
-                    return result
+                    return
                 if sample is None:
                     result.skipped += 1
                 else:
@@ -211,7 +237,6 @@ class LearnerNode(Node):
                                                  last_sample=msg))
         if result.collected == 0:
             result.error_code, result.error_string = Result.FAILED, 'no valid measurement'
-        return result
 
     def _sample_at(self, joints: np.ndarray, handle: ServerGoalHandle) -> Sample | None:
         """Move to ``joints``, measure; the sample, or None after the retries failed."""
@@ -254,29 +279,35 @@ class LearnerNode(Node):
     # --- training ---------------------------------------------------------------------------
     def _train(self, request: Train.Request, response: Train.Response) -> Train.Response:
         kind = request.kind or self._default_kind
-        path = self.dataset_path(request.dataset)
-        version = self._next_version()
-        model_path = self._model_dir / (
-            f'{request.dataset or self._default_dataset}-{kind}-v{version}.model')
         try:
+            reason = dataset_name_error(request.dataset)
+            if reason is not None:
+                raise ValueError(reason)
+            if self._collecting.locked():
+                raise RuntimeError('busy: a collection is running; train when it has ended')
+            path = self.dataset_path(request.dataset)
+            version = self._next_version()
+            model_path = self._model_dir / (
+                f'{request.dataset or self._default_dataset}-{kind}-v{version}.model')
             settings = json.loads(request.settings_json) if request.settings_json else {}
             if not isinstance(settings, dict):
                 raise ValueError('settings_json must be a JSON object')
             if not path.exists():
                 raise ValueError(f'no dataset at {path}: collect samples first')
-            job = self._trainer.submit(train_and_save, kind, settings, str(path), self._folds,
-                                       str(model_path))
-            metrics, samples_hash = job.result(timeout=self._train_timeout)
+            metrics, samples_hash = self._trainer.run(
+                train_and_save, kind, settings, str(path), self._folds, str(model_path),
+                timeout=self._train_timeout)
+            info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version),
+                             kind=kind, path=str(model_path), dataset_hash=samples_hash,
+                             metrics=metrics_msg(metrics))
+            atomic_write(self._model_dir / 'current.json', lambda f: f.write(json.dumps({
+                'version': info.version, 'kind': kind, 'path': info.path,
+                'dataset_hash': samples_hash}).encode()))
         except (ValueError, RuntimeError, OSError, TimeoutError) as exc:
-            response.success, response.message = False, f'training failed: {exc}'
-            self.get_logger().error(response.message + '; the previous model stays active')
-            return response
-        info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version), kind=kind,
-                         path=str(model_path), dataset_hash=samples_hash,
-                         metrics=metrics_msg(metrics))
-        atomic_write(self._model_dir / 'current.json', lambda f: f.write(json.dumps({
-            'version': info.version, 'kind': kind, 'path': info.path,
-            'dataset_hash': samples_hash}).encode()))
+            return self._train_failed(response, str(exc))
+        except Exception as exc:   # last resort: a reason for the caller, never a crash
+            self.get_logger().error(traceback.format_exc())
+            return self._train_failed(response, f'{type(exc).__name__}: {exc}')
         self._model_pub.publish(info)
         response.success, response.model_version = True, info.version
         response.model_path, response.metrics = info.path, info.metrics
@@ -285,8 +316,13 @@ class LearnerNode(Node):
             f'|error| x {metrics.max_error_x * 1e3:.3f} mm, y {metrics.max_error_y * 1e3:.3f} mm')
         return response
 
+    def _train_failed(self, response: Train.Response, reason: str) -> Train.Response:
+        response.success, response.message = False, f'training failed: {reason}'
+        self.get_logger().error(response.message + '; the previous model stays active')
+        return response
+
     def destroy_node(self) -> None:
-        self._trainer.shutdown(wait=False, cancel_futures=True)
+        self._trainer.shutdown()
         super().destroy_node()
 
     def _next_version(self) -> int:
@@ -310,7 +346,7 @@ class LearnerNode(Node):
 
 
 def main(args: list[str] | None = None) -> None:
-    run(LearnerNode, args, MultiThreadedExecutor)
+    run(LearnerNode, args, partial(MultiThreadedExecutor, num_threads=EXECUTOR_THREADS))
 
 
 if __name__ == '__main__':

@@ -35,9 +35,6 @@ class Region:
             raise ValueError(f'region {name}: each of x, y, phi needs [low, high], low < high')
         return cls(name, lower, upper)
 
-    def contains(self, pose: np.ndarray) -> bool:
-        return bool(np.all((pose >= self.lower) & (pose <= self.upper)))
-
     def describe(self) -> str:
         lo, hi = self.lower, self.upper
         return (f'{self.name}: x {lo[0] * 1e3:.0f}..{hi[0] * 1e3:.0f} mm, y {lo[1] * 1e3:.0f}..'

@@ -71,16 +71,32 @@ def test_unreachable_targets_are_refused(setup):
         compensator.predictive(edge, lambda q: np.array([-0.05, -0.05, 0.0]))
 
 
+def theta1_slope(slope: float):
+    """A synthetic predictor: dy changes ``slope`` × 1.3 m per radian of theta1."""
+    return lambda q: np.array([0.0, slope * 1.3 * (q[0] - 0.16), 0.0])
+
+
 def test_divergent_iteration_is_reported(setup):
     _, _, compensator = setup
-    target = pose(TARGETS[3])
-    # Deflection changing faster than the motion (gain 3 on theta1): violates section 3-2.
-    wild = lambda q: np.array([0.0, 3.0 * 1.3 * (q[0] - 0.16), 0.0])
-    with pytest.raises(CompensationError, match='diverges|unreachable'):
-        compensator.predictive(target, wild)
+    # Deflection changing faster than the motion: violates section 3-2, the steps grow.
+    with pytest.raises(CompensationError, match='compensation diverges'):
+        compensator.predictive(pose(TARGETS[3]), theta1_slope(-2.0))
+
+
+def test_iteration_that_does_not_converge_is_refused(setup):
+    geometry, _, compensator = setup
+    slow = theta1_slope(-1.2)   # contracts, but oscillating slowly
+    few = Compensator(geometry, {'max_iterations': 5, 'tolerance': 1e-7, 'gain': 1.0})
+    with pytest.raises(CompensationError, match='does not converge: .* after 5 iterations'):
+        few.predictive(pose(TARGETS[3]), slow)
+    plan = Compensator(geometry, {'max_iterations': 200, 'tolerance': 1e-7, 'gain': 1.0}
+                       ).predictive(pose(TARGETS[3]), slow)
+    assert plan.step < 1e-7 and plan.iterations < 200
 
 
 def test_settings_are_validated(setup):
     geometry = setup[0]
-    with pytest.raises(ValueError):
-        Compensator(geometry, {'max_iterations': 0, 'tolerance': 1e-7, 'gain': 1.0})
+    for iterations in (0, 1):   # convergence is judged from the second iteration
+        with pytest.raises(ValueError):
+            Compensator(geometry, {'max_iterations': iterations, 'tolerance': 1e-7,
+                                   'gain': 1.0})

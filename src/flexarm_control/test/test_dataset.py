@@ -132,10 +132,11 @@ def test_corrupt_records_are_skipped_and_counted(tmp_path: Path) -> None:
     lines[2] = lines[2].replace('"holes_used":7', '"holes_used":8')   # CRC mismatch
     lines[3] = 'not json at all\n'
     lines[4] = lines[4].replace('"sample":', '"sampel":')
+    lines[5] = lines[5].replace('"holes_used":7', '"holes_used":1e999')   # int(inf): overflow
     path.write_text(''.join(lines))
     dataset = load_dataset(path)
-    assert dataset.samples == [sample(0), sample(4)]
-    assert dataset.skipped_lines == [3, 4, 5] and dataset.skipped == 3
+    assert dataset.samples == [sample(0)]
+    assert dataset.skipped_lines == [3, 4, 5, 6] and dataset.skipped == 4
 
 
 def test_header_cut_at_creation(tmp_path: Path) -> None:
@@ -159,6 +160,25 @@ def test_other_files_are_refused_and_left_alone(tmp_path: Path) -> None:
     newer.write_text('{"format": "flexarm-deflection-dataset", "version": 99}\n')
     with pytest.raises(ValueError, match='newer'):
         load_dataset(newer)
+
+
+@pytest.mark.parametrize('header', [
+    '{"format": "flexarm-deflection-dataset"}',
+    '{"format": "flexarm-deflection-dataset", "version": "1"}',
+    '{"format": "flexarm-deflection-dataset", "version": null}',
+    '{"format": "flexarm-deflection-dataset", "version": true}',
+    '["flexarm-deflection-dataset", 1]',
+])
+def test_damaged_header_is_refused_and_left_alone(tmp_path: Path, header: str) -> None:
+    path = tmp_path / 'samples.jsonl'
+    write(path, 2)
+    content = header + '\n' + path.read_text().split('\n', 1)[1]
+    path.write_text(content)
+    with pytest.raises(ValueError, match='header|flexarm-deflection-dataset file'):
+        load_dataset(path)
+    with pytest.raises(ValueError, match='header|flexarm-deflection-dataset file'):
+        DatasetWriter(path)
+    assert path.read_text() == content
 
 
 def test_bad_samples_are_rejected() -> None:

@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.params import flatten, load_node_params, unflatten
+from flexarm_control.params import load_node_params, unflatten
 
 
 def test_node_section_overrides_wildcard(tmp_path: Path) -> None:
@@ -16,11 +16,10 @@ def test_node_section_overrides_wildcard(tmp_path: Path) -> None:
     assert load_node_params(path, 'other') == {'arm': {'a': 1, 'b': {'c': 2, 'd': 3}}}
 
 
-def test_flatten_unflatten_round_trip() -> None:
-    tree = {'plant': {'mass': {'arm2': 4.81}, 'payload': 5.0}, 'rate': [1, 2]}
-    flat = flatten(tree)
-    assert flat == {'plant.mass.arm2': 4.81, 'plant.payload': 5.0, 'rate': [1, 2]}
-    assert unflatten(flat) == tree
+def test_unflatten_nests_dotted_names() -> None:
+    flat = {'plant.mass.arm2': 4.81, 'plant.payload': 5.0, 'rate': [1, 2]}
+    assert unflatten(flat) == {'plant': {'mass': {'arm2': 4.81}, 'payload': 5.0},
+                               'rate': [1, 2]}
 
 
 @pytest.mark.parametrize('name', ['arm.yaml', 'sim.yaml', 'camera.yaml', 'vision.yaml',

@@ -96,6 +96,37 @@ def test_failed_save_keeps_the_old_file(fitted: dict[str, Predictor], tmp_path: 
     assert load_predictor(path).kind == 'rbf'
 
 
+def _rewrite(path: Path, change) -> None:  # noqa: ANN001
+    """Rewrite the model file at ``path`` with ``change(entries)`` applied to its entries."""
+    with np.load(path) as archive:
+        entries = {name: archive[name] for name in archive.files}
+    change(entries)
+    np.savez(path, **entries)
+
+
+DAMAGES = {
+    'empty': lambda path: path.write_bytes(b''),
+    'truncated': lambda path: path.write_bytes(path.read_bytes()[:path.stat().st_size // 2]),
+    'foreign': lambda path: path.write_text('shopping list'),
+    'no metadata': lambda path: _rewrite(path, lambda e: e.pop('metadata')),
+    'metadata not an object': lambda path: _rewrite(
+        path, lambda e: e.update(metadata=np.array('[1, 2]'))),
+    'missing weights': lambda path: _rewrite(path, lambda e: e.pop('mlp.bias1')),
+    'weights of the wrong shape': lambda path: _rewrite(
+        path, lambda e: e.update({'mlp.weight0': np.zeros((10, 3))})),
+}
+
+
+@pytest.mark.parametrize('damage', DAMAGES)
+def test_damaged_model_file_raises_value_error(fitted: dict[str, Predictor], damage: str,
+                                               tmp_path: Path) -> None:
+    path = tmp_path / 'model.npz'
+    fitted['mlp'].save(path)
+    DAMAGES[damage](path)
+    with pytest.raises(ValueError, match='model.npz'):
+        load_predictor(path)
+
+
 def test_gp_predictive_std(fitted: dict[str, Predictor]) -> None:
     gp = fitted['gp']
     train = random_joints(60, seed=1)
@@ -128,6 +159,17 @@ def test_constant_input_is_dropped() -> None:
         model = make_predictor(kind).fit(joints, sag(joints))
         assert model.metadata['normalisation']['active_inputs'] == [True, False, True, True]
         assert np.all(np.isfinite(model.predict(random_joints(5, seed=9))))
+
+
+def test_rbf_default_smooths_a_pose_measured_twice() -> None:
+    joints = random_joints(40, seed=11)
+    rng = np.random.default_rng(12)
+    twice = np.vstack([joints, joints + rng.uniform(-1e-4, 1e-4, joints.shape)])
+    noisy = np.vstack([sag(joints)] * 2) + rng.normal(0.0, 2e-5, (80, 3))   # camera noise
+    query = random_joints(300, seed=13)
+    errors = np.abs(make_predictor('rbf').fit(twice, noisy).predict(query) - sag(query))
+    once = make_predictor('rbf').fit(joints, sag(joints)).predict(query)
+    assert errors.mean(axis=0)[1] < 1.2 * np.abs(once - sag(query)).mean(axis=0)[1]
 
 
 def test_unknown_kind_lists_the_kinds() -> None:

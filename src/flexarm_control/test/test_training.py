@@ -1,14 +1,18 @@
 """Training with cross-validation: metrics, the final model's metadata, bad input."""
 from __future__ import annotations
 
+import os
+import time
 from pathlib import Path
 
 import numpy as np
 import pytest
 
+from flexarm_control import training
 from flexarm_control.dataset import Dataset, Sample
 from flexarm_control.predictors import load_predictor
-from flexarm_control.training import MIN_SAMPLES, Metrics, train, validate
+from flexarm_control.training import (MIN_SAMPLES, SAME_POSE, Metrics, TrainingWorker,
+                                      pose_groups, train, validate)
 
 
 def plant_like(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -40,6 +44,84 @@ def test_validate_reports_held_out_errors() -> None:
     # deterministic for a seed; another split gives other figures
     assert validate('rbf', None, joints, deflections, folds=5) == metrics
     assert validate('rbf', None, joints, deflections, folds=5, seed=1) != metrics
+
+
+def collected_twice(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """``n`` poses, each collected twice: joints within the arrival tolerance, new noise."""
+    joints, deflections = plant_like(n, seed)
+    rng = np.random.default_rng(seed + 100)
+    again = joints + rng.uniform(-1e-4, 1e-4, joints.shape)
+    return (np.vstack([joints, again]),
+            np.vstack([deflections, deflections + rng.normal(0, 2e-5, deflections.shape)]))
+
+
+def test_pose_groups_join_the_samples_of_one_pose() -> None:
+    joints, _ = collected_twice(10, seed=6)
+    groups = pose_groups(joints)
+    assert len(set(groups)) == 10
+    np.testing.assert_array_equal(groups[:10], groups[10:])
+    chain = np.zeros((3, 4))
+    chain[:, 0] = [0.0, 0.9 * SAME_POSE, 1.8 * SAME_POSE]   # linked through the middle one
+    assert len(set(pose_groups(chain))) == 1
+
+
+def test_no_pose_is_both_trained_on_and_validated(monkeypatch: pytest.MonkeyPatch) -> None:
+    joints, deflections = collected_twice(15, seed=7)
+    folds = []
+    make = training.make_predictor
+
+    def spy(kind, settings=None):  # noqa: ANN001, ANN202
+        predictor = make(kind, settings)
+        fit, predict = predictor.fit, predictor.predict
+        predictor.fit = lambda j, *a: folds.append([j]) or fit(j, *a)
+        predictor.predict = lambda j, *a: folds[-1].append(j) or predict(j, *a)
+        return predictor
+
+    monkeypatch.setattr(training, 'make_predictor', spy)
+    validate('rbf', None, joints, deflections, folds=5)
+    assert len(folds) == 5 and sum(len(test) for _, test in folds) == len(joints)
+    for trained, tested in folds:
+        distance = np.abs(tested[:, None] - trained[None]).max(axis=2)
+        assert distance.min() > SAME_POSE
+
+
+def test_too_few_distinct_poses() -> None:
+    joints, deflections = collected_twice(4, seed=8)
+    with pytest.raises(ValueError, match='too few distinct poses: 4 in 8 samples'):
+        validate('rbf', None, joints, deflections, folds=5)
+
+
+def test_worker_reports_job_errors_and_replaces_a_dead_worker() -> None:
+    worker = TrainingWorker()
+    try:
+        with pytest.raises(ValueError):
+            worker.run(int, 'ten', timeout=60)
+        with pytest.raises(RuntimeError, match='worker process died'):
+            worker.run(os._exit, 1, timeout=60)
+        assert worker.run(abs, -2, timeout=60) == 2
+    finally:
+        worker.shutdown()
+
+
+def test_worker_refuses_jobs_while_a_timed_out_one_runs() -> None:
+    worker = TrainingWorker()
+    try:
+        assert worker.run(abs, -1, timeout=60) == 1   # the worker process is up
+        with pytest.raises(TimeoutError, match='keeps running'):
+            worker.run(time.sleep, 1.0, timeout=0.1)
+        with pytest.raises(RuntimeError, match='busy'):
+            worker.run(abs, -2, timeout=60)
+        deadline = time.monotonic() + 30
+        while time.monotonic() < deadline:
+            try:
+                assert worker.run(abs, -3, timeout=60) == 3
+                break
+            except RuntimeError:
+                time.sleep(0.1)
+        else:
+            pytest.fail('the worker stayed busy')
+    finally:
+        worker.shutdown()
 
 
 def test_metrics_fields_follow_the_message() -> None:

@@ -34,6 +34,13 @@ def make_predictor(kind: str, settings: Mapping[str, Any] | None = None) -> Pred
 
 
 def load_predictor(path: str | Path) -> Predictor:
-    """The fitted predictor saved at ``path`` by :meth:`Predictor.save`."""
+    """The fitted predictor saved at ``path`` by :meth:`Predictor.save`.
+
+    OSError if the file cannot be read; ValueError naming ``path`` for anything else that
+    keeps it from being a usable model (empty, truncated, damaged, unknown kind, inconsistent).
+    """
     metadata, state = read_model(path)
-    return restore(_class_of(metadata['kind']), metadata, state)
+    try:
+        return restore(_class_of(metadata['kind']), metadata, state)
+    except ValueError as exc:
+        raise ValueError(f'{path}: {exc}') from exc

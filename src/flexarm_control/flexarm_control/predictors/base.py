@@ -237,23 +237,49 @@ class Predictor(ABC):
 
 
 def read_model(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Metadata and the kind's arrays (names without the kind prefix) of a model file."""
-    with np.load(path, allow_pickle=False) as archive:
-        metadata = json.loads(str(archive['metadata']))
-        prefix = f"{metadata['kind']}."
-        state = {name[len(prefix):]: archive[name] for name in archive.files
-                 if name.startswith(prefix)}
-    if metadata.get('format', 0) > FORMAT_VERSION:
-        raise ValueError(f"{path}: model format {metadata['format']} is newer than the "
+    """Metadata and the kind's arrays (names without the kind prefix) of a model file.
+
+    OSError if the file cannot be read; ValueError for a file that is not a model file of a
+    supported format (empty, truncated, damaged or foreign).
+    """
+    try:
+        with np.load(path, allow_pickle=False) as archive:
+            metadata = json.loads(str(archive['metadata']))
+            prefix = f"{metadata['kind']}."
+            state = {name[len(prefix):]: archive[name] for name in archive.files
+                     if name.startswith(prefix)}
+    except OSError:
+        raise
+    except Exception as exc:   # numpy, zipfile and json raise many types for a damaged file
+        raise ValueError(f'{path} is not a model file (empty, truncated or damaged): '
+                         f'{type(exc).__name__}: {exc}') from exc
+    model_format = metadata.get('format', 0)
+    if (not isinstance(metadata['kind'], str) or isinstance(model_format, bool)
+            or not isinstance(model_format, int)):
+        raise ValueError(f'{path} is not a model file (bad metadata kind or format)')
+    if model_format > FORMAT_VERSION:
+        raise ValueError(f'{path}: model format {model_format} is newer than the '
                          f'supported {FORMAT_VERSION}')
     return metadata, state
 
 
 def restore(cls: type[Predictor], metadata: dict[str, Any],
             state: Mapping[str, np.ndarray]) -> Predictor:
-    """A fitted predictor of class ``cls`` from a model file's content."""
-    predictor = cls(metadata['settings'])
-    predictor.metadata = metadata
-    predictor._normalisation = Normalisation.from_dict(metadata['normalisation'])
-    predictor._restore(state)
+    """A fitted predictor of class ``cls`` from a model file's content.
+
+    ValueError if the content is incomplete or inconsistent: the restored model must give a
+    finite deflection at the mean of its training inputs.
+    """
+    try:
+        predictor = cls(metadata['settings'])
+        predictor.metadata = metadata
+        predictor._normalisation = Normalisation.from_dict(metadata['normalisation'])
+        predictor._restore(state)
+        mean = predictor._normalisation.input_mean
+        probe = predictor.predict(mean[:JOINTS],
+                                  mean[JOINTS] if predictor.settings['payload_input'] else None)
+    except Exception as exc:   # missing entries, wrong types or shapes: many types
+        raise ValueError(f'inconsistent {cls.kind} model: {type(exc).__name__}: {exc}') from exc
+    if np.shape(probe) != (OUTPUTS,) or not np.all(np.isfinite(probe)):
+        raise ValueError(f'inconsistent {cls.kind} model: it predicts {probe}')
     return predictor

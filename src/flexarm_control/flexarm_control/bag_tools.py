@@ -22,7 +22,7 @@ from flexarm_msgs.action import MoveToPose
 from mcap_ros2.decoder import DecoderFactory
 
 from flexarm_control import topics
-from flexarm_control.predictors.base import atomic_write
+from flexarm_control.atomic_file import atomic_write
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_')

@@ -227,7 +227,7 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path) -> None:
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
 
-    from flexarm_control.predictors.base import atomic_write
+    from flexarm_control.atomic_file import atomic_write
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / 'summary.json', lambda f: f.write(

@@ -46,7 +46,7 @@ from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.params import CONFIG_DIR
 from flexarm_control.predictors import KINDS
-from flexarm_control.predictors.base import atomic_write
+from flexarm_control.atomic_file import atomic_write
 from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
                                       travel_order)
 from flexarm_control.training import Metrics, TrainingWorker, train

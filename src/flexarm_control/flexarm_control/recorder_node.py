@@ -42,6 +42,7 @@ from flexarm_control.node_params import declare
 from flexarm_control.params import CONFIG_DIR
 
 DEFAULT_BAG_DIRECTORY = CONFIG_DIR.parent / 'bags'
+DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded
 DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.CLOCK, topics.CAMERA_INFO,
                   topics.TIP_POSE, topics.TIP_POSE_TRUTH, topics.SAMPLES, topics.MODEL,
                   topics.OUTCOMES]
@@ -155,6 +156,17 @@ class RecorderNode(Node):
         super().destroy_node()
 
 
+def _drain(executor: SingleThreadedExecutor, node: RecorderNode) -> None:
+    """Write what has already arrived (e.g. the last goal's outcome, published just before
+    the graph is stopped): spin until nothing new comes for DRAIN_QUIET, at most DRAIN_MAX."""
+    deadline = time.monotonic() + DRAIN_MAX
+    count, quiet_since = node.writer.message_count, time.monotonic()
+    while time.monotonic() < deadline and time.monotonic() - quiet_since < DRAIN_QUIET:
+        executor.spin_once(timeout_sec=0.02)
+        if node.writer.message_count != count:
+            count, quiet_since = node.writer.message_count, time.monotonic()
+
+
 def main(args: list[str] | None = None) -> None:
     """Spin until SIGINT/SIGTERM, then close the bag, destroy the node and shut rclpy down.
 
@@ -171,6 +183,7 @@ def main(args: list[str] | None = None) -> None:
     try:
         while not stop.is_set() and rclpy.ok():
             executor.spin_once(timeout_sec=0.1)
+        _drain(executor, node)
     except (KeyboardInterrupt, ExternalShutdownException):
         pass
     finally:

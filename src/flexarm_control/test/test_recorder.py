@@ -245,6 +245,19 @@ def test_recorder_closes_bag_with_every_message_on_signal(
     assert info['complete'] and info['rosbag2_metadata'] and info['message_count'] == 2 * N + 1
 
 
+def test_messages_published_just_before_the_signal_are_recorded(
+        launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path) -> None:
+    """As the last goal's outcome when a demo stops its graph right after the result."""
+    recorder, joint_pub = _start_and_publish(launch, ros_node, wait_for, tmp_path)
+    for i in range(N, N + 20):
+        joint_pub.publish(JointState(name=['joint1'], position=[float(i)]))
+    recorder.signal(signal.SIGINT)
+    assert recorder.process.wait(timeout=10.0) == 0, recorder.log_tail()
+    positions = [m.position[0] for t, _, m in _decoded(tmp_path / 't' / 't.mcap')
+                 if t == topics.JOINT_STATES]
+    assert positions == [float(i) for i in range(N + 20)]
+
+
 def test_recorder_bag_survives_sigkill_up_to_its_last_chunk(
         launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path) -> None:
     recorder, joint_pub = _start_and_publish(launch, ros_node, wait_for, tmp_path)

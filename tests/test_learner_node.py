@@ -109,13 +109,17 @@ def write_dataset(path, count: int = 12) -> None:
 @pytest.fixture
 def bare_learner(launch, domain_id, tmp_path):
     """Simulator and learner only (no camera: a collection waits for tip poses), datasets
-    ``good`` and ``no_version`` (header without a version), and two clients."""
-    data = tmp_path / 'data'
+    ``good`` and ``no_version`` (header without a version), a model directory whose
+    ``current.json`` is damaged beside a model file v3, and two clients."""
+    data, models = tmp_path / 'data', tmp_path / 'models'
     data.mkdir()
+    models.mkdir()
+    (models / 'current.json').write_text('{"version": "2"}')
+    (models / 'good-rbf-v3.model').write_bytes(b'an older model')
     write_dataset(data / 'good.jsonl')
     (data / 'no_version.jsonl').write_text('{"format": "flexarm-deflection-dataset"}\n')
     launch('flexarm_sim', real_time_factor=10.0)
-    launch('flexarm_learner', data_directory=str(data), model_directory=str(tmp_path / 'models'))
+    launch('flexarm_learner', data_directory=str(data), model_directory=str(models))
     contexts, clients = [], []
     try:
         for name in ('test_client', 'second_client'):
@@ -130,7 +134,7 @@ def bare_learner(launch, domain_id, tmp_path):
             rclpy.try_shutdown(context=context)
 
 
-def test_damaged_dataset_or_outside_name_is_refused_and_the_learner_serves_on(bare_learner):
+def test_damaged_files_or_outside_name_are_refused_and_the_learner_serves_on(bare_learner):
     (client, _), tmp = bare_learner
     result = client.collect(3, dataset='no_version', timeout=30)
     assert result.error_code == CollectSamples.Result.INVALID_GOAL
@@ -142,6 +146,8 @@ def test_damaged_dataset_or_outside_name_is_refused_and_the_learner_serves_on(ba
     assert not escaped.success and 'dataset name' in escaped.message, escaped.message
     trained = client.train('rbf', dataset='good', timeout=60)
     assert trained.success, trained.message
+    assert trained.model_version == '4'                        # v3 on disk is not overwritten
+    assert (tmp / 'models' / 'good-rbf-v3.model').read_bytes() == b'an older model'
 
 
 def test_training_is_refused_while_a_collection_runs(bare_learner):

@@ -11,7 +11,8 @@ holds the arm and keeps every sample collected.
 Training (in a worker process) cross-validates, fits on the whole dataset, writes the model atomically and announces
 it on the latched ``/learner/model``; on any failure the previous model stays active. The
 current model is also remembered in ``<model_directory>/current.json`` and re-announced when
-the learner restarts.
+the learner restarts (:mod:`flexarm_control.model_store`: a damaged record is reported, not
+announced, and never makes a new model overwrite an old one).
 
 Policy: one collection at a time; a collection goal arriving while another runs is rejected
 (one that wins the race past that check is aborted with FAILED, "busy"). A training request
@@ -42,11 +43,11 @@ from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_control.model_store import DamagedRecord, next_version, read_current, write_current
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.params import CONFIG_DIR
 from flexarm_control.predictors import KINDS
-from flexarm_control.atomic_file import atomic_write
 from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
                                       travel_order)
 from flexarm_control.training import Metrics, TrainingWorker, train
@@ -286,7 +287,7 @@ class LearnerNode(Node):
             if self._collecting.locked():
                 raise RuntimeError('busy: a collection is running; train when it has ended')
             path = self.dataset_path(request.dataset)
-            version = self._next_version()
+            version = next_version(self._model_dir)
             model_path = self._model_dir / (
                 f'{request.dataset or self._default_dataset}-{kind}-v{version}.model')
             settings = json.loads(request.settings_json) if request.settings_json else {}
@@ -300,9 +301,7 @@ class LearnerNode(Node):
             info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version),
                              kind=kind, path=str(model_path), dataset_hash=samples_hash,
                              metrics=metrics_msg(metrics))
-            atomic_write(self._model_dir / 'current.json', lambda f: f.write(json.dumps({
-                'version': info.version, 'kind': kind, 'path': info.path,
-                'dataset_hash': samples_hash}).encode()))
+            write_current(self._model_dir, version, kind, info.path, samples_hash)
         except (ValueError, RuntimeError, OSError, TimeoutError) as exc:
             return self._train_failed(response, str(exc))
         except Exception as exc:   # last resort: a reason for the caller, never a crash
@@ -325,24 +324,22 @@ class LearnerNode(Node):
         self._trainer.shutdown()
         super().destroy_node()
 
-    def _next_version(self) -> int:
-        current = self._current()
-        return int(current['version']) + 1 if current else 1
-
-    def _current(self) -> dict | None:
-        try:
-            return json.loads((self._model_dir / 'current.json').read_text())
-        except (OSError, ValueError):
-            return None
-
     def _announce_current(self) -> None:
-        current = self._current()
-        if current and Path(current['path']).exists():
-            self._model_pub.publish(ModelInfo(
-                stamp=self.get_clock().now().to_msg(), version=current['version'],
-                kind=current['kind'], path=current['path'],
-                dataset_hash=current.get('dataset_hash', '')))
-            self.get_logger().info(f'announced the current model v{current["version"]}')
+        try:
+            current = read_current(self._model_dir)
+        except DamagedRecord as exc:
+            self.get_logger().error(f'no model announced: {exc}; train to make a new one')
+            return
+        if current is None:
+            return
+        if not Path(current['path']).exists():
+            self.get_logger().error(f'no model announced: {current["path"]} is missing')
+            return
+        self._model_pub.publish(ModelInfo(
+            stamp=self.get_clock().now().to_msg(), version=current['version'],
+            kind=current['kind'], path=current['path'],
+            dataset_hash=str(current.get('dataset_hash', ''))))
+        self.get_logger().info(f'announced the current model v{current["version"]}')
 
 
 def main(args: list[str] | None = None) -> None:

@@ -23,6 +23,7 @@ from mcap_ros2.decoder import DecoderFactory
 
 from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
+from flexarm_control.kinematics import wrap_angle
 
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_')
@@ -161,10 +162,6 @@ def _stamp_ns(stamp: Any) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
-def _wrap(angle: float) -> float:
-    return math.atan2(math.sin(angle), math.cos(angle))
-
-
 def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any]) -> list[dict[str, Any]]:
     """One row per goal outcome: target, measured and true pose, errors, in mm and deg.
 
@@ -202,7 +199,7 @@ def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any]) -> list[dict[str,
                 'truth_phi_deg': math.degrees(truth.phi),
                 'truth_position_error_mm': math.hypot(truth.x - target.x,
                                                       truth.y - target.y) * 1e3,
-                'truth_angle_error_deg': math.degrees(_wrap(truth.phi - target.phi))})
+                'truth_angle_error_deg': math.degrees(wrap_angle(truth.phi - target.phi))})
         rows.append(row)
     return rows
 

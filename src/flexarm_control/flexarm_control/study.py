@@ -29,11 +29,11 @@ from typing import Any
 
 import numpy as np
 
+from flexarm_control.atomic_file import atomic_write
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.paper import TABLE_7, TABLE_8
 from flexarm_control.params import CONFIG_DIR, load_config
 from flexarm_control.predictors import KINDS, make_predictor
-from flexarm_control.atomic_file import atomic_write
 from flexarm_control.sampling import regions_from_dict, sample_poses
 
 FULL_SAMPLES = (10, 20, 30, 40, 50, 80, 120, 160)

@@ -7,7 +7,6 @@ the judge. Trials are named ``<prefix>/<target>/<mode>`` so a bag's outcomes can
 """
 from __future__ import annotations
 
-import math
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -17,6 +16,7 @@ import numpy as np
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
+from flexarm_control.kinematics import pose_error
 from flexarm_msgs.msg import TipPose
 
 MODES = ('rigid', 'predictive', 'closed_loop')
@@ -78,15 +78,14 @@ def run_trials(client: FlexarmClient, truth: TruthMonitor,
             result = client.move_to(*target, mode=mode, trial=f'{prefix}/{name}/{mode}',
                                     timeout=timeout)
             reached = truth.after(time.monotonic(), client)
-            d = reached - target
+            position_error, angle_error = pose_error(target, reached)
             trial = Trial(
                 name=name, group=group, region=region, mode=mode, target=target.tolist(),
                 error_code=result.error_code, error_string=result.error_string,
                 reached=reached.tolist(),
                 measured=([result.measured_pose.x, result.measured_pose.y,
                            result.measured_pose.phi] if result.measured else None),
-                position_error=math.hypot(d[0], d[1]),
-                angle_error=abs(math.remainder(d[2], 2 * math.pi)),
+                position_error=position_error, angle_error=angle_error,
                 iterations=result.iterations,
                 compensation_iterations=result.compensation_iterations,
                 seconds=time.monotonic() - start)

@@ -115,7 +115,7 @@ class ArmDynamics:
         self._advance_joints(dt, self._target)
         static = self.plant.pose(self._q)
         delta = static - self._static
-        delta[2] = (delta[2] + math.pi) % (2 * math.pi) - math.pi
+        delta[2] = wrap_angle(delta[2])
         static_vel = delta / dt
         accel = (static_vel - self._static_vel) / dt
         self._static, self._static_vel = static, static_vel

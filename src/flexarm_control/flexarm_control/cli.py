@@ -69,7 +69,8 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
                                 position_tolerance=args.position_tolerance / 1e3,
                                 angle_tolerance=math.radians(args.angle_tolerance),
                                 max_iterations=args.max_iterations, trial=args.trial,
-                                timeout=args.timeout, feedback=show)
+                                timeout=args.timeout,
+                                allow_extrapolation=args.allow_extrapolation, feedback=show)
     except GoalRejected as exc:
         return {'ok': False, 'error_code': None, 'error_string': str(exc)}
     finally:
@@ -83,11 +84,13 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'measured': result.measured, 'measured_pose': pose_dict(result.measured_pose),
            'position_error': result.position_error, 'angle_error': result.angle_error,
            'iterations': result.iterations,
-           'compensation_iterations': result.compensation_iterations}
+           'compensation_iterations': result.compensation_iterations,
+           'data_distance': result.data_distance}
     if out['ok']:
         print(f'reached in {result.iterations} move(s)' + (
             f': error {mm(result.position_error):.3f} mm, {deg(result.angle_error):.4f} deg'
-            if result.measured else ' (no measurement)'))
+            if result.measured else ' (no measurement)')
+            + (f'; {result.error_string}' if result.error_string else ''))
     else:
         print(f'failed ({result.error_code}): {result.error_string}')
     return out
@@ -201,18 +204,23 @@ def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
         _shutdown(client)
     m = response.metrics
     if response.success:
-        print(f'model v{response.model_version} at {response.model_path}\n'
+        print(f'model v{response.model_version} at {response.model_path} '
+              f'(chosen by validation: {m.selected_settings})\n'
               f'{m.validation}, {m.samples} samples: max |error| x {mm(m.max_error_x):.3f} mm, '
               f'y {mm(m.max_error_y):.3f} mm, phi {deg(m.max_error_phi):.4f} deg; mean '
               f'{mm(m.mean_error_x):.3f} mm, {mm(m.mean_error_y):.3f} mm, '
               f'{deg(m.mean_error_phi):.4f} deg')
+        if len(m.excluded_samples):
+            print(f'excluded as outliers: {len(m.excluded_samples)} sample(s), dataset '
+                  f'indices {list(m.excluded_samples)}')
     else:
         print(response.message)
     return {'ok': response.success, 'message': response.message,
             'model_version': response.model_version, 'model_path': response.model_path,
             'metrics': {k: getattr(m, k) for k in (
                 'validation', 'samples', 'max_error_x', 'max_error_y', 'max_error_phi',
-                'mean_error_x', 'mean_error_y', 'mean_error_phi')}}
+                'mean_error_x', 'mean_error_y', 'mean_error_phi', 'selected_settings',
+                'max_slope')} | {'excluded_samples': list(m.excluded_samples)}}
 
 
 @command
@@ -267,6 +275,9 @@ def build_parser() -> argparse.ArgumentParser:
     move.add_argument('--angle-tolerance', type=float, default=0.0,
                       help='[deg] (0: server default)')
     move.add_argument('--max-iterations', type=int, default=0)
+    move.add_argument('--allow-extrapolation', action='store_true',
+                      help='run a PREDICTIVE goal beyond the learned data (with a warning) '
+                           'instead of refusing it')
     move.add_argument('--trial', default='', help='trial name for logs and bags')
     move.add_argument('--timeout', type=float, default=300.0, help='[s]')
 
@@ -280,7 +291,7 @@ def build_parser() -> argparse.ArgumentParser:
     for name, func in (('demo', cmd_demo), ('benchmark', cmd_benchmark)):
         p = sub.add_parser(name, help=func.__doc__)
         p.add_argument('--samples', type=int, default=40, help='learning samples per region')
-        p.add_argument('--kind', default='mlp', help='predictor kind')
+        p.add_argument('--kind', default='', help="predictor kind (default: the learner's)")
         p.add_argument('--rtf', type=float, default=10.0, help='simulator real-time factor')
         p.add_argument('--seed', type=int, default=1)
         p.add_argument('--name', default='', help='results/NAME, bags/NAME, runs/NAME')
@@ -298,7 +309,8 @@ def build_parser() -> argparse.ArgumentParser:
     collect.add_argument('--timeout', type=float, default=3600.0, help='[s]')
 
     train = sub.add_parser('train', help=cmd_train.__doc__)
-    train.add_argument('kind', nargs='?', default='mlp', help='mlp | rbf | gp')
+    train.add_argument('kind', nargs='?', default='',
+                       help="mlp | rbf | gp (default: the learner's, gp)")
     train.add_argument('--settings', default='', help='JSON object, e.g. \'{"hidden": [10]}\'')
     train.add_argument('--dataset', default='', help='dataset name')
     train.add_argument('--timeout', type=float, default=300.0, help='[s]')

@@ -90,15 +90,18 @@ class FlexarmClient(Node):
     def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
                 position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
                 max_iterations: int = 0, trial: str = '', timeout: float = 300.0,
+                allow_extrapolation: bool = False,
                 feedback: Callable[[MoveToPose.Feedback], None] | None = None,
                 ) -> MoveToPose.Result:
-        """Send a MoveToPose goal and wait for its result."""
+        """Send a MoveToPose goal and wait for its result (``allow_extrapolation``: run a
+        PREDICTIVE goal beyond the learned data with a warning instead of its refusal)."""
         if mode not in MODES:
             raise ValueError(f'unknown mode {mode!r}; use one of {sorted(MODES)}')
         goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
                                mode=MODES[mode], position_tolerance=float(position_tolerance),
                                angle_tolerance=float(angle_tolerance),
-                               max_iterations=int(max_iterations), trial=trial)
+                               max_iterations=int(max_iterations), trial=trial,
+                               allow_extrapolation=bool(allow_extrapolation))
         return self._run_goal(self._move, goal, timeout, feedback)
 
     def collect(self, count: int, region: str = '', strategy: str = '', seed: int = 0,
@@ -110,9 +113,10 @@ class FlexarmClient(Node):
                                    seed=int(seed), dataset=dataset)
         return self._run_goal(self._collect, goal, timeout, feedback)
 
-    def train(self, kind: str = 'mlp', settings: Mapping[str, Any] | None = None,
+    def train(self, kind: str = '', settings: Mapping[str, Any] | None = None,
               dataset: str = '', timeout: float = 120.0) -> Train.Response:
-        """Train a predictor on a dataset; the response carries the validation metrics."""
+        """Train a predictor (``kind`` '': the learner's default) on a dataset; the response
+        carries the validation metrics and the samples excluded as outliers."""
         if not self._train.wait_for_service(timeout_sec=min(timeout, 10.0)):
             raise TimeoutError(f'{topics.TRAIN} not available')
         request = Train.Request(kind=kind, settings_json=json.dumps(dict(settings or {})),

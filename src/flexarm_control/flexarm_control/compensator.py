@@ -2,22 +2,29 @@
 flexible arm's tip lands on the target.
 
 * RIGID: θ = IK(x_d).
-* PREDICTIVE (the paper): θ0 = IK(x_d); x*_{k+1} = x_d − Δ(θ_k), θ_{k+1} = IK(x*_{k+1}),
-  repeated until x* moves less than ``tolerance`` (fixed point x* = x_d − Δ(IK(x*))); an
-  iteration still moving more than that after ``max_iterations`` is refused.
+* PREDICTIVE: the fixed point x* = x_d − Δ(IK(x*)) of the paper, i.e. the joints θ at which
+  the predicted tip FK(θ) + Δ(θ) is the target, commanded as x* = FK(θ). Two solvers
+  (``method``):
+
+  - ``newton`` (default): θ2 is chosen once, by the kinematics' rule for the first
+    compensated pose x_d − Δ(IK(x_d)) (its ``reach_margin`` covers the rest of the way), and
+    kept; joints 1, 3, 4 solve FK(θ) + Δ(θ) = x_d by damped Newton steps with the
+    predictor's Jacobian (finite differences) and a backtracking line search. It converges
+    wherever the fixed point exists and the predicted deflection does not cancel the motion
+    (I + dΔ/dx* regular), also where the paper's iteration oscillates.
+  - ``paper``: x*_{k+1} = x_d − Δ(θ_k), θ_{k+1} = IK(x*_{k+1}), the iteration of section
+    3-2, kept for the comparison with Tables 9 and 10. It contracts only when, for a small
+    change of x*, the actual tip displacement a differs from the rigid-model one r by less
+    than |r| (the section's two conditions); steps that grow are reported as divergence.
+
+  Converged when the predicted tip is within ``tolerance`` [m] and ``angle_tolerance``
+  [rad] of the target (newton), or x* moves less than that (paper); anything else after
+  ``max_iterations`` is refused, as is a solution outside the joint limits or with the elbow
+  straighter than ``min_elbow_bend``.
 * CLOSED_LOOP (beyond the paper): after a move, the measured error corrects the commanded
-  pose, x* ← x* + gain·(x_d − x_measured), and the arm moves again.
+  pose, x* ← x* + gain·(x_d − x_measured), and the arm moves again, θ2 kept.
 
-Convergence. The tip actually reached when commanding x* is F(x*) = x* + Δ(IK(x*)); the
-iteration contracts when, for a small change of x*, the actual tip displacement a differs from
-the rigid-model displacement r by less than |r|: |a − r| < |r|. For |a| = |r| that is an angle
-between them under 60°, and for a ∥ r that is |a| < 2|r| — the two conditions of section 3-2.
-The predicted deflection of a real arm changes by far less than the motion (|Δ'| ≪ 1), so a
-few iterations suffice; an iteration whose steps grow is reported as divergence.
-
-θ2 (redundant) follows :func:`flexarm_control.kinematics.inverse`'s rule for the target and is
-then kept for the compensated poses, falling back to the rule only when the kept extension
-cannot reach them. Pure numpy; ``predict`` is any callable joints (4,) → deflection (3,).
+Pure numpy; ``predict`` is any callable joints (4,) or (M, 4) → deflection (3,) or (M, 3).
 """
 from __future__ import annotations
 
@@ -27,9 +34,36 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry, UnreachableError, inverse, wrap_angle
+from flexarm_control.kinematics import (ArmGeometry, UnreachableError, elbow_bend, forward,
+                                        inverse, limit_violation, wrap_angle)
+
+METHODS = ('newton', 'paper')
+FREE = [0, 2, 3]          # joints the Newton solver moves (θ2 is kept)
+JACOBIAN_STEP = 1e-6      # [rad] finite-difference step of the Jacobian
+MIN_STEP_FRACTION = 1 / 64  # line search: smallest fraction of a Newton step tried
 
 Predict = Callable[[np.ndarray], np.ndarray]
+
+
+def deflection_slope(geometry: ArmGeometry, predict: Predict, joints: np.ndarray
+                     ) -> np.ndarray:
+    """How fast the predicted deflection changes with the commanded pose at joints (M, 4):
+    the spectral norm of dΔ/dx* (θ2 kept, angles weighted by l4 as tip-length metres), (M,).
+    Below 1 the paper's iteration contracts; near or above it the deflection can cancel the
+    motion and the compensated target is ill-posed."""
+    q = np.atleast_2d(np.asarray(joints, dtype=float))
+    weight = np.array([1.0, 1.0, geometry.link4])
+    probes = q[:, None, :] + JACOBIAN_STEP * np.eye(4)[FREE][None]    # (M, 3, 4)
+    base_pose, base_deflection = forward(geometry, q), np.asarray(predict(q), dtype=float)
+    moved = probes.reshape(-1, 4)
+    d_pose = forward(geometry, moved).reshape(len(q), len(FREE), 3) - base_pose[:, None]
+    d_pose[..., 2] = wrap_angle(d_pose[..., 2])
+    d_defl = (np.asarray(predict(moved), dtype=float).reshape(len(q), len(FREE), 3)
+              - base_deflection[:, None])
+    # Rows: joints; J_x = d_pose.T, J_d = d_defl.T per sample; dΔ/dx* = J_d J_x^-1.
+    jx = np.swapaxes(d_pose * weight, 1, 2)
+    jd = np.swapaxes(d_defl * weight, 1, 2)
+    return np.linalg.norm(jd @ np.linalg.inv(jx), ord=2, axis=(1, 2))
 
 
 class CompensationError(UnreachableError):
@@ -48,15 +82,20 @@ class Plan:
 
 @dataclass(frozen=True)
 class CompensationSettings:
-    max_iterations: int   # of the fixed point (>= 2: convergence is judged from the second)
-    tolerance: float      # [m] converged when x* moves less than this (position part)
-    gain: float           # closed-loop correction gain (1 = full measured error)
+    method: str             # 'newton' or 'paper' (module docstring)
+    max_iterations: int     # of the solver (>= 2: the paper's is judged from the second)
+    tolerance: float        # [m] position part of the convergence test
+    angle_tolerance: float  # [rad] angle part (newton)
+    gain: float             # closed-loop correction gain (1 = full measured error)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> CompensationSettings:
-        s = cls(int(d['max_iterations']), float(d['tolerance']), float(d['gain']))
-        if s.max_iterations < 2 or s.tolerance <= 0 or not 0 < s.gain <= 1.5:
-            raise ValueError(f'invalid compensation settings {s}')
+        s = cls(str(d.get('method', 'newton')), int(d['max_iterations']),
+                float(d['tolerance']), float(d.get('angle_tolerance', d['tolerance'])),
+                float(d['gain']))
+        if (s.method not in METHODS or s.max_iterations < 2 or s.tolerance <= 0
+                or s.angle_tolerance <= 0 or not 0 < s.gain <= 1.5):
+            raise ValueError(f'invalid compensation settings {s} (method: one of {METHODS})')
         return s
 
 
@@ -78,8 +117,74 @@ class Compensator:
         return Plan(inverse(self.geometry, target), target, np.zeros(3), 0, 0.0)
 
     def predictive(self, target: np.ndarray, predict: Predict) -> Plan:
-        """The paper's iteration to its fixed point; raises :class:`CompensationError`."""
-        target = np.asarray(target, dtype=float)
+        """Joints whose predicted tip is on ``target`` (module docstring); raises
+        :class:`CompensationError` (or :class:`UnreachableError` for the target itself)."""
+        if self.settings.method == 'paper':
+            return self._paper(np.asarray(target, dtype=float), predict)
+        return self._newton(np.asarray(target, dtype=float), predict)
+
+    def _newton(self, target: np.ndarray, predict: Predict) -> Plan:
+        first = target - np.asarray(predict(inverse(self.geometry, target)), dtype=float)
+        first[2] = wrap_angle(first[2])
+        try:
+            joints = inverse(self.geometry, first)
+        except UnreachableError as exc:
+            raise CompensationError(f'compensated target unreachable: {exc}') from exc
+        branch = np.sign(elbow_bend(self.geometry, joints))
+        weight = np.array([1.0, 1.0, self.geometry.link4])   # angle as tip-length metres
+
+        def residual(q: np.ndarray) -> np.ndarray:
+            r = forward(self.geometry, q) + np.asarray(predict(q), dtype=float) - target
+            r[..., 2] = wrap_angle(r[..., 2])
+            return r
+
+        r = residual(joints)
+        commanded, step, iterations = forward(self.geometry, joints), 0.0, 0
+        while not (np.hypot(r[0], r[1]) <= self.settings.tolerance
+                   and abs(r[2]) <= self.settings.angle_tolerance):
+            if iterations == self.settings.max_iterations:
+                raise CompensationError(
+                    f'compensation does not converge: the predicted tip is still '
+                    f'{np.hypot(r[0], r[1]) * 1e3:.3g} mm / {np.degrees(abs(r[2])):.3g} deg '
+                    f'from the target after {iterations} Newton steps')
+            iterations += 1
+            probes = joints + np.zeros((len(FREE), 4))
+            probes[np.arange(len(FREE)), FREE] += JACOBIAN_STEP
+            jacobian = ((residual(probes) - r) / JACOBIAN_STEP).T
+            try:
+                direction = np.linalg.solve(jacobian, -r)
+            except np.linalg.LinAlgError:
+                direction = np.full(len(FREE), np.nan)
+            fraction, size = 1.0, np.linalg.norm(r * weight)
+            while True:
+                trial = joints.copy()
+                trial[FREE] += fraction * direction
+                r_trial = residual(trial)
+                if np.linalg.norm(r_trial * weight) < (1 - 1e-4 * fraction) * size:
+                    break
+                fraction /= 2
+                if not fraction >= MIN_STEP_FRACTION:   # also for a NaN direction
+                    raise CompensationError(
+                        'compensation has no solution here: the predicted deflection cancels '
+                        f'the motion (the predicted tip stays {np.hypot(r[0], r[1]) * 1e3:.3g}'
+                        ' mm from the target); the model is unreliable at this pose')
+            joints, r = trial, r_trial
+            new = forward(self.geometry, joints)
+            step, commanded = float(np.hypot(*(new[:2] - commanded[:2]))), new
+        joints[FREE] = wrap_angle(joints[FREE])
+        violation = limit_violation(self.geometry, joints)
+        if violation is not None:
+            raise CompensationError(f'compensated target unreachable: {violation}')
+        bend = elbow_bend(self.geometry, joints)
+        if np.sign(bend) != branch or abs(bend) < self.geometry.min_elbow_bend:
+            raise CompensationError(
+                f'compensated target unreachable: the elbow would bend {np.degrees(bend):.2f} '
+                f'deg (at least {np.degrees(self.geometry.min_elbow_bend):.1f} deg, same '
+                'branch)')
+        return Plan(joints, forward(self.geometry, joints),
+                    np.asarray(predict(joints), dtype=float), iterations, step)
+
+    def _paper(self, target: np.ndarray, predict: Predict) -> Plan:
         joints = inverse(self.geometry, target)
         extension = joints[1]
         commanded, steps = target, []

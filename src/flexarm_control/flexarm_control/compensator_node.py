@@ -2,11 +2,15 @@
 
 RIGID commands the rigid inverse kinematics of the target; PREDICTIVE commands the fixed point
 of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip and corrects
-the target from the measured error until within tolerance (beyond the paper). The algorithm
-lives in :mod:`flexarm_control.compensator`; this node validates goals, moves the arm through
-:class:`~flexarm_control.arm_interface.ArmInterface`, reports feedback and results, and
-hot-reloads the predictor the learner announces on ``/learner/model`` and republishes the one
-it uses on the latched ``/compensator/active_model``.
+the target from the measured error until within tolerance (beyond the paper). Which plan a
+goal runs — PREDICTIVE refused beyond the learned data (``OUTSIDE_LEARNED_DATA``, or run with
+a warning if the goal allows extrapolation), CLOSED_LOOP started from the rigid plan without a
+usable model — is :mod:`flexarm_control.planning`; every result, feedback and
+``/compensator/outcomes`` message carries the plan's distance from the learned data. The
+algorithm lives in :mod:`flexarm_control.compensator`; this node validates goals, moves the
+arm through :class:`~flexarm_control.arm_interface.ArmInterface`, reports feedback and
+results, and hot-reloads the predictor the learner announces on ``/learner/model`` and
+republishes the one it uses on the latched ``/compensator/active_model``.
 
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
 arriving together can both pass that check: execution decides, and the one that finds the
@@ -41,6 +45,7 @@ from flexarm_control.compensator import Compensator, Plan
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
+from flexarm_control.planning import MODES, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose
@@ -49,6 +54,8 @@ EXECUTOR_THREADS = 4
 Goal = MoveToPose.Goal
 Result = MoveToPose.Result
 Feedback = MoveToPose.Feedback
+REFUSALS = {'no_model': Result.NO_MODEL, 'unreachable': Result.UNREACHABLE,
+            'outside_learned_data': Result.OUTSIDE_LEARNED_DATA}
 
 
 def planar(pose: np.ndarray) -> PlanarPose:
@@ -63,7 +70,7 @@ def goal_error(goal: Goal) -> str | None:
     bad = [name for name, v in values.items() if not math.isfinite(v)]
     if bad:
         return f'non-finite {", ".join(bad)}'
-    if goal.mode not in (Goal.MODE_RIGID, Goal.MODE_PREDICTIVE, Goal.MODE_CLOSED_LOOP):
+    if goal.mode >= len(MODES):
         return f'unknown mode {goal.mode}'
     if goal.position_tolerance < 0 or goal.angle_tolerance < 0:
         return 'tolerances must be >= 0 (0 = server default)'
@@ -92,6 +99,9 @@ class CompensatorNode(Node):
                                'valid settled tip poses averaged per measurement')
         self._measure_timeout = declare(self, 'measurement_timeout', 30.0,
                                         '[s] wait for a valid settled measurement after a move')
+        self._max_distance = declare(
+            self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than this from '
+            'the learning samples [typical sample spacings]')
         model_path = declare(self, 'model_path', '',
                              'predictor loaded at start ("" = wait for /learner/model)')
 
@@ -172,27 +182,32 @@ class CompensatorNode(Node):
         if reason is not None:
             return fail(Result.INVALID_GOAL, reason)
         predictor = self._predictor
-        if goal.mode != Goal.MODE_RIGID and predictor is None:
-            return fail(Result.NO_MODEL, 'no trained predictor yet: collect samples and train')
         if not self._arm.wait_for_joints(5.0):
             return fail(Result.CONTROLLER_TIMEOUT, 'no /joint_states from the controller')
         pos_tol = goal.position_tolerance or self._pos_tol
         ang_tol = goal.angle_tolerance or self._ang_tol
         max_iter = goal.max_iterations or self._max_iter
 
-        self._feedback(handle, 0, Feedback.PHASE_PLANNING, target)
+        self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, 0.0)
         try:
-            plan = (self._compensator.rigid(target) if goal.mode == Goal.MODE_RIGID
-                    else self._compensator.predictive(target, predictor.predict))
+            planned = plan_goal(self._compensator, MODES[goal.mode], target, predictor,
+                                self._max_distance, goal.allow_extrapolation)
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
+        if isinstance(planned, Refusal):
+            return fail(REFUSALS[planned.code], planned.reason)
+        plan = planned.plan
+        if planned.note:
+            self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: {planned.note}')
+        result.error_string = planned.note
+        result.data_distance = planned.data_distance
         result.compensation_iterations = plan.iterations
         result.predicted_deflection = planar(plan.predicted_deflection)
 
         iteration = 0
         while True:
             iteration += 1
-            outcome = self._move_and_measure(handle, plan, iteration)
+            outcome = self._move_and_measure(handle, plan, iteration, planned.data_distance)
             result.iterations = iteration
             result.joint_positions = plan.joints.tolist()
             result.commanded_pose = planar(plan.commanded_pose)
@@ -201,13 +216,15 @@ class CompensatorNode(Node):
                 outcome.commanded_pose = result.commanded_pose
                 outcome.predicted_deflection = result.predicted_deflection
                 outcome.compensation_iterations = result.compensation_iterations
+                outcome.data_distance = result.data_distance
                 return outcome
             if outcome is None:
                 if goal.mode == Goal.MODE_CLOSED_LOOP:
                     return fail(Result.MEASUREMENT_FAILED,
                                 'no valid settled tip pose within '
                                 f'{self._measure_timeout:.0f} s after the move')
-                result.error_string = 'moved; no valid settled tip measurement'
+                result.error_string = '; '.join(filter(None, (
+                    result.error_string, 'moved; no valid settled tip measurement')))
                 return result
             result.measured, result.measured_pose = True, planar(outcome)
             result.position_error, result.angle_error = pose_error(target, outcome)
@@ -224,9 +241,10 @@ class CompensatorNode(Node):
             except UnreachableError as exc:
                 return fail(Result.UNREACHABLE, f'correction: {exc}')
 
-    def _move_and_measure(self, handle: ServerGoalHandle, plan: Plan, iteration: int):
+    def _move_and_measure(self, handle: ServerGoalHandle, plan: Plan, iteration: int,
+                          distance: float):
         """Move to the plan; the measured pose, None if unmeasured, or a failure Result."""
-        self._feedback(handle, iteration, Feedback.PHASE_MOVING, plan.commanded_pose)
+        self._feedback(handle, iteration, Feedback.PHASE_MOVING, plan.commanded_pose, distance)
         current = self._arm.joints.positions
         travel = np.max(np.abs(plan.joints - current) / self._geometry.velocity)
         arrived = self._arm.move(plan.joints, self._joint_tol, travel + self._move_margin,
@@ -239,7 +257,8 @@ class CompensatorNode(Node):
             return Result(error_code=Result.CONTROLLER_TIMEOUT,
                           error_string=f'joints did not reach the command within '
                                        f'{travel + self._move_margin:.0f} s')
-        self._feedback(handle, iteration, Feedback.PHASE_SETTLING, plan.commanded_pose)
+        self._feedback(handle, iteration, Feedback.PHASE_SETTLING, plan.commanded_pose,
+                       distance)
         measurement = self._arm.measure(self._frames, self._measure_timeout,
                                         abort=lambda: handle.is_cancel_requested)
         if handle.is_cancel_requested:
@@ -247,13 +266,14 @@ class CompensatorNode(Node):
         if measurement is None:
             return None
         self._feedback(handle, iteration, Feedback.PHASE_MEASURING, plan.commanded_pose,
-                       measurement.pose, handle.request)
+                       distance, measurement.pose, handle.request)
         return measurement.pose
 
     def _feedback(self, handle: ServerGoalHandle, iteration: int, phase: str,
-                  commanded: np.ndarray, measured: np.ndarray | None = None,
+                  commanded: np.ndarray, distance: float, measured: np.ndarray | None = None,
                   goal: Goal | None = None) -> None:
-        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
+        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded),
+                      data_distance=distance)
         if measured is not None and goal is not None:
             fb.measured, fb.measured_pose = True, planar(measured)
             fb.position_error, fb.angle_error = pose_error(
@@ -268,8 +288,8 @@ class CompensatorNode(Node):
             predicted_deflection=result.predicted_deflection,
             measured_pose=result.measured_pose, measured=result.measured,
             position_error=result.position_error, angle_error=result.angle_error,
-            iterations=result.iterations, error_code=result.error_code,
-            error_string=result.error_string))
+            iterations=result.iterations, data_distance=result.data_distance,
+            error_code=result.error_code, error_string=result.error_string))
 
 
 def main(args: list[str] | None = None) -> None:

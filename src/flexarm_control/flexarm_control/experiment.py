@@ -25,7 +25,7 @@ import numpy as np
 
 from flexarm_control.paper import TABLE_9, TABLE_10
 from flexarm_control.params import CONFIG_DIR, load_config
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import random_targets, regions_from_dict
 from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.supervisor import Graph
 from flexarm_control.trials import MODES, Trial, TruthMonitor, run_trials, summarise
@@ -37,7 +37,7 @@ REPO = CONFIG_DIR.parent
 class ExperimentSettings:
     name: str
     samples: int = 40                 # learning samples per region
-    kind: str = 'mlp'
+    kind: str = ''                    # predictor kind ('': the learner's default)
     random_targets: int = 0           # held-out random targets per region (A and B)
     table9: bool = False              # also the Table 9 targets (region 'paper')
     real_time_factor: float = 10.0
@@ -67,8 +67,8 @@ def _targets(settings: ExperimentSettings, region: str, geometry: ArmGeometry,
         chosen += [(name, 'table9', region, np.array([x / 1e3, y / 1e3, math.radians(phi)]))
                    for name, (x, y, phi), _, _ in TABLE_9]
     elif settings.random_targets:
-        poses, _ = sample_poses(geometry, regions[region], settings.random_targets,
-                                strategy='random', seed=10_000 + settings.seed)
+        poses = random_targets(geometry, regions[region], settings.random_targets,
+                               seed=10_000 + settings.seed)
         chosen += [(f'{region}r{i:03d}', 'random', region, p) for i, p in enumerate(poses)]
     return chosen
 
@@ -123,10 +123,14 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
                 'samples': collected.total, 'skipped': collected.skipped,
                 'model_version': trained.model_version, 'validation': m.validation,
                 'max_error_x_mm': m.max_error_x * 1e3, 'max_error_y_mm': m.max_error_y * 1e3,
-                'max_error_phi_deg': math.degrees(m.max_error_phi)}
-            say(f'region {region}: {collected.total} samples, model v{trained.model_version}: '
-                f'{m.validation} max |error| {m.max_error_x * 1e3:.3f} mm (x), '
-                f'{m.max_error_y * 1e3:.3f} mm (y), {math.degrees(m.max_error_phi):.4f} deg')
+                'max_error_phi_deg': math.degrees(m.max_error_phi),
+                'selected_settings': m.selected_settings,
+                'excluded_samples': list(m.excluded_samples)}
+            say(f'region {region}: {collected.total} samples, model v{trained.model_version} '
+                f'{m.selected_settings}: {m.validation} max |error| {m.max_error_x * 1e3:.3f} '
+                f'mm (x), {m.max_error_y * 1e3:.3f} mm (y), '
+                f'{math.degrees(m.max_error_phi):.4f} deg; '
+                f'{len(m.excluded_samples)} sample(s) excluded as outliers')
             targets = _targets(settings, region, geometry, regions)
             bar = tqdm(total=len(targets) * len(settings.modes), desc=f'targets {region}',
                        unit='goal', disable=not progress)

@@ -13,9 +13,12 @@ side (simulator) and the control side (compensator, learner) use; the actual arm
 it by its deflection and fabrication errors (``flexarm_sim.plant``).
 
 Inverse kinematics is analytic for a given θ2. The redundant θ2 follows one documented rule
-(:func:`inverse`): the preferred extension (0.6 m, as the paper's simulation) when the target
-is reachable with it, else the reachable extension nearest to it. Everything is vectorised
-over leading axes where it matters (forward kinematics of batches).
+(:func:`inverse`): the extension nearest to the preferred one (0.6 m, as the paper's
+simulation) that keeps the wrist at least ``reach_margin`` inside the elbow's reach, else the
+one that keeps it farthest inside. The margin keeps the elbow bent well away from its
+stretched, singular pose, where a millimetre of tip motion takes degrees of joint motion and
+the compensated target (tens of millimetres from the target) might fall out of reach.
+Everything is vectorised over leading axes where it matters (forward kinematics of batches).
 """
 from __future__ import annotations
 
@@ -46,6 +49,7 @@ class ArmGeometry:
     preferred_extension: float   # [m] θ2 used when the target is reachable with it
     min_elbow_bend: float        # [rad] keep the elbow at least this far from stretched
     extension_step: float        # [m] grid of the θ2 search when the preferred one fails
+    reach_margin: float          # [m] θ2 keeps the wrist this far inside the elbow's reach
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ArmGeometry:
@@ -55,7 +59,8 @@ class ArmGeometry:
             velocity=np.asarray(d['velocity'], dtype=float),
             preferred_extension=float(d['preferred_extension']),
             min_elbow_bend=float(d['min_elbow_bend']),
-            extension_step=float(d['extension_step']))
+            extension_step=float(d['extension_step']),
+            reach_margin=float(d['reach_margin']))
         names = tuple(d.get('joint_names', JOINT_NAMES))
         if names != JOINT_NAMES:
             raise ValueError(f'joint_names must be {JOINT_NAMES}, got {names}')
@@ -66,6 +71,8 @@ class ArmGeometry:
             raise ValueError('arm limits need lower < upper and positive velocities')
         if min(geometry.link3, geometry.link4, geometry.extension_step) <= 0:
             raise ValueError('arm link lengths and extension_step must be positive')
+        if geometry.reach_margin < 0:
+            raise ValueError('arm.reach_margin must be >= 0')
         if not geometry.lower[1] <= geometry.preferred_extension <= geometry.upper[1]:
             raise ValueError('arm.preferred_extension lies outside the joint2 limits')
         return geometry
@@ -173,20 +180,36 @@ def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = N
         'is out of reach of the rigid arm inside its joint limits')
 
 
-def _extension_candidates(geometry: ArmGeometry, pose: np.ndarray) -> list[float]:
-    """θ2 values to try, in the rule's order: the preferred one, then the ``extension_step``
-    grid by distance from it — only where the wrist is within reach with the elbow bent at
-    least ``min_elbow_bend`` (r² = a² + b² + 2ab cos(bend), a² = θ2² + d²)."""
+def elbow_bend(geometry: ArmGeometry, joints: np.ndarray) -> float:
+    """Signed bend of the elbow [rad]: positive on the elbow-up branch (θ3 below the
+    stretched angle atan2(d, θ2)), 0 when stretched (singular)."""
+    return math.atan2(geometry.offset, float(joints[1])) - float(joints[2])
+
+
+def reach_margins(geometry: ArmGeometry, pose: np.ndarray, extensions: np.ndarray
+                  ) -> np.ndarray:
+    """How far [m] the wrist of ``pose`` lies inside the elbow's reach with each θ2 of
+    ``extensions`` (negative: out of reach). The reach with θ2 spans wrist distances from
+    |a − b| (folded) to √(a² + b² + 2ab cos(min_elbow_bend)) (stretched as far as allowed),
+    a² = θ2² + d², b = l3."""
     x, y, phi = (float(v) for v in pose)
     r = math.hypot(x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi))
-    b, d, c = geometry.link3, geometry.offset, math.cos(geometry.min_elbow_bend)
-    a_min = max(-b * c + math.sqrt(max(b * b * c * c - b * b + r * r, 0.0)), abs(d))
-    a_max = r + b
-    lo = max(geometry.lower[1], math.sqrt(max(a_min * a_min - d * d, 0.0)) - 1e-9)
-    hi = min(geometry.upper[1], math.sqrt(max(a_max * a_max - d * d, 0.0)) + 1e-9)
-    first, step = geometry.lower[1], geometry.extension_step
-    grid = first + step * np.arange(math.ceil((lo - first) / step - 1e-9),
-                                    math.floor((hi - first) / step + 1e-9) + 1)
-    grid = grid[(grid >= geometry.lower[1]) & (grid <= geometry.upper[1])]
-    grid = grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]
-    return [geometry.preferred_extension, *grid.tolist()]
+    a, b = np.hypot(extensions, geometry.offset), geometry.link3
+    r_max = np.sqrt(a * a + b * b + 2 * a * b * math.cos(geometry.min_elbow_bend))
+    return np.minimum(r_max - r, r - np.abs(a - b))
+
+
+def _extension_candidates(geometry: ArmGeometry, pose: np.ndarray) -> list[float]:
+    """θ2 values to try, in the rule's order: those of the ``extension_step`` grid (and the
+    preferred one) that keep the wrist ``reach_margin`` inside the reach, nearest to the
+    preferred first; then those that reach it with less margin, the largest margin first."""
+    lower, upper, step = geometry.lower[1], geometry.upper[1], geometry.extension_step
+    grid = lower + step * np.arange(math.floor((upper - lower) / step + 1e-9) + 1)
+    grid = np.unique(np.append(np.round(grid, 9), geometry.preferred_extension))
+    margin = reach_margins(geometry, pose, grid)
+    full = margin >= geometry.reach_margin
+    some = ~full & (margin >= 0)
+    first = grid[full][np.argsort(np.abs(grid[full] - geometry.preferred_extension),
+                                  kind='stable')]
+    then = grid[some][np.argsort(-margin[some], kind='stable')]
+    return [*first.tolist(), *then.tolist()]

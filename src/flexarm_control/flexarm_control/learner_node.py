@@ -8,8 +8,12 @@ fsync'ed — before the next move; the sample is also published on ``/learner/sa
 A failed measurement is retried, then the pose is skipped and counted, never stored. Cancel
 holds the arm and keeps every sample collected.
 
-Training (in a worker process) cross-validates, fits on the whole dataset, writes the model atomically and announces
-it on the latched ``/learner/model``; on any failure the previous model stays active. The
+Collection poses cover the region grown by ``coverage_margin``, where compensated targets of
+the region's edge are commanded. Training (in a worker process, :mod:`flexarm_control.training`)
+chooses the model's settings by cross-validation, screens out outlier samples (listed in the
+response's metrics and logged), checks that the compensator can solve with the model, writes
+it atomically and announces it on the latched ``/learner/model``; on any failure the previous
+model stays active. The
 current model is also remembered in ``<model_directory>/current.json`` and re-announced when
 the learner restarts (:mod:`flexarm_control.model_store`: a damaged record is reported, not
 announced, and never makes a new model overwrite an old one).
@@ -50,7 +54,7 @@ from flexarm_control.params import CONFIG_DIR
 from flexarm_control.predictors import KINDS
 from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
                                       travel_order)
-from flexarm_control.training import Metrics, TrainingWorker, train
+from flexarm_control.training import Metrics, Screening, TrainingWorker, train
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
 from flexarm_msgs.srv import Train
@@ -67,21 +71,20 @@ def planar(pose: np.ndarray) -> PlanarPose:
 
 
 def metrics_msg(m: Metrics) -> PredictionMetrics:
-    return PredictionMetrics(
-        validation=m.validation, samples=m.samples, max_error_x=m.max_error_x,
-        max_error_y=m.max_error_y, max_error_phi=m.max_error_phi, mean_error_x=m.mean_error_x,
-        mean_error_y=m.mean_error_y, mean_error_phi=m.mean_error_phi)
+    return PredictionMetrics(**m.as_dict())
 
 
 def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
-                   model_path: str) -> tuple[Metrics, str]:
+                   model_path: str, geometry: ArmGeometry,
+                   screening: Screening) -> tuple[Metrics, str]:
     """Training job, run in the learner's worker process: fit, save atomically.
 
     A worker process of its own keeps training at full speed while the node serves
     1000+ callbacks a second at 10x real time (in-process it ran 3-4x slower on the GIL).
     """
     dataset = load_dataset(dataset_path)
-    predictor, metrics = train(kind, settings, dataset, folds=folds)
+    predictor, metrics = train(kind, settings, dataset, folds=folds, geometry=geometry,
+                               screening=screening)
     Path(model_path).parent.mkdir(parents=True, exist_ok=True)
     predictor.save(model_path)
     return metrics, dataset.hash
@@ -136,8 +139,13 @@ class LearnerNode(Node):
                                            '[rad, m, rad, rad] joints count as arrived'))
         self._move_margin = declare(self, 'move_timeout_margin', 10.0,
                                     '[s] added to the slowest joint travel time')
-        self._default_kind = declare(self, 'default_kind', 'mlp', f'one of {", ".join(KINDS)}')
+        self._coverage = np.array(declare(
+            self, 'coverage_margin', [0.03, 0.03, 0.0436],
+            '[m, m, rad] learning poses cover the region grown by this on every side'))
+        self._default_kind = declare(self, 'default_kind', 'gp', f'one of {", ".join(KINDS)}')
         self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds')
+        self._screening = Screening.from_dict(
+            declare_tree(self, 'training', 'config/learner.yaml'))
         self._train_timeout = declare(self, 'training_timeout', 600.0,
                                       '[s, wall] longest a training request may take')
         self._trainer = TrainingWorker(_warm_up)
@@ -213,7 +221,7 @@ class LearnerNode(Node):
             result.error_code, result.error_string = Result.INVALID_GOAL, reason
             return
         region = self._regions[goal.region or self._default_region]
-        _, plan = sample_poses(self._geometry, region, goal.count,
+        _, plan = sample_poses(self._geometry, region.grown(self._coverage), goal.count,
                                goal.strategy or self._default_strategy, goal.seed)
         plan = plan[travel_order(plan, self._arm.joints.positions, self._geometry.velocity)]
         self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
@@ -297,7 +305,7 @@ class LearnerNode(Node):
                 raise ValueError(f'no dataset at {path}: collect samples first')
             metrics, samples_hash = self._trainer.run(
                 train_and_save, kind, settings, str(path), self._folds, str(model_path),
-                timeout=self._train_timeout)
+                self._geometry, self._screening, timeout=self._train_timeout)
             info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version),
                              kind=kind, path=str(model_path), dataset_hash=samples_hash,
                              metrics=metrics_msg(metrics))
@@ -311,8 +319,13 @@ class LearnerNode(Node):
         response.success, response.model_version = True, info.version
         response.model_path, response.metrics = info.path, info.metrics
         self.get_logger().info(
-            f'model v{version} ({kind}, {metrics.samples} samples) announced; validation max '
-            f'|error| x {metrics.max_error_x * 1e3:.3f} mm, y {metrics.max_error_y * 1e3:.3f} mm')
+            f'model v{version} ({kind} {metrics.selected_settings}, {metrics.samples} samples) '
+            f'announced; validation max |error| x {metrics.max_error_x * 1e3:.3f} mm, '
+            f'y {metrics.max_error_y * 1e3:.3f} mm; max slope {metrics.max_slope:.3f}')
+        if metrics.excluded_samples:
+            self.get_logger().warn(
+                f'{len(metrics.excluded_samples)} outlier sample(s) excluded from training: '
+                f'indices {list(metrics.excluded_samples)} of {path}')
         return response
 
     def _train_failed(self, response: Train.Response, reason: str) -> Train.Response:

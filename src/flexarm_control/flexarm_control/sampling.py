@@ -4,7 +4,11 @@ A region is a box in task space (x, y, φ). Candidates come from a seeded low-di
 sequence (scrambled Sobol by default, or Halton, Latin hypercube, plain uniform); those the
 rigid arm cannot reach inside its joint limits are skipped, so the poses stay space-filling on
 the reachable part of the box. Joint positions follow the kinematics' θ2 rule, the same the
-compensator uses, so learning samples lie where goals will be executed.
+compensator uses, so learning samples lie where goals will be executed. Learning poses are
+drawn in the region grown by a coverage margin (:meth:`Region.grown`): the compensator
+commands x* = x_d − Δ, up to ~25 mm and ~2° outside the box for a target on its edge, and a
+model must not extrapolate there. Targets for evaluation (:func:`random_targets`) are uniform
+in the box itself, the rigid-reachable ones kept.
 """
 from __future__ import annotations
 
@@ -34,6 +38,11 @@ class Region:
         if np.any(lower >= upper) or not np.all(np.isfinite(lower + upper)):
             raise ValueError(f'region {name}: each of x, y, phi needs [low, high], low < high')
         return cls(name, lower, upper)
+
+    def grown(self, margin: np.ndarray) -> Region:
+        """The box grown by ``margin`` (x, y [m], φ [rad]) on every side."""
+        margin = np.asarray(margin, dtype=float)
+        return Region(self.name, self.lower - margin, self.upper + margin)
 
     def describe(self) -> str:
         lo, hi = self.lower, self.upper
@@ -87,6 +96,12 @@ def sample_poses(geometry: ArmGeometry, region: Region, count: int, strategy: st
                 break
         batch *= 2
     return np.array(poses), np.array(joints)
+
+
+def random_targets(geometry: ArmGeometry, region: Region, count: int, seed: int
+                   ) -> np.ndarray:
+    """``count`` targets (count, 3) uniform in ``region``'s box, rigid-reachable ones kept."""
+    return sample_poses(geometry, region, count, 'random', seed)[0]
 
 
 def travel_order(joints: np.ndarray, start: np.ndarray, velocity: np.ndarray) -> np.ndarray:

@@ -85,12 +85,15 @@ class World:
         self.camera = CameraRenderer.from_dict(config)
         vision = load_config('vision.yaml', node_name='flexarm_vision')['vision']
         self.estimator = TipPoseEstimator.from_dict({**config, 'vision': vision})
-        self.regions = regions_from_dict(
-            load_config('learner.yaml', node_name='flexarm_learner')['regions'])
+        learner = load_config('learner.yaml', node_name='flexarm_learner')
+        self.regions = regions_from_dict(learner['regions'])
+        self.coverage = np.asarray(learner['coverage_margin'], dtype=float)
 
     def measured(self, region: str, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
-        """Joints (n, 4) and camera-measured deflections (n, 3); invalid frames skipped."""
-        _, joints = sample_poses(self.geometry, self.regions[region], count, seed=seed)
+        """Joints (n, 4) and camera-measured deflections (n, 3) at the learner's poses (the
+        region grown by its coverage margin); invalid frames skipped."""
+        _, joints = sample_poses(self.geometry, self.regions[region].grown(self.coverage),
+                                 count, seed=seed)
         rng = np.random.default_rng(seed)
         kept, deflections = [], []
         for q in joints:

@@ -1,15 +1,35 @@
-"""Training of deflection predictors with k-fold cross-validation (pure core of the learner).
+"""Training of deflection predictors: settings chosen by cross-validation, outliers screened,
+the model checked for solvability (pure core of the learner).
 
-:func:`train` checks the data, estimates the error on unseen samples by k-fold
-cross-validation (:func:`validate`), then fits the final model on all samples and records the
-dataset hash and the metrics in its metadata. Errors are |predicted − measured| deflection
-in SI units (m, rad), as ``flexarm_msgs/PredictionMetrics``. Samples of one pose (a dataset
-collected twice with the same seed visits every pose twice) are one group and always fall on
-the same side of a fold, so the validation never scores a pose the model was trained on.
-:class:`TrainingWorker` runs training jobs in a worker process of their own.
+:func:`train` (on a dataset) and :func:`fit_robust` (on arrays):
+
+1. **Cross-validation** (k-fold, :func:`cross_validate`) of every combination of the kind's
+   ``cv_choices`` the caller did not fix (MLP weight decay, GP kernel smoothness, RBF
+   smoothing); the one with the lowest trimmed RMS held-out error (the worst 10 % of samples
+   left out, so one bad sample cannot choose) wins.
+2. **Outlier screening**: a sample whose held-out residual is ``outlier_threshold`` robust
+   standard deviations (1.4826 × median |residual|) off in some output, and more than
+   ``outlier_floor`` there, is excluded — the worst one, then steps 1-2 again without it, at
+   most ``max_outlier_fraction`` of the samples; excluded samples that the model of the kept
+   ones does not contradict are taken back. The floor (1 mm, 2 mrad) is what a real sharp
+   feature cannot explain: held-out residuals of good samples reach ~0.5 mm at the edges of
+   the sampled region and across the backlash step of joint4. The metrics list the excluded
+   samples by their index in the dataset.
+3. **Solvability**: the model fitted on the kept samples must change its deflection slower
+   than the commanded pose, :func:`~flexarm_control.compensator.deflection_slope` ≤
+   ``max_slope`` at every training pose (the true arm: ≤ 0.1); otherwise the next-best choice
+   of step 1 is fitted, and if none passes, training fails with the reason.
+
+Errors are |predicted − measured| deflection in SI units (m, rad), as
+``flexarm_msgs/PredictionMetrics``, on held-out samples of the kept set. Samples of one pose (a
+dataset collected twice with the same seed visits every pose twice) are one group and always
+fall on the same side of a fold, so the validation never scores a pose the model was trained
+on. :class:`TrainingWorker` runs training jobs in a worker process of their own.
 """
 from __future__ import annotations
 
+import itertools
+import json
 import multiprocessing
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ProcessPoolExecutor
@@ -23,7 +43,9 @@ from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
 from sklearn.model_selection import GroupKFold
 
+from flexarm_control.compensator import deflection_slope
 from flexarm_control.dataset import Dataset
+from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.predictors import Predictor, make_predictor
 
 MIN_SAMPLES = 8
@@ -31,11 +53,33 @@ MIN_SAMPLES = 8
 # joints stop within the arrival tolerance (1e-4 rad, 1e-5 m) of the same command; distinct
 # learning poses lie millimetres or milliradians apart.
 SAME_POSE = 1e-3
+TRIM = 0.1          # share of the worst held-out samples the choice of settings ignores
+ROBUST_SCALE = 1.4826   # median |residual| × this = standard deviation for a normal error
+
+
+@dataclass(frozen=True)
+class Screening:
+    """Outlier screening and solvability check (config/learner.yaml ``training.*``)."""
+
+    outlier_threshold: float = 6.0     # robust standard deviations of a held-out residual
+    outlier_floor: tuple[float, float, float] = (1e-3, 1e-3, 2e-3)   # [m, m, rad]
+    max_outlier_fraction: float = 0.1  # of the samples
+    max_slope: float = 0.5             # of the deflection against the commanded pose
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Screening:
+        s = cls(float(d['outlier_threshold']), tuple(float(v) for v in d['outlier_floor']),
+                float(d['max_outlier_fraction']), float(d['max_slope']))
+        if (s.outlier_threshold <= 0 or len(s.outlier_floor) != 3 or min(s.outlier_floor) < 0
+                or not 0 <= s.max_outlier_fraction < 0.5 or s.max_slope <= 0):
+            raise ValueError(f'invalid training screening settings {s}')
+        return s
 
 
 @dataclass(frozen=True)
 class Metrics:
-    """Validation errors, field for field as ``flexarm_msgs/PredictionMetrics``."""
+    """Validation errors and what training decided, field for field as
+    ``flexarm_msgs/PredictionMetrics``."""
 
     validation: str
     samples: int
@@ -45,15 +89,22 @@ class Metrics:
     mean_error_x: float    # [m]
     mean_error_y: float    # [m]
     mean_error_phi: float  # [rad]
+    excluded_samples: tuple[int, ...] = ()   # dataset indices screened out as outliers
+    selected_settings: str = ''              # JSON of the settings chosen by validation
+    max_slope: float = 0.0                   # of the final model over the training poses
 
     @classmethod
-    def from_errors(cls, validation: str, samples: int, errors: np.ndarray) -> Metrics:
+    def from_errors(cls, validation: str, samples: int, errors: np.ndarray,
+                    **decisions: Any) -> Metrics:
         """From absolute errors (M, 3) [m, m, rad]."""
         worst, mean = errors.max(axis=0), errors.mean(axis=0)
-        return cls(validation, int(samples), *map(float, worst), *map(float, mean))
+        return cls(validation, int(samples), *map(float, worst), *map(float, mean),
+                   **decisions)
 
     def as_dict(self) -> dict[str, Any]:
-        return asdict(self)
+        d = asdict(self)
+        d['excluded_samples'] = list(self.excluded_samples)
+        return d
 
 
 def check_data(joints: np.ndarray, deflections: np.ndarray, payload: np.ndarray | None,
@@ -93,34 +144,145 @@ def pose_groups(joints: np.ndarray) -> np.ndarray:
     return connected_components(links, directed=False)[1]
 
 
-def validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
-             deflections: np.ndarray, payload: np.ndarray | None = None, folds: int = 5,
-             seed: int = 0) -> Metrics:
-    """Errors of ``kind`` on held-out poses by ``folds``-fold cross-validation (shuffled
-    groups of :func:`pose_groups`: the samples of one pose are held out together)."""
-    make_predictor(kind, settings)   # unknown kind or bad settings: fail before any fit
-    joints, deflections, payload = check_data(joints, deflections, payload, folds)
+def _subset(payload: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
+    return None if payload is None else payload[index]
+
+
+def cross_validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
+                   deflections: np.ndarray, payload: np.ndarray | None = None,
+                   folds: int = 5, seed: int = 0) -> np.ndarray:
+    """Held-out residuals (N, 3), predicted − measured, of ``folds``-fold cross-validation
+    (shuffled groups of :func:`pose_groups`: the samples of one pose are held out together).
+    The data must have passed :func:`check_data`."""
     groups = pose_groups(joints)
     if groups.max() + 1 < folds:
         raise ValueError(f'too few distinct poses: {groups.max() + 1} in {len(joints)} '
                          f'samples, at least {folds} are needed ({folds}-fold '
                          'cross-validation)')
-    errors = np.empty_like(deflections)
-    for train, test in GroupKFold(folds, shuffle=True, random_state=seed).split(
+    residuals = np.empty_like(deflections)
+    for train_index, test in GroupKFold(folds, shuffle=True, random_state=seed).split(
             joints, groups=groups):
         predictor = make_predictor(kind, settings).fit(
-            joints[train], deflections[train], None if payload is None else payload[train])
-        predicted = predictor.predict(joints[test], None if payload is None else payload[test])
-        errors[test] = np.abs(predicted - deflections[test])
-    return Metrics.from_errors(f'{folds}-fold cross-validation', len(joints), errors)
+            joints[train_index], deflections[train_index], _subset(payload, train_index))
+        residuals[test] = (predictor.predict(joints[test], _subset(payload, test))
+                           - deflections[test])
+    return residuals
+
+
+def validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
+             deflections: np.ndarray, payload: np.ndarray | None = None, folds: int = 5,
+             seed: int = 0) -> Metrics:
+    """Errors of ``kind`` with fixed ``settings`` on held-out poses (:func:`cross_validate`)."""
+    make_predictor(kind, settings)   # unknown kind or bad settings: fail before any fit
+    joints, deflections, payload = check_data(joints, deflections, payload, folds)
+    residuals = cross_validate(kind, settings, joints, deflections, payload, folds, seed)
+    return Metrics.from_errors(f'{folds}-fold cross-validation', len(joints),
+                               np.abs(residuals))
+
+
+def candidates(kind: str, settings: Mapping[str, Any] | None) -> list[dict[str, Any]]:
+    """Settings to choose among: every combination of the kind's ``cv_choices`` that
+    ``settings`` does not fix, over ``settings``."""
+    given = dict(settings or {})
+    choices = {name: values for name, values in make_predictor(kind).cv_choices.items()
+               if name not in given}
+    combos = itertools.product(*choices.values())
+    return [{**given, **dict(zip(choices, combo))} for combo in combos]
+
+
+def _trimmed_rms(residuals: np.ndarray, scale: np.ndarray) -> float:
+    """RMS of the per-sample residual norms (outputs divided by ``scale``), the worst
+    ``TRIM`` of the samples left out."""
+    norms = np.sort(np.linalg.norm(residuals / scale, axis=1))
+    return float(np.sqrt(np.mean(norms[:max(1, round(len(norms) * (1 - TRIM)))] ** 2)))
+
+
+def outlier_scores(residuals: np.ndarray, scale: np.ndarray, screening: Screening
+                   ) -> np.ndarray:
+    """Per sample (N,): the largest robust z (|residual| / ``scale``) among its outputs that
+    are outliers — beyond ``outlier_threshold`` and ``outlier_floor`` — else 0."""
+    z = np.abs(residuals) / np.where(scale > 0, scale, np.inf)
+    flagged = (z > screening.outlier_threshold) & (
+        np.abs(residuals) > np.asarray(screening.outlier_floor))
+    return np.where(flagged, z, 0.0).max(axis=1)
+
+
+def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
+               deflections: np.ndarray, payload: np.ndarray | None = None, folds: int = 5,
+               seed: int = 0, geometry: ArmGeometry | None = None,
+               screening: Screening = Screening()) -> tuple[Predictor, Metrics]:
+    """Steps 1-3 of the module docstring on arrays; the fitted predictor and its metrics.
+
+    Screening excludes the worst outlier and validates again until none is left; then the
+    model fitted on the kept samples predicts the excluded ones, and those it does not
+    contradict (a bad sample's neighbours can look bad while it is in the data) are taken
+    back and screened once more. Without ``geometry`` the solvability check is skipped.
+    """
+    options = candidates(kind, settings)
+    for option in options:
+        make_predictor(kind, option)     # unknown kind or bad settings: fail before any fit
+    joints, deflections, payload = check_data(joints, deflections, payload, folds)
+    output_std = deflections.std(axis=0)
+    output_std = np.where(output_std > 0, output_std, 1.0)
+    kept, excluded = np.arange(len(joints)), np.array([], dtype=int)
+    most = int(screening.max_outlier_fraction * len(joints))
+
+    def select() -> list[tuple[float, int, np.ndarray]]:
+        """(trimmed RMS, option index, held-out residuals) of every option, best first."""
+        return sorted(((_trimmed_rms(r, output_std), i, r) for i, r in enumerate(
+            cross_validate(kind, option, joints[kept], deflections[kept],
+                           _subset(payload, kept), folds, seed) for option in options)),
+            key=lambda item: item[:2])
+
+    def fit(option: Mapping[str, Any]) -> Predictor:
+        return make_predictor(kind, option).fit(joints[kept], deflections[kept],
+                                                _subset(payload, kept))
+
+    for _ in range(2):          # screen; take back what the screened model does not contradict
+        while True:
+            scored = select()
+            scale = ROBUST_SCALE * np.median(np.abs(scored[0][2]), axis=0)
+            scores = outlier_scores(scored[0][2], scale, screening)
+            if not scores.max() > 0 or len(excluded) >= most:
+                break
+            excluded = np.append(excluded, kept[np.argmax(scores)])
+            kept = np.delete(kept, np.argmax(scores))
+        if not len(excluded):
+            break
+        model = fit(options[scored[0][1]])
+        residuals = (model.predict(joints[excluded], _subset(payload, excluded))
+                     - deflections[excluded])
+        back = outlier_scores(residuals, scale, screening) == 0
+        if not back.any():
+            break
+        kept, excluded = np.sort(np.append(kept, excluded[back])), excluded[~back]
+    slopes = []
+    for _, i, residuals in scored:
+        predictor = fit(options[i])
+        slope = (0.0 if geometry is None else float(
+            deflection_slope(geometry, predictor.predict, joints[kept]).max()))
+        if slope <= screening.max_slope:
+            chosen = {name: options[i][name] for name in options[i]
+                      if name not in (settings or {})}
+            metrics = Metrics.from_errors(
+                f'{folds}-fold cross-validation', len(kept), np.abs(residuals),
+                excluded_samples=tuple(int(e) for e in sorted(excluded)),
+                selected_settings=json.dumps(chosen), max_slope=slope)
+            return predictor, metrics
+        slopes.append(f'{json.dumps(options[i])}: {slope:.2f}')
+    raise ValueError(
+        'every model changes its deflection too fast for the compensator to solve '
+        f'(slope > {screening.max_slope} at a training pose; {"; ".join(slopes)}): the data '
+        'are too sparse or too noisy — collect more samples')
 
 
 def train(kind: str, settings: Mapping[str, Any] | None, dataset: Dataset, folds: int = 5,
-          seed: int = 0) -> tuple[Predictor, Metrics]:
-    """Cross-validate, then fit ``kind`` on the whole dataset; hash and metrics in metadata."""
+          seed: int = 0, geometry: ArmGeometry | None = None,
+          screening: Screening = Screening()) -> tuple[Predictor, Metrics]:
+    """:func:`fit_robust` on a dataset; its hash and the metrics go into the metadata."""
     joints, deflections, payload = dataset.arrays()
-    metrics = validate(kind, settings, joints, deflections, payload, folds, seed)
-    predictor = make_predictor(kind, settings).fit(joints, deflections, payload)
+    predictor, metrics = fit_robust(kind, settings, joints, deflections, payload, folds, seed,
+                                    geometry, screening)
     predictor.metadata.update(dataset_hash=dataset.hash, metrics=metrics.as_dict())
     return predictor, metrics
 

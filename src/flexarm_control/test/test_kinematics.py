@@ -4,8 +4,9 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import (ArmGeometry, UnreachableError, forward, inverse,
-                                        limit_violation, pose_error, wrap_angle)
+from flexarm_control.kinematics import (ArmGeometry, UnreachableError, elbow_bend, forward,
+                                        inverse, limit_violation, pose_error, reach_margins,
+                                        wrap_angle)
 from flexarm_control.params import load_config
 
 
@@ -53,14 +54,53 @@ def test_preferred_extension_is_used_when_reachable(geometry):
     assert inverse(geometry, pose)[1] == pytest.approx(geometry.preferred_extension)
 
 
-def test_far_target_takes_the_nearest_reachable_extension(geometry):
-    # Table 10 target 2 (1550, 0, -22 deg) is out of reach with 0.6 m.
-    pose = np.array([1.55, 0.0, math.radians(-22)])
+def test_far_target_takes_an_extension_with_reach_to_spare(geometry):
+    # Out of reach with 0.6 m: the elbow is nearly stretched at 0.7 m.
+    pose = forward(geometry, np.array([-0.1, 0.7, -0.1, -0.2]))
     joints = inverse(geometry, pose)
     assert joints[1] > geometry.preferred_extension
-    with pytest.raises(UnreachableError):
-        inverse(geometry, pose, extension=joints[1] - 2 * geometry.extension_step)
     np.testing.assert_allclose(forward(geometry, joints), pose, atol=1e-12)
+    assert reach_margins(geometry, pose, np.array([joints[1]]))[0] >= geometry.reach_margin
+    # The next extension towards the preferred one would leave less than the margin.
+    closer = joints[1] - geometry.extension_step
+    assert reach_margins(geometry, pose, np.array([closer]))[0] < geometry.reach_margin
+    assert elbow_bend(geometry, joints) > math.radians(20)
+
+
+def test_reach_margin_is_the_distance_the_wrist_can_move_out(geometry):
+    """Moving the target radially outward by just under the margin stays reachable with the
+    same extension; by just over it, it does not."""
+    from flexarm_control.kinematics import _solve_fixed
+
+    rng = np.random.default_rng(7)
+    checked = 0
+    for pose in rng.uniform([0.9, -0.6, -1.8], [1.6, 0.2, 0.0], (200, 3)):
+        extension = 0.7
+        margin = reach_margins(geometry, pose, np.array([extension]))[0]
+        if not 0.005 < margin < 0.2 or _solve_fixed(geometry, pose, extension) is None:
+            continue
+        wrist = pose[:2] - geometry.link4 * np.array([math.cos(pose[2]), math.sin(pose[2])])
+        wrist_from_joint1 = wrist / np.linalg.norm(wrist)
+        for factor, reachable in ((0.99, True), (1.01, False)):
+            moved = pose + np.append(wrist_from_joint1 * margin * factor, 0.0)
+            r_margin = reach_margins(geometry, moved, np.array([extension]))[0]
+            assert (r_margin >= 0) == reachable
+        checked += 1
+    assert checked > 20
+
+
+@pytest.mark.parametrize('pose', [
+    [1.55, 0.0, math.radians(-22)],                            # Table 10 target A2
+    [1.5942, 0.0988, 0.03]])        # forward(0.1, 0.8 m, -0.12, 0.05): elbow bent 7 deg
+def test_target_at_the_edge_of_reach_takes_the_largest_margin(geometry, pose):
+    # No extension leaves the full margin: the one with the largest is taken.
+    pose = np.array(pose)
+    joints = inverse(geometry, pose)
+    grid = np.arange(geometry.lower[1], geometry.upper[1] + 1e-9, geometry.extension_step)
+    margins = reach_margins(geometry, pose, grid)
+    assert margins.max() < geometry.reach_margin
+    assert reach_margins(geometry, pose, np.array([joints[1]]))[0] == pytest.approx(
+        margins.max(), abs=1e-9)
 
 
 @pytest.mark.parametrize('pose', [
@@ -92,19 +132,25 @@ def test_geometry_rejects_bad_config():
         ArmGeometry.from_dict({**d, 'lower': d['upper']})
     with pytest.raises(ValueError):
         ArmGeometry.from_dict({**d, 'preferred_extension': 2.0})
+    with pytest.raises(ValueError):
+        ArmGeometry.from_dict({**d, 'reach_margin': -0.01})
 
 
 def test_extension_rule_matches_an_exhaustive_search(geometry):
-    """The reach-interval pruning picks what trying every grid value in order would pick."""
+    """The rule picks what trying every grid value in the rule's order would pick."""
     from flexarm_control.kinematics import _solve_fixed
 
     lo, hi, step = geometry.lower[1], geometry.upper[1], geometry.extension_step
-    grid = np.linspace(lo, hi, int(round((hi - lo) / step)) + 1)
-    grid = [geometry.preferred_extension,
-            *grid[np.argsort(np.abs(grid - geometry.preferred_extension), kind='stable')]]
+    grid = np.round(np.linspace(lo, hi, int(round((hi - lo) / step)) + 1), 9)
     rng = np.random.default_rng(5)
     for pose in rng.uniform([0.2, -1.0, -math.pi], [1.7, 0.8, math.pi], (150, 3)):
-        expected = next((q for q in (_solve_fixed(geometry, pose, e) for e in grid)
+        margins = reach_margins(geometry, pose, grid)
+        full = [e for _, e in sorted((abs(e - geometry.preferred_extension), e)
+                                     for e, m in zip(grid, margins)
+                                     if m >= geometry.reach_margin)]
+        some = [e for _, e in sorted((-m, e) for e, m in zip(grid, margins)
+                                     if 0 <= m < geometry.reach_margin)]
+        expected = next((q for q in (_solve_fixed(geometry, pose, e) for e in full + some)
                          if q is not None), None)
         if expected is None:
             with pytest.raises(UnreachableError):

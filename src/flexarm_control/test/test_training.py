@@ -23,7 +23,7 @@ def plant_like(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
     reach = joints[:, 1] * np.cos(joints[:, 0]) + 0.4 * np.cos(joints[:, 0] + joints[:, 2])
     deflections = np.column_stack([0.002 * np.sin(joints[:, 0] + joints[:, 2]),
                                    -0.01 * reach ** 2,
-                                   -0.015 * reach * np.cos(joints[:, 3])])
+                                   -0.015 * reach * np.cos(joints[:, [0, 2, 3]].sum(axis=1))])
     return joints, deflections
 
 
@@ -126,10 +126,12 @@ def test_worker_refuses_jobs_while_a_timed_out_one_runs() -> None:
 
 def test_metrics_fields_follow_the_message() -> None:
     errors = np.array([[1.0, 2.0, 3.0], [3.0, 4.0, 5.0]])
-    metrics = Metrics.from_errors('x', 2, errors)
+    metrics = Metrics.from_errors('x', 2, errors, excluded_samples=(4,),
+                                  selected_settings='{"kernel": "rbf"}', max_slope=0.1)
     assert metrics.as_dict() == {
         'validation': 'x', 'samples': 2, 'max_error_x': 3.0, 'max_error_y': 4.0,
-        'max_error_phi': 5.0, 'mean_error_x': 2.0, 'mean_error_y': 3.0, 'mean_error_phi': 4.0}
+        'max_error_phi': 5.0, 'mean_error_x': 2.0, 'mean_error_y': 3.0, 'mean_error_phi': 4.0,
+        'excluded_samples': [4], 'selected_settings': '{"kernel": "rbf"}', 'max_slope': 0.1}
 
 
 def test_train_fits_the_whole_dataset(tmp_path: Path) -> None:

@@ -2,10 +2,22 @@
 
 A predictor maps joint positions θ = (θ1 rad, θ2 m, θ3 rad, θ4 rad), plus the payload [kg]
 as a fifth input when its ``payload_input`` setting is true, to the tip deflection
-(dx m, dy m, dφ rad) = measured − rigid pose. Inputs and outputs are z-scored with the
-training set's mean and standard deviation; an input that is constant in the training set
-(e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as nothing can be learned about it.
-The kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever see the normalised space.
+(dx m, dy m, dφ rad) = measured − rigid pose. The model sees the joints as the link angles
+gravity acts on (:func:`model_inputs`): θ1, θ2, θ1+θ3, θ1+θ3+θ4 — each link sags by its
+absolute orientation, so these make the deflection a simpler function (a Gaussian process on
+them fits 40 region-A samples ~10× better than on the raw joints). Inputs and outputs are
+z-scored with the training set's mean and standard deviation; an input that is constant in
+the training set (e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as nothing can be
+learned about it. The kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever see the
+normalised space.
+
+Learned-data support: the model keeps its normalised training inputs, and
+:meth:`Predictor.data_distance` says how far a query lies from them — the distance to the
+nearest training sample in the normalised input space, in units of the training set's typical
+spacing (the median distance from a sample to its nearest neighbour). Inside the sampled
+region it stays below ~1; a query outside it grows with the distance, so a model is never used
+silently where it knows nothing. An input that was constant in training counts in units of
+``CONSTANT_INPUT_SCALE`` (1 mm, 1 mrad or 1 g): any real change of it is far from the data.
 
 Model file: one NumPy ``.npz`` archive, loaded with ``allow_pickle=False`` (no pickle,
 nothing executable in it). Entry ``metadata`` is a JSON string::
@@ -14,9 +26,11 @@ nothing executable in it). Entry ``metadata`` is a JSON string::
      "created": "2025-01-01T12:00:00.000000+00:00", "samples": 50,
      "normalisation": {"input_mean": [...], "input_std": [...], "active_inputs": [...],
                        "output_mean": [3], "output_std": [3]},
-     "dataset_hash": "sha256 hex or empty", "metrics": {...} or null}
+     "dataset_hash": "sha256 hex or empty", "metrics": {...} or null,
+     "support_spacing": 0.42}
 
-and the kind's arrays are entries ``<kind>.<name>`` (MLP: its weights; RBF: the normalised
+entry ``support`` holds the normalised training inputs, and the kind's arrays are entries
+``<kind>.<name>`` (MLP: its weights; RBF: the normalised
 training set, the model is rebuilt on load; GP: the normalised training set and the fitted
 kernel hyperparameters per output). ``version`` defaults to the UTC fit time, so it sorts in
 training order; the learner may overwrite it before saving. Saving writes a temporary file in
@@ -34,13 +48,22 @@ from pathlib import Path
 from typing import Any, ClassVar
 
 import numpy as np
+from scipy.spatial import cKDTree
 
 from flexarm_control.atomic_file import atomic_write
 
-FORMAT_VERSION = 1
+FORMAT_VERSION = 2        # 2: link-angle inputs and the learned-data support
 JOINTS = 4
 OUTPUTS = 3
-_CONSTANT_STD = 1e-12   # an input with a smaller spread in the training set is dropped
+_CONSTANT_STD = 1e-12     # an input with a smaller spread in the training set is dropped
+CONSTANT_INPUT_SCALE = 1e-3  # [rad, m, kg] unit of data_distance along a dropped input
+
+
+def model_inputs(joints: np.ndarray) -> np.ndarray:
+    """The link angles of joints (..., 4): θ1, θ2, θ1 + θ3, θ1 + θ3 + θ4."""
+    q = np.asarray(joints, dtype=float)
+    return np.stack([q[..., 0], q[..., 1], q[..., 0] + q[..., 2],
+                     q[..., 0] + q[..., 2] + q[..., 3]], axis=-1)
 
 
 @dataclass(frozen=True)
@@ -107,6 +130,9 @@ class Predictor(ABC):
 
     kind: ClassVar[str]
     defaults: ClassVar[dict[str, Any]]   # every setting with its default value
+    # Settings that training chooses by cross-validation, with the values to try (from the
+    # least to the most regularised), unless the user sets them.
+    cv_choices: ClassVar[dict[str, list[Any]]] = {}
 
     def __init__(self, settings: Mapping[str, Any] | None = None) -> None:
         given = dict(settings or {})
@@ -121,8 +147,9 @@ class Predictor(ABC):
         self.metadata: dict[str, Any] = {
             'kind': self.kind, 'settings': self.settings, 'format': FORMAT_VERSION,
             'version': '', 'created': '', 'samples': 0, 'normalisation': None,
-            'dataset_hash': '', 'metrics': None}
+            'dataset_hash': '', 'metrics': None, 'support_spacing': None}
         self._normalisation: Normalisation | None = None
+        self._support: np.ndarray | None = None
 
     @abstractmethod
     def _check_settings(self) -> None:
@@ -161,12 +188,26 @@ class Predictor(ABC):
         if len(x) < 2:
             raise ValueError(f'at least 2 samples are needed to fit, got {len(x)}')
         normalisation = Normalisation.of(x, y)
-        self._fit_normalised(normalisation.inputs(x), normalisation.outputs(y))
-        self._normalisation = normalisation
+        support = normalisation.inputs(x)
+        self._fit_normalised(support, normalisation.outputs(y))
+        self._normalisation, self._support = normalisation, support
         now = datetime.now(timezone.utc)
         self.metadata.update(created=now.isoformat(), version=now.strftime('%Y%m%dT%H%M%S.%fZ'),
-                             samples=len(x), normalisation=normalisation.as_dict())
+                             samples=len(x), normalisation=normalisation.as_dict(),
+                             support_spacing=_spacing(support))
         return self
+
+    def data_distance(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                      ) -> np.ndarray | float:
+        """Distance of the query (joints (4,) or (M, 4)) from the training data, in typical
+        sample spacings (module docstring): a float, or (M,)."""
+        x, single = self._inputs(joints, payload)
+        n = self._require_fitted()
+        z = (x - n.input_mean) / n.input_std
+        dropped = ((x - n.input_mean)[:, ~n.active_inputs] / CONSTANT_INPUT_SCALE) ** 2
+        nearest = cKDTree(self._support).query(z[:, n.active_inputs])[0]
+        distance = np.sqrt(nearest ** 2 + dropped.sum(axis=1)) / self.metadata['support_spacing']
+        return float(distance[0]) if single else distance
 
     def predict(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
                 ) -> np.ndarray:
@@ -181,7 +222,8 @@ class Predictor(ABC):
         self._require_fitted()
         arrays = {f'{self.kind}.{name}': value for name, value in self._state().items()}
         metadata = np.array(json.dumps(self.metadata))
-        atomic_write(path, lambda file: np.savez(file, metadata=metadata, **arrays))
+        atomic_write(path, lambda file: np.savez(file, metadata=metadata,
+                                                 support=self._support, **arrays))
 
     def _require_fitted(self) -> Normalisation:
         if self._normalisation is None:
@@ -198,6 +240,7 @@ class Predictor(ABC):
         if x.ndim != 2 or x.shape[1] != JOINTS:
             raise ValueError(f'joints must have shape ({JOINTS},) or (N, {JOINTS}), '
                              f'got {np.shape(joints)}')
+        x = model_inputs(x)
         if self.settings['payload_input']:
             if payload is None:
                 raise ValueError(f'this {self.kind} predictor takes the payload as an input')
@@ -214,7 +257,8 @@ class Predictor(ABC):
 
 
 def read_model(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
-    """Metadata and the kind's arrays (names without the kind prefix) of a model file.
+    """Metadata and the arrays of a model file: the kind's (names without the kind prefix)
+    and ``support``.
 
     OSError if the file cannot be read; ValueError for a file that is not a model file of a
     supported format (empty, truncated, damaged or foreign).
@@ -225,6 +269,8 @@ def read_model(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
             prefix = f"{metadata['kind']}."
             state = {name[len(prefix):]: archive[name] for name in archive.files
                      if name.startswith(prefix)}
+            if 'support' in archive.files:
+                state['support'] = archive['support']
     except OSError:
         raise
     except Exception as exc:   # numpy, zipfile and json raise many types for a damaged file
@@ -234,9 +280,12 @@ def read_model(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]
     if (not isinstance(metadata['kind'], str) or isinstance(model_format, bool)
             or not isinstance(model_format, int)):
         raise ValueError(f'{path} is not a model file (bad metadata kind or format)')
-    if model_format > FORMAT_VERSION:
-        raise ValueError(f'{path}: model format {model_format} is newer than the '
-                         f'supported {FORMAT_VERSION}')
+    if model_format != FORMAT_VERSION:
+        raise ValueError(f'{path}: model format {model_format}, this version reads only '
+                         f'format {FORMAT_VERSION}' + (
+                             ' (older models took other inputs and lack the learned-data '
+                             'support): train a new one' if model_format < FORMAT_VERSION
+                             else ''))
     return metadata, state
 
 
@@ -251,12 +300,24 @@ def restore(cls: type[Predictor], metadata: dict[str, Any],
         predictor = cls(metadata['settings'])
         predictor.metadata = metadata
         predictor._normalisation = Normalisation.from_dict(metadata['normalisation'])
+        predictor._support = np.asarray(state['support'], dtype=float)
+        if not float(metadata['support_spacing']) > 0:
+            raise ValueError(f"support_spacing {metadata['support_spacing']}")
         predictor._restore(state)
-        mean = predictor._normalisation.input_mean
-        probe = predictor.predict(mean[:JOINTS],
+        mean = predictor._normalisation.input_mean    # link angles: back to joints
+        joints = np.array([mean[0], mean[1], mean[2] - mean[0], mean[3] - mean[2]])
+        probe = predictor.predict(joints,
                                   mean[JOINTS] if predictor.settings['payload_input'] else None)
     except Exception as exc:   # missing entries, wrong types or shapes: many types
         raise ValueError(f'inconsistent {cls.kind} model: {type(exc).__name__}: {exc}') from exc
     if np.shape(probe) != (OUTPUTS,) or not np.all(np.isfinite(probe)):
         raise ValueError(f'inconsistent {cls.kind} model: it predicts {probe}')
     return predictor
+
+
+def _spacing(support: np.ndarray) -> float:
+    """Median distance from a point of ``support`` to its nearest other point (1 if all
+    points coincide)."""
+    nearest = cKDTree(support).query(support, k=2)[0][:, 1]
+    spacing = float(np.median(nearest))
+    return spacing if spacing > 0 else 1.0

@@ -1,9 +1,16 @@
 """Gaussian-process predictor (scikit-learn), one GP per output, with predictive std.
 
-Kernel: constant × RBF with one length scale per input (ARD) + white noise, on normalised
-inputs and outputs; hyperparameters by maximum marginal likelihood with ``restarts`` random
-restarts (seeded). The model file stores the normalised training set and the fitted
-hyperparameters (log-θ per output); the GPs are rebuilt on load without re-optimising.
+Kernel (``kernel``): constant × (RBF, Matérn ν = 5/2 or 3/2, or RBF + a smaller Matérn 3/2
+part) with one length scale per input (ARD) + white noise, on normalised inputs and outputs;
+hyperparameters by maximum marginal likelihood with ``restarts`` random restarts (seeded).
+The kernel's form is not a hyperparameter of the likelihood: training chooses it by
+cross-validation (``cv_choices``). The rougher kernels suit a deflection with a sharp
+feature — the backlash of joint4 flips where link 4 hangs vertical, inside region B — that
+the RBF's infinite smoothness would spread over the whole region; measured on region B (5
+training seeds, 200 targets each), the RBF + Matérn sum cut the 95th-percentile miss from
+0.12-0.16 mm to 0.03-0.04 mm on three seeds of five. The model file stores the normalised
+training set and the fitted hyperparameters (log-θ per output); the GPs are rebuilt on load
+without re-optimising.
 """
 from __future__ import annotations
 
@@ -14,9 +21,12 @@ from typing import Any, ClassVar
 import numpy as np
 from sklearn.exceptions import ConvergenceWarning
 from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, WhiteKernel
+from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, Matern, WhiteKernel
 
 from flexarm_control.predictors.base import OUTPUTS, Predictor
+
+
+KERNELS = ('rbf', 'matern52', 'matern32', 'rbf+matern32')
 
 
 class GpPredictor(Predictor):
@@ -25,7 +35,8 @@ class GpPredictor(Predictor):
     kind: ClassVar[str] = 'gp'
     defaults: ClassVar[dict[str, Any]] = {
         'length_scale_bounds': [1e-2, 1e3], 'noise_level': 1e-4, 'noise_bounds': [1e-6, 1e-1],
-        'restarts': 0, 'seed': 0, 'payload_input': False}
+        'restarts': 1, 'seed': 0, 'payload_input': False, 'kernel': 'rbf'}
+    cv_choices: ClassVar[dict[str, list[Any]]] = {'kernel': list(KERNELS)}
 
     def _check_settings(self) -> None:
         s = self.settings
@@ -38,11 +49,20 @@ class GpPredictor(Predictor):
             raise ValueError("gp 'noise_level' must lie within 'noise_bounds'")
         if s['restarts'] < 0:
             raise ValueError("gp 'restarts' must be >= 0")
+        if s['kernel'] not in KERNELS:
+            raise ValueError(f"gp 'kernel' must be one of {sorted(KERNELS)}, "
+                             f"got {s['kernel']!r}")
 
     def _kernel(self, inputs: int) -> Kernel:
         s = self.settings
-        return (ConstantKernel(1.0, (1e-3, 1e3))
-                * RBF(np.ones(inputs), tuple(s['length_scale_bounds']))
+        bounds = tuple(s['length_scale_bounds'])
+        smooth = RBF(np.ones(inputs), bounds)
+        shape = {'rbf': smooth,
+                 'matern52': Matern(np.ones(inputs), bounds, nu=2.5),
+                 'matern32': Matern(np.ones(inputs), bounds, nu=1.5),
+                 'rbf+matern32': smooth + ConstantKernel(0.3, (1e-4, 1e1)) * Matern(
+                     np.ones(inputs), bounds, nu=1.5)}[s['kernel']]
+        return (ConstantKernel(1.0, (1e-3, 1e3)) * shape
                 + WhiteKernel(s['noise_level'], tuple(s['noise_bounds'])))
 
     def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:

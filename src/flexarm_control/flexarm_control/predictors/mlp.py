@@ -34,8 +34,9 @@ class MlpPredictor(Predictor):
 
     kind: ClassVar[str] = 'mlp'
     defaults: ClassVar[dict[str, Any]] = {
-        'hidden': [10], 'activation': 'tanh', 'weight_decay': 1e-5, 'restarts': 4,
-        'max_iterations': 300, 'seed': 0, 'payload_input': False}
+        'hidden': [10], 'activation': 'tanh', 'weight_decay': 1e-4, 'restarts': 4,
+        'max_iterations': 1000, 'seed': 0, 'payload_input': False}
+    cv_choices: ClassVar[dict[str, list[Any]]] = {'weight_decay': [1e-5, 1e-4, 1e-3]}
 
     def _check_settings(self) -> None:
         s = self.settings

@@ -31,6 +31,7 @@ class RbfPredictor(Predictor):
     defaults: ClassVar[dict[str, Any]] = {
         'kernel': 'thin_plate_spline', 'smoothing': 1e-3, 'epsilon': 1.0, 'degree': 1,
         'payload_input': False}
+    cv_choices: ClassVar[dict[str, list[Any]]] = {'smoothing': [1e-4, 1e-3, 1e-2]}
 
     def _check_settings(self) -> None:
         s = self.settings

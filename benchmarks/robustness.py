@@ -5,13 +5,21 @@ Offline, against the simulated arm's truth. For each region (A, B) and each trai
 its coverage margin; the tip camera's image of the true arm through the vision estimator),
 the learner's default training (kind, folds and screening of config/learner.yaml), then
 ``--targets`` targets uniform in the region's box (the rigid-reachable ones), PREDICTIVE
-planned as the compensator plans it (config/compensator.yaml) and judged on the plant. Then
-again with one sample's deflection moved 10 mm in a random direction (the outlier run).
+planned as the compensator plans it (solver and learned-data limits of
+config/compensator.yaml) and judged on the plant. Then again with one sample's deflection
+moved 10 mm in a random direction (the outlier run).
+
+A rigid-reachable target near the edge of the workspace can be out of the true arm's reach:
+the arm sags ~20 mm there, and the rigid pose that would lift it back lies beyond the longest
+extension with the elbow bent the configured minimum. Such targets (the compensator refuses
+them, as it must) are counted as ``out_of_reach``, found by planning with the plant's true
+deflection; ``refused`` counts refusals of targets the true arm can reach.
 
     python benchmarks/robustness.py [--seeds 5] [--targets 200] [--kind gp] [--json]
 
-JSON: ``refused``, ``max_mm``, ``p95_mm``, ``max_deg`` at the top level are the worst over
-every seed and region of the clean runs; ``outlier`` holds the same for the outlier runs
+JSON: ``refused``, ``max_mm``, ``p95_mm``, ``max_deg`` (and ``out_of_reach``, the largest
+``max_data_distance`` and ``max_std_mm`` of executed plans) at the top level are the worst
+over every seed and region of the clean runs; ``outlier`` holds the same for the outlier runs
 (plus ``detected``: runs whose bad sample was excluded); ``runs`` every run's figures.
 """
 from __future__ import annotations
@@ -26,6 +34,7 @@ import numpy as np
 from flexarm_control.compensator import CompensationError, Compensator
 from flexarm_control.kinematics import pose_error
 from flexarm_control.params import load_config
+from flexarm_control.planning import DataLimits, Refusal, plan_goal
 from flexarm_control.sampling import random_targets
 from flexarm_control.study import World
 from flexarm_control.training import Screening, fit_robust
@@ -43,8 +52,9 @@ def corrupt(deflections: np.ndarray, seed: int) -> tuple[np.ndarray, int]:
     return bad, index
 
 
-def run(world: World, compensator: Compensator, learner: dict, region: str, seed: int,
-        samples: int, targets: np.ndarray, kind: str, outlier: bool) -> dict:
+def run(world: World, compensator: Compensator, limits: DataLimits, learner: dict,
+        region: str, seed: int, samples: int, targets: np.ndarray, kind: str,
+        outlier: bool) -> dict:
     """One training set and its evaluation on ``targets``."""
     joints, deflections = world.measured(region, samples, seed)
     bad_index = None
@@ -56,27 +66,34 @@ def run(world: World, compensator: Compensator, learner: dict, region: str, seed
         folds=learner['validation_folds'], geometry=world.geometry,
         screening=Screening.from_dict(learner['training']))
     train_s = time.perf_counter() - start
-    errors, angles, distances, reasons = [], [], [], []
+    errors, angles, distances, stds, reasons, out_of_reach = [], [], [], [], [], 0
     for target in targets:
-        try:
-            plan = compensator.predictive(target, predictor.predict)
-        except CompensationError as exc:
-            reasons.append(str(exc))
+        planned = plan_goal(compensator, 'predictive', target, predictor, limits)
+        if isinstance(planned, Refusal):
+            try:
+                compensator.predictive(target, world.plant.deflection)
+            except CompensationError:
+                out_of_reach += 1
+                continue
+            reasons.append(planned.reason)
             continue
-        position, angle = pose_error(target, world.plant.pose(plan.joints))
+        position, angle = pose_error(target, world.plant.pose(planned.plan.joints))
         errors.append(1e3 * position)
         angles.append(math.degrees(angle))
-        distances.append(predictor.data_distance(plan.joints))
+        distances.append(planned.data_distance)
+        stds.append(1e3 * planned.prediction_std)
     errors = np.array(errors)
     return {'region': region, 'seed': seed, 'outlier': outlier, 'train_s': train_s,
             'selected': metrics.selected_settings, 'excluded': list(metrics.excluded_samples),
             'detected': None if bad_index is None else bad_index in metrics.excluded_samples,
-            'targets': len(targets), 'refused': len(reasons), 'reasons': reasons[:3],
+            'targets': len(targets), 'out_of_reach': out_of_reach, 'refused': len(reasons),
+            'reasons': reasons[:3],
             'max_mm': float(errors.max(initial=0)),
             'p95_mm': float(np.percentile(errors, 95)) if len(errors) else math.nan,
             'mean_mm': float(errors.mean()) if len(errors) else math.nan,
             'max_deg': float(max(angles, default=0.0)),
-            'max_data_distance': float(max(distances, default=0.0))}
+            'max_data_distance': float(max(distances, default=0.0)),
+            'max_std_mm': float(max(stds, default=0.0))}
 
 
 def _defaults(kind: str) -> dict:
@@ -87,7 +104,7 @@ def _defaults(kind: str) -> dict:
 def worst(rows: list[dict]) -> dict:
     return {key: max(r[key] for r in rows)
             for key in ('refused', 'max_mm', 'p95_mm', 'max_deg', 'max_data_distance',
-                        'train_s')}
+                        'max_std_mm', 'train_s', 'out_of_reach')}
 
 
 def main() -> None:
@@ -101,27 +118,30 @@ def main() -> None:
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
     learner = load_config('learner.yaml', node_name='flexarm_learner')
-    settings = load_config('compensator.yaml', node_name='flexarm_compensator')['compensation']
+    config = load_config('compensator.yaml', node_name='flexarm_compensator')
+    settings = config['compensation']
+    limits = DataLimits(config['max_data_distance'], config['max_prediction_std'])
     if args.method:
         settings = {**settings, 'method': args.method}
     world = World()
     compensator = Compensator(world.geometry, settings)
     kind = args.kind or learner['default_kind']
     rows = []
-    print('region seed outlier  train s  refused  max mm   p95 mm  mean mm  max deg  '
-          'data dist  excluded')
+    print('region seed outlier  train s  out of reach  refused  max mm   p95 mm  mean mm  '
+          'max deg  data dist  std mm  excluded  chosen')
     for outlier in (False, True):
         for region in args.regions.split(','):
             for seed in range(args.seeds):
                 targets = random_targets(world.geometry, world.regions[region], args.targets,
                                          TARGET_SEED + seed)
-                r = run(world, compensator, learner, region, seed, args.samples, targets,
-                        kind, outlier)
+                r = run(world, compensator, limits, learner, region, seed, args.samples,
+                        targets, kind, outlier)
                 rows.append(r)
                 print(f"{region:>6} {seed:4d} {str(outlier):>7} {r['train_s']:8.2f} "
-                      f"{r['refused']:8d} {r['max_mm']:7.3f} {r['p95_mm']:8.3f} "
-                      f"{r['mean_mm']:8.3f} {r['max_deg']:8.4f} {r['max_data_distance']:10.2f}"
-                      f"  {r['excluded']} {r['selected']}", flush=True)
+                      f"{r['out_of_reach']:13d} {r['refused']:8d} {r['max_mm']:7.3f} "
+                      f"{r['p95_mm']:8.3f} {r['mean_mm']:8.3f} {r['max_deg']:8.4f} "
+                      f"{r['max_data_distance']:10.2f} {r['max_std_mm']:7.3f}  {r['excluded']} "
+                      f"{r['selected']}", flush=True)
                 for reason in r['reasons']:
                     print(f'        refused: {reason}')
     clean = worst([r for r in rows if not r['outlier']])

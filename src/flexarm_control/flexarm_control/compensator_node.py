@@ -6,10 +6,10 @@ the target from the measured error until within tolerance (beyond the paper). Wh
 goal runs — PREDICTIVE refused beyond the learned data (``OUTSIDE_LEARNED_DATA``, or run with
 a warning if the goal allows extrapolation), CLOSED_LOOP started from the rigid plan without a
 usable model — is :mod:`flexarm_control.planning`; every result, feedback and
-``/compensator/outcomes`` message carries the plan's distance from the learned data. The
-algorithm lives in :mod:`flexarm_control.compensator`; this node validates goals, moves the
-arm through :class:`~flexarm_control.arm_interface.ArmInterface`, reports feedback and
-results, and hot-reloads the predictor the learner announces on ``/learner/model`` and
+``/compensator/outcomes`` message carries the plan's distance from the learned data and the
+model's std there. The algorithm lives in :mod:`flexarm_control.compensator`; this node
+validates goals, moves the arm through :class:`~flexarm_control.arm_interface.ArmInterface`,
+reports feedback and results, and hot-reloads the predictor the learner announces on ``/learner/model`` and
 republishes the one it uses on the latched ``/compensator/active_model``.
 
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
@@ -45,7 +45,7 @@ from flexarm_control.compensator import Compensator, Plan
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.planning import MODES, Refusal, plan_goal
+from flexarm_control.planning import MODES, DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose
@@ -99,9 +99,11 @@ class CompensatorNode(Node):
                                'valid settled tip poses averaged per measurement')
         self._measure_timeout = declare(self, 'measurement_timeout', 30.0,
                                         '[s] wait for a valid settled measurement after a move')
-        self._max_distance = declare(
-            self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than this from '
-            'the learning samples [typical sample spacings]')
+        self._limits = DataLimits(
+            declare(self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than '
+                    'this from the learning samples [typical sample spacings]'),
+            declare(self, 'max_prediction_std', 0.3e-3, "[m] PREDICTIVE refuses joints where "
+                    "the model's std of the predicted tip position exceeds this"))
         model_path = declare(self, 'model_path', '',
                              'predictor loaded at start ("" = wait for /learner/model)')
 
@@ -188,10 +190,10 @@ class CompensatorNode(Node):
         ang_tol = goal.angle_tolerance or self._ang_tol
         max_iter = goal.max_iterations or self._max_iter
 
-        self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, 0.0)
+        self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         try:
             planned = plan_goal(self._compensator, MODES[goal.mode], target, predictor,
-                                self._max_distance, goal.allow_extrapolation)
+                                self._limits, goal.allow_extrapolation)
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
@@ -201,13 +203,14 @@ class CompensatorNode(Node):
             self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: {planned.note}')
         result.error_string = planned.note
         result.data_distance = planned.data_distance
+        result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations
         result.predicted_deflection = planar(plan.predicted_deflection)
 
         iteration = 0
         while True:
             iteration += 1
-            outcome = self._move_and_measure(handle, plan, iteration, planned.data_distance)
+            outcome = self._move_and_measure(handle, plan, iteration, planned)
             result.iterations = iteration
             result.joint_positions = plan.joints.tolist()
             result.commanded_pose = planar(plan.commanded_pose)
@@ -217,6 +220,7 @@ class CompensatorNode(Node):
                 outcome.predicted_deflection = result.predicted_deflection
                 outcome.compensation_iterations = result.compensation_iterations
                 outcome.data_distance = result.data_distance
+                outcome.prediction_std = result.prediction_std
                 return outcome
             if outcome is None:
                 if goal.mode == Goal.MODE_CLOSED_LOOP:
@@ -242,9 +246,9 @@ class CompensatorNode(Node):
                 return fail(Result.UNREACHABLE, f'correction: {exc}')
 
     def _move_and_measure(self, handle: ServerGoalHandle, plan: Plan, iteration: int,
-                          distance: float):
+                          planned: Planned):
         """Move to the plan; the measured pose, None if unmeasured, or a failure Result."""
-        self._feedback(handle, iteration, Feedback.PHASE_MOVING, plan.commanded_pose, distance)
+        self._feedback(handle, iteration, Feedback.PHASE_MOVING, plan.commanded_pose, planned)
         current = self._arm.joints.positions
         travel = np.max(np.abs(plan.joints - current) / self._geometry.velocity)
         arrived = self._arm.move(plan.joints, self._joint_tol, travel + self._move_margin,
@@ -258,7 +262,7 @@ class CompensatorNode(Node):
                           error_string=f'joints did not reach the command within '
                                        f'{travel + self._move_margin:.0f} s')
         self._feedback(handle, iteration, Feedback.PHASE_SETTLING, plan.commanded_pose,
-                       distance)
+                       planned)
         measurement = self._arm.measure(self._frames, self._measure_timeout,
                                         abort=lambda: handle.is_cancel_requested)
         if handle.is_cancel_requested:
@@ -266,14 +270,15 @@ class CompensatorNode(Node):
         if measurement is None:
             return None
         self._feedback(handle, iteration, Feedback.PHASE_MEASURING, plan.commanded_pose,
-                       distance, measurement.pose, handle.request)
+                       planned, measurement.pose, handle.request)
         return measurement.pose
 
     def _feedback(self, handle: ServerGoalHandle, iteration: int, phase: str,
-                  commanded: np.ndarray, distance: float, measured: np.ndarray | None = None,
-                  goal: Goal | None = None) -> None:
-        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded),
-                      data_distance=distance)
+                  commanded: np.ndarray, planned: Planned | None,
+                  measured: np.ndarray | None = None, goal: Goal | None = None) -> None:
+        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
+        if planned is not None:
+            fb.data_distance, fb.prediction_std = planned.data_distance, planned.prediction_std
         if measured is not None and goal is not None:
             fb.measured, fb.measured_pose = True, planar(measured)
             fb.position_error, fb.angle_error = pose_error(
@@ -289,7 +294,7 @@ class CompensatorNode(Node):
             measured_pose=result.measured_pose, measured=result.measured,
             position_error=result.position_error, angle_error=result.angle_error,
             iterations=result.iterations, data_distance=result.data_distance,
-            error_code=result.error_code, error_string=result.error_string))
+            prediction_std=result.prediction_std, error_code=result.error_code, error_string=result.error_string))
 
 
 def main(args: list[str] | None = None) -> None:

@@ -2,13 +2,17 @@
 goal runs, and when the model is not trusted.
 
 * RIGID: the rigid inverse kinematics.
-* PREDICTIVE: the compensated plan (:meth:`Compensator.predictive`). Refused with
-  ``OUTSIDE_LEARNED_DATA`` when the joints to command lie farther than ``max_distance`` typical
-  sample spacings from the model's learning samples
-  (:meth:`~flexarm_control.predictors.Predictor.data_distance`) — the prediction there is a
-  guess, and a guess can miss by millimetres — unless the goal allows extrapolation, which
-  runs it with a warning. A plan the solver cannot find is refused as ``OUTSIDE_LEARNED_DATA``
-  when the target itself lies beyond the data (the likely cause), else ``UNREACHABLE``.
+* PREDICTIVE: the compensated plan (:meth:`Compensator.predictive`), refused with
+  ``OUTSIDE_LEARNED_DATA`` when the joints to command lie beyond the learned data — farther
+  than ``max_distance`` typical sample spacings from the model's learning samples
+  (:meth:`~flexarm_control.predictors.Predictor.data_distance`, any kind), or where the model's
+  own standard deviation of the predicted tip position exceeds ``max_std``
+  (:meth:`~flexarm_control.predictors.Predictor.position_std`, the GP) — unless the goal allows
+  extrapolation, which runs it with a warning. Both are needed: a target 100 mm and 10° outside
+  region B lies only ~1.3 spacings from the region's samples (inside ones reach ~2), yet the GP
+  misses it by 1 mm there, and its std says so (0.3 mm, against ≤ 0.14 mm inside). A plan the
+  solver cannot find is refused as ``OUTSIDE_LEARNED_DATA`` when the target itself lies beyond
+  the data (the likely cause), else ``UNREACHABLE``.
 * CLOSED_LOOP: the PREDICTIVE plan when there is one to trust; without a model, when the
   prediction cannot be planned or lies beyond the learned data, it starts from the rigid
   plan — it measures the tip and corrects, so it needs no model to converge, only more moves.
@@ -30,9 +34,16 @@ MODES = ('rigid', 'predictive', 'closed_loop')
 
 
 @dataclass(frozen=True)
+class DataLimits:
+    max_distance: float    # [typical sample spacings]
+    max_std: float         # [m] of the predicted tip position
+
+
+@dataclass(frozen=True)
 class Planned:
     plan: Plan
     data_distance: float   # of plan.joints from the learned data (0 when no model is used)
+    prediction_std: float  # [m] the model's std of the predicted tip position there
     note: str              # warning or fallback for the operator ('' if none)
 
 
@@ -42,18 +53,33 @@ class Refusal:
     reason: str
 
 
+def beyond_data(predictor: Predictor, joints: np.ndarray, limits: DataLimits
+                ) -> tuple[float, float, str]:
+    """(data distance, position std [m], why ``joints`` lie beyond the data or '')."""
+    distance = predictor.data_distance(joints)
+    std = predictor.position_std(joints)
+    why = []
+    if distance > limits.max_distance:
+        why.append(f'{distance:.2f} sample spacings from the learning samples (limit '
+                   f'{limits.max_distance:g})')
+    if std > limits.max_std:
+        why.append(f'the model is unsure there (std {std * 1e3:.3f} mm, limit '
+                   f'{limits.max_std * 1e3:g} mm)')
+    return distance, std, ' and '.join(why)
+
+
 def plan_goal(compensator: Compensator, mode: str, target: np.ndarray,
-              predictor: Predictor | None, max_distance: float,
+              predictor: Predictor | None, limits: DataLimits,
               allow_extrapolation: bool = False) -> Planned | Refusal:
     """The plan for a goal in ``mode`` (module docstring), or why it is refused."""
     if mode not in MODES:
         raise ValueError(f'unknown mode {mode!r}')
     if mode == 'rigid':
-        return Planned(compensator.rigid(target), 0.0, '')
+        return Planned(compensator.rigid(target), 0.0, 0.0, '')
     closed = mode == 'closed_loop'
 
-    def rigid_start(why: str, distance: float = 0.0) -> Planned:
-        return Planned(compensator.rigid(target), distance,
+    def rigid_start(why: str, distance: float = 0.0, std: float = 0.0) -> Planned:
+        return Planned(compensator.rigid(target), distance, std,
                        f'{why}: CLOSED_LOOP started from the rigid solution')
 
     if predictor is None:
@@ -62,22 +88,22 @@ def plan_goal(compensator: Compensator, mode: str, target: np.ndarray,
     try:
         plan = compensator.predictive(target, predictor.predict)
     except CompensationError as exc:
-        distance = predictor.data_distance(inverse(compensator.geometry, target))
+        distance, std, why = beyond_data(
+            predictor, inverse(compensator.geometry, target), limits)
         if closed:
-            return rigid_start(f'prediction failed ({exc})', distance)
-        if distance > max_distance:
-            return Refusal('outside_learned_data', f'{exc}; the target lies {distance:.1f} '
-                           f'sample spacings from the learned data (limit {max_distance:g})')
+            return rigid_start(f'prediction failed ({exc})', distance, std)
+        if why:
+            return Refusal('outside_learned_data', f'{exc}; the target lies beyond the '
+                           f'learned data: {why}')
         return Refusal('unreachable', str(exc))
-    distance = predictor.data_distance(plan.joints)
-    if distance <= max_distance:
-        return Planned(plan, distance, '')
-    beyond = (f'the joints to command lie {distance:.2f} sample spacings from the learned '
-              f'data (limit {max_distance:g})')
+    distance, std, why = beyond_data(predictor, plan.joints, limits)
+    if not why:
+        return Planned(plan, distance, std, '')
+    beyond = f'the joints to command lie beyond the learned data: {why}'
     if allow_extrapolation:
-        return Planned(plan, distance, f'warning: {beyond}; extrapolated, the prediction may '
-                                       'be wrong there')
+        return Planned(plan, distance, std, f'warning: {beyond}; extrapolated, the prediction '
+                                            'may be wrong there')
     if closed:
-        return rigid_start(beyond, distance)
-    return Refusal('outside_learned_data', f'{beyond}: collect samples there, or allow '
+        return rigid_start(beyond, distance, std)
+    return Refusal('outside_learned_data', f'{beyond}; collect samples there, or allow '
                                            'extrapolation')

@@ -215,3 +215,58 @@ def test_bad_data(kind: str) -> None:
     with pytest.raises(ValueError, match='NaN'):
         model.fit(joints, deflections)
     assert not model.fitted
+
+
+@pytest.mark.parametrize('kind', KINDS)
+def test_data_distance_grows_outside_the_learned_data(fitted: dict[str, Predictor],
+                                                      kind: str, tmp_path: Path) -> None:
+    model = fitted[kind]
+    inside = model.data_distance(random_joints(200, seed=20))
+    assert inside.shape == (200,) and inside.max() < 3.0
+    training = random_joints(60, seed=1)
+    assert model.data_distance(training[5]) == pytest.approx(0.0, abs=1e-9)
+    outside = UPPER + 0.5 * (UPPER - LOWER)           # half the box beyond every upper limit
+    assert model.data_distance(outside) > 3 * inside.max()
+    model.save(tmp_path / 'm.npz')
+    assert load_predictor(tmp_path / 'm.npz').data_distance(outside) == pytest.approx(
+        model.data_distance(outside))
+
+
+def test_a_change_of_an_input_constant_in_training_is_far_from_the_data() -> None:
+    joints = random_joints(40, seed=8)
+    joints[:, 1] = 0.6
+    model = make_predictor('rbf').fit(joints, sag(joints))
+    moved = joints[3] + np.array([0.0, 0.01, 0.0, 0.0])       # 10 mm longer No.2 arm
+    assert model.data_distance(joints[3]) == pytest.approx(0.0, abs=1e-9)
+    assert model.data_distance(moved) > 5.0
+
+
+def test_only_the_gp_knows_its_position_std(fitted: dict[str, Predictor]) -> None:
+    inside, far = random_joints(50, seed=21), UPPER + (UPPER - LOWER)
+    gp = fitted['gp']
+    assert gp.position_std(inside).max() < 0.3 * gp.position_std(far)
+    std = gp.predict_std(far)
+    assert gp.position_std(far) == pytest.approx(np.hypot(std[0], std[1]))
+    for kind in ('mlp', 'rbf'):
+        assert fitted[kind].position_std(far) == 0.0
+        assert not fitted[kind].position_std(inside).any()
+
+
+def test_the_model_sees_link_angles() -> None:
+    joints = np.array([[0.1, 0.6, -0.3, 0.5]])
+    np.testing.assert_allclose(base.model_inputs(joints), [[0.1, 0.6, -0.2, 0.3]])
+
+
+def test_a_model_of_an_older_format_is_refused(fitted: dict[str, Predictor],
+                                              tmp_path: Path) -> None:
+    import json
+
+    path = tmp_path / 'old.npz'
+    fitted['rbf'].save(path)
+    with np.load(path) as archive:
+        arrays = dict(archive)
+    metadata = json.loads(str(arrays.pop('metadata')))
+    metadata['format'] = 1
+    np.savez(path, metadata=np.array(json.dumps(metadata)), **arrays)
+    with pytest.raises(ValueError, match='model format 1.*train a new one'):
+        load_predictor(path)

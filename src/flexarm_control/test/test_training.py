@@ -1,6 +1,7 @@
 """Training with cross-validation: metrics, the final model's metadata, bad input."""
 from __future__ import annotations
 
+import json
 import os
 import time
 from pathlib import Path
@@ -170,3 +171,54 @@ def test_bad_data_and_kind() -> None:
         train('forest', None, as_dataset(*plant_like(20, seed=4)))
     with pytest.raises(ValueError, match='unknown rbf settings'):
         train('rbf', {'hidden': [3]}, as_dataset(*plant_like(20, seed=4)))
+
+
+def test_a_bad_sample_is_screened_out_and_reported() -> None:
+    joints, deflections = plant_like(40, seed=6)
+    bad = deflections.copy()
+    bad[7, :2] += [0.006, -0.008]                               # 10 mm off
+    clean_model, clean = training.fit_robust('rbf', None, joints, deflections)
+    assert clean.excluded_samples == () and clean.samples == 40
+    model, metrics = training.fit_robust('rbf', None, joints, bad)
+    assert metrics.excluded_samples == (7,) and metrics.samples == 39
+    query = plant_like(200, seed=7)[0]
+    truth = plant_like(200, seed=7)[1]
+    worst = np.abs(model.predict(query) - truth)[:, :2].max()
+    assert worst < 2 * np.abs(clean_model.predict(query) - truth)[:, :2].max()
+    assert model.metadata['samples'] == 39
+
+
+def test_no_more_than_the_allowed_share_is_excluded() -> None:
+    joints, deflections = plant_like(40, seed=6)
+    deflections[[7, 20], :2] += [[0.006, -0.008], [-0.008, 0.006]]
+    _, both = training.fit_robust('rbf', None, joints, deflections)
+    assert both.excluded_samples == (7, 20)
+    _, one = training.fit_robust('rbf', None, joints, deflections,
+                                 screening=training.Screening(max_outlier_fraction=0.03))
+    assert len(one.excluded_samples) == 1 and one.excluded_samples[0] in (7, 20)
+
+
+def test_settings_not_given_are_chosen_by_validation() -> None:
+    assert training.candidates('gp', {'kernel': 'matern32'}) == [{'kernel': 'matern32'}]
+    options = training.candidates('mlp', {'hidden': [5]})
+    assert [o['weight_decay'] for o in options] == [1e-5, 1e-4, 1e-3]
+    assert all(o['hidden'] == [5] for o in options)
+    joints, deflections = plant_like(30, seed=2)
+    _, chosen = training.fit_robust('rbf', None, joints, deflections)
+    assert json.loads(chosen.selected_settings)['smoothing'] in (1e-4, 1e-3, 1e-2)
+    _, fixed = training.fit_robust('rbf', {'smoothing': 1e-3}, joints, deflections)
+    assert fixed.selected_settings == '{}'
+
+
+def test_a_model_the_compensator_could_not_solve_with_is_refused() -> None:
+    from flexarm_control.kinematics import ArmGeometry
+    from flexarm_control.params import load_config
+
+    geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
+    joints, deflections = plant_like(30, seed=2)
+    _, metrics = training.fit_robust('rbf', None, joints, deflections, geometry=geometry)
+    assert 0 < metrics.max_slope < 0.5
+    strict = training.Screening(max_slope=metrics.max_slope / 100)
+    with pytest.raises(ValueError, match='too fast for the compensator'):
+        training.fit_robust('rbf', None, joints, deflections, geometry=geometry,
+                            screening=strict)

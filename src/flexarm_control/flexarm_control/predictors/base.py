@@ -217,6 +217,13 @@ class Predictor(ABC):
         y = normalisation.outputs_back(self._predict_normalised(normalisation.inputs(x)))
         return y[0] if single else y
 
+    def position_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                     ) -> np.ndarray | float:
+        """Standard deviation [m] of the predicted tip position at joints (4,) or (M, 4) for
+        kinds with a posterior (the GP); 0 for the others, which have none."""
+        x, single = self._inputs(joints, payload)
+        return 0.0 if single else np.zeros(len(x))
+
     def save(self, path: str | Path) -> None:
         """Write the fitted model to ``path`` atomically (format: module docstring)."""
         self._require_fitted()

@@ -86,6 +86,12 @@ class GpPredictor(Predictor):
         std = std * normalisation.output_std
         return std[0] if single else std
 
+    def position_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                     ) -> np.ndarray | float:
+        std = np.asarray(self.predict_std(joints, payload))
+        position = np.hypot(std[..., 0], std[..., 1])
+        return float(position) if position.ndim == 0 else position
+
     def _state(self) -> dict[str, np.ndarray]:
         return {'x': self._x, 'y': self._y,
                 'theta': np.stack([gp.kernel_.theta for gp in self._gps])}

@@ -1,0 +1,92 @@
+"""Goal planning policy: which plan a goal runs, refusals beyond the learned data, fallbacks."""
+import math
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+
+from flexarm_control.compensator import Compensator
+from flexarm_control.kinematics import ArmGeometry, forward
+from flexarm_control.params import load_config
+from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
+from flexarm_sim.plant import Plant
+
+TARGET = np.array([1.30, -0.20, math.radians(-61)])          # Table 10, B6
+LIMITS = DataLimits(max_distance=3.0, max_std=0.3e-3)
+
+
+@pytest.fixture(scope='module')
+def world():
+    config = load_config('arm.yaml', 'sim.yaml', 'compensator.yaml',
+                         node_name='flexarm_compensator')
+    geometry = ArmGeometry.from_dict(config['arm'])
+    return Compensator(geometry, config['compensation']), Plant.from_dict(config['plant'],
+                                                                          geometry)
+
+
+def model(plant: Plant, distance: float = 0.5, std: float = 0.0, predict=None):
+    """A stand-in predictor: the plant's deflection, a fixed distance and std."""
+    return SimpleNamespace(predict=predict or plant.deflection,
+                           data_distance=lambda q: distance, position_std=lambda q: std)
+
+
+def test_rigid_uses_no_model(world):
+    compensator, _ = world
+    planned = plan_goal(compensator, 'rigid', TARGET, None, LIMITS)
+    assert isinstance(planned, Planned) and planned.plan.iterations == 0
+    assert planned.data_distance == 0 and not planned.note
+
+
+def test_predictive_inside_the_data_runs_without_a_note(world):
+    compensator, plant = world
+    planned = plan_goal(compensator, 'predictive', TARGET, model(plant, 0.7, 1e-4), LIMITS)
+    assert isinstance(planned, Planned) and not planned.note
+    assert planned.data_distance == 0.7 and planned.prediction_std == 1e-4
+    assert np.hypot(*(plant.pose(planned.plan.joints) - TARGET)[:2]) < 2e-6
+
+
+@pytest.mark.parametrize('distance, std, words', [
+    (5.0, 0.0, 'sample spacings'), (0.5, 0.6e-3, 'the model is unsure there')])
+def test_predictive_beyond_the_data_is_refused_unless_allowed(world, distance, std, words):
+    compensator, plant = world
+    predictor = model(plant, distance, std)
+    refused = plan_goal(compensator, 'predictive', TARGET, predictor, LIMITS)
+    assert isinstance(refused, Refusal) and refused.code == 'outside_learned_data'
+    assert words in refused.reason
+    allowed = plan_goal(compensator, 'predictive', TARGET, predictor, LIMITS,
+                        allow_extrapolation=True)
+    assert isinstance(allowed, Planned) and allowed.note.startswith('warning:')
+    assert allowed.plan.iterations >= 1
+    closed = plan_goal(compensator, 'closed_loop', TARGET, predictor, LIMITS)
+    assert isinstance(closed, Planned) and closed.plan.iterations == 0
+    assert 'started from the rigid solution' in closed.note
+
+
+def test_without_a_model_closed_loop_starts_from_the_rigid_plan(world):
+    compensator, _ = world
+    refused = plan_goal(compensator, 'predictive', TARGET, None, LIMITS)
+    assert isinstance(refused, Refusal) and refused.code == 'no_model'
+    closed = plan_goal(compensator, 'closed_loop', TARGET, None, LIMITS)
+    assert isinstance(closed, Planned) and closed.note.startswith('no trained model')
+    np.testing.assert_allclose(closed.plan.joints, compensator.rigid(TARGET).joints)
+
+
+@pytest.mark.parametrize('distance, code', [(0.5, 'unreachable'),
+                                            (5.0, 'outside_learned_data')])
+def test_a_plan_the_solver_cannot_find(world, distance, code):
+    compensator, plant = world
+    geometry = compensator.geometry
+    flat = lambda q: np.stack([0 * q[..., 0], -forward(geometry, q)[..., 1] - 0.3,  # noqa
+                               0 * q[..., 0]], axis=-1)
+    refused = plan_goal(compensator, 'predictive', TARGET, model(plant, distance, predict=flat),
+                        LIMITS)
+    assert isinstance(refused, Refusal) and refused.code == code
+    assert 'no solution' in refused.reason
+    closed = plan_goal(compensator, 'closed_loop', TARGET, model(plant, distance, predict=flat),
+                       LIMITS)
+    assert isinstance(closed, Planned) and closed.note.startswith('prediction failed')
+
+
+def test_unknown_mode(world):
+    with pytest.raises(ValueError, match='unknown mode'):
+        plan_goal(world[0], 'teleport', TARGET, None, LIMITS)

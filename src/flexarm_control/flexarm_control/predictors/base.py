@@ -133,6 +133,9 @@ class Predictor(ABC):
     # Settings that training chooses by cross-validation, with the values to try (from the
     # least to the most regularised), unless the user sets them.
     cv_choices: ClassVar[dict[str, list[Any]]] = {}
+    # Settings the cross-validation fits take instead of the defaults (cheaper; the final fit
+    # keeps the defaults), unless the user sets them.
+    cv_overrides: ClassVar[dict[str, Any]] = {}
 
     def __init__(self, settings: Mapping[str, Any] | None = None) -> None:
         given = dict(settings or {})

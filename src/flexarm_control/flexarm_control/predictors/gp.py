@@ -2,7 +2,9 @@
 
 Kernel (``kernel``): constant × (RBF, Matérn ν = 5/2 or 3/2, or RBF + a smaller Matérn 3/2
 part) with one length scale per input (ARD) + white noise, on normalised inputs and outputs;
-hyperparameters by maximum marginal likelihood with ``restarts`` random restarts (seeded).
+hyperparameters by maximum marginal likelihood with ``restarts`` random restarts (seeded; 4,
+and 1 in the cross-validation fits: the RBF + Matérn sum has local optima, and on region B
+seed 0 four restarts took the 95th-percentile miss from 0.22 to 0.04 mm).
 The kernel's form is not a hyperparameter of the likelihood: training chooses it by
 cross-validation (``cv_choices``). The rougher kernels suit a deflection with a sharp
 feature — the backlash of joint4 flips where link 4 hangs vertical, inside region B — that
@@ -35,8 +37,9 @@ class GpPredictor(Predictor):
     kind: ClassVar[str] = 'gp'
     defaults: ClassVar[dict[str, Any]] = {
         'length_scale_bounds': [1e-2, 1e3], 'noise_level': 1e-4, 'noise_bounds': [1e-6, 1e-1],
-        'restarts': 1, 'seed': 0, 'payload_input': False, 'kernel': 'rbf'}
+        'restarts': 4, 'seed': 0, 'payload_input': False, 'kernel': 'rbf'}
     cv_choices: ClassVar[dict[str, list[Any]]] = {'kernel': list(KERNELS)}
+    cv_overrides: ClassVar[dict[str, Any]] = {'restarts': 1}
 
     def _check_settings(self) -> None:
         s = self.settings

@@ -29,7 +29,8 @@ MCAP_MAGIC = b'\x89MCAP0\r\n'
 MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_')
               for name in dir(MoveToPose.Goal) if name.startswith('MODE_')}
 CSV_FIELDS = (
-    'trial', 'mode', 'error_code', 'iterations', 'stamp_s',
+    'trial', 'mode', 'error_code', 'iterations', 'stamp_s', 'data_distance',
+    'prediction_std_mm',
     'target_x_mm', 'target_y_mm', 'target_phi_deg',
     'measured', 'measured_x_mm', 'measured_y_mm', 'measured_phi_deg',
     'measured_position_error_mm', 'measured_angle_error_deg',
@@ -183,6 +184,8 @@ def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any]) -> list[dict[str,
             'error_code': outcome.error_code,
             'iterations': outcome.iterations,
             'stamp_s': stamp * 1e-9,
+            'data_distance': outcome.data_distance,
+            'prediction_std_mm': outcome.prediction_std * 1e3,
             'target_x_mm': target.x * 1e3, 'target_y_mm': target.y * 1e3,
             'target_phi_deg': math.degrees(target.phi),
             'measured': outcome.measured,

@@ -37,6 +37,8 @@ class Trial:
     angle_error: float | None     # [rad]
     iterations: int
     compensation_iterations: int
+    data_distance: float          # of the commanded joints from the learned data [spacings]
+    prediction_std: float         # the model's std of the predicted tip position [m]
     seconds: float                # wall time of the goal
 
     def as_dict(self) -> dict:
@@ -88,6 +90,7 @@ def run_trials(client: FlexarmClient, truth: TruthMonitor,
                 position_error=position_error, angle_error=angle_error,
                 iterations=result.iterations,
                 compensation_iterations=result.compensation_iterations,
+                data_distance=result.data_distance, prediction_std=result.prediction_std,
                 seconds=time.monotonic() - start)
             trials.append(trial)
             on_trial(trial)

@@ -67,8 +67,8 @@ def deflection_slope(geometry: ArmGeometry, predict: Predict, joints: np.ndarray
 
 
 class CompensationError(UnreachableError):
-    """The compensated target cannot be reached or the fixed-point iteration diverges or
-    does not converge."""
+    """The compensated target cannot be reached, or the solver finds no fixed point (it
+    diverges, does not converge, or the predicted deflection cancels the motion)."""
 
 
 @dataclass(frozen=True)

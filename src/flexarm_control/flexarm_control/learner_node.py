@@ -13,10 +13,10 @@ the region's edge are commanded. Training (in a worker process, :mod:`flexarm_co
 chooses the model's settings by cross-validation, screens out outlier samples (listed in the
 response's metrics and logged), checks that the compensator can solve with the model, writes
 it atomically and announces it on the latched ``/learner/model``; on any failure the previous
-model stays active. The
-current model is also remembered in ``<model_directory>/current.json`` and re-announced when
-the learner restarts (:mod:`flexarm_control.model_store`: a damaged record is reported, not
-announced, and never makes a new model overwrite an old one).
+model stays active. The current model is also remembered in
+``<model_directory>/current.json`` and re-announced when the learner restarts
+(:mod:`flexarm_control.model_store`: a damaged record is reported, not announced, and never
+makes a new model overwrite an old one).
 
 Policy: one collection at a time; a collection goal arriving while another runs is rejected
 (one that wins the race past that check is aborted with FAILED, "busy"). A training request
@@ -220,11 +220,12 @@ class LearnerNode(Node):
         if reason is not None:
             result.error_code, result.error_string = Result.INVALID_GOAL, reason
             return
-        region = self._regions[goal.region or self._default_region]
-        _, plan = sample_poses(self._geometry, region.grown(self._coverage), goal.count,
+        region = self._regions[goal.region or self._default_region].grown(self._coverage)
+        _, plan = sample_poses(self._geometry, region, goal.count,
                                goal.strategy or self._default_strategy, goal.seed)
         plan = plan[travel_order(plan, self._arm.joints.positions, self._geometry.velocity)]
         self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
+                               ' (grown by the coverage margin)'
                                f' into {path}')
         with DatasetWriter(path) as writer:
             for k, joints in enumerate(plan, start=1):

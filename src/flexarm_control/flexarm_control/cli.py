@@ -85,11 +85,14 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'position_error': result.position_error, 'angle_error': result.angle_error,
            'iterations': result.iterations,
            'compensation_iterations': result.compensation_iterations,
-           'data_distance': result.data_distance}
+           'data_distance': result.data_distance, 'prediction_std': result.prediction_std}
+    learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
+               f'std {mm(result.prediction_std):.3f} mm'
+               if result.data_distance or result.prediction_std else '')
     if out['ok']:
         print(f'reached in {result.iterations} move(s)' + (
             f': error {mm(result.position_error):.3f} mm, {deg(result.angle_error):.4f} deg'
-            if result.measured else ' (no measurement)')
+            if result.measured else ' (no measurement)') + learned
             + (f'; {result.error_string}' if result.error_string else ''))
     else:
         print(f'failed ({result.error_code}): {result.error_string}')

@@ -96,3 +96,25 @@ def _wait_for(condition: Callable[[], Any], timeout: float, what: str) -> Any:
             return value
         time.sleep(0.02)
     pytest.fail(f'timed out after {timeout:.1f} s waiting for {what}')
+
+
+@pytest.fixture
+def write_dataset() -> Callable[..., None]:
+    """``write_dataset(path, count=12, bad=None)``: a dataset file of a smooth deflection at
+    ``count`` random joints; sample ``bad`` is 10 mm off."""
+    return _write_dataset
+
+
+def _write_dataset(path: Path, count: int = 12, bad: int | None = None) -> None:
+    import numpy as np
+
+    from flexarm_control.dataset import DatasetWriter, Sample
+
+    joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
+                                               (count, 4))
+    with DatasetWriter(path) as writer:
+        for i, q in enumerate(joints):
+            deflection = np.array([1e-3 * q[0], -0.01 * q[1], 1e-3 * q[3]])
+            if i == bad:
+                deflection[:2] += [0.006, -0.008]
+            writer.append(Sample(i, q, 0.0, np.zeros(3), deflection, deflection, 6, 1e-5))

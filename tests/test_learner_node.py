@@ -10,7 +10,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
-from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
+from flexarm_control.dataset import load_dataset
 from flexarm_control.predictors import load_predictor
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
@@ -98,20 +98,8 @@ def test_cancel_keeps_every_collected_sample(learner):
     assert len(load_dataset(result.dataset_path)) == result.collected == result.total
 
 
-def write_dataset(path, count: int = 12, bad: int | None = None) -> None:
-    """A smooth deflection at ``count`` random joints; sample ``bad`` is 10 mm off."""
-    joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
-                                               (count, 4))
-    with DatasetWriter(path) as writer:
-        for i, q in enumerate(joints):
-            deflection = np.array([1e-3 * q[0], -0.01 * q[1], 1e-3 * q[3]])
-            if i == bad:
-                deflection[:2] += [0.006, -0.008]
-            writer.append(Sample(i, q, 0.0, np.zeros(3), deflection, deflection, 6, 1e-5))
-
-
 @pytest.fixture
-def bare_learner(launch, domain_id, tmp_path):
+def bare_learner(launch, domain_id, tmp_path, write_dataset):
     """Simulator and learner only (no camera: a collection waits for tip poses), datasets
     ``good`` and ``no_version`` (header without a version), a model directory whose
     ``current.json`` is damaged beside a model file v3, and two clients."""
@@ -138,7 +126,8 @@ def bare_learner(launch, domain_id, tmp_path):
             rclpy.try_shutdown(context=context)
 
 
-def test_damaged_files_or_outside_name_are_refused_and_the_learner_serves_on(bare_learner):
+def test_damaged_files_or_outside_name_are_refused_and_the_learner_serves_on(bare_learner,
+                                                                          write_dataset):
     (client, _), tmp = bare_learner
     result = client.collect(3, dataset='no_version', timeout=30)
     assert result.error_code == CollectSamples.Result.INVALID_GOAL
@@ -173,7 +162,7 @@ def test_training_is_refused_while_a_collection_runs(bare_learner):
     assert outcome['result'].error_code == CollectSamples.Result.CANCELED
 
 
-def test_an_outlier_is_excluded_and_reported(bare_learner):
+def test_an_outlier_is_excluded_and_reported(bare_learner, write_dataset):
     (client, _), tmp = bare_learner
     write_dataset(tmp / 'data' / 'outlier.jsonl', count=30, bad=11)
     trained = client.train('', dataset='outlier', timeout=120)      # the learner's default

@@ -8,7 +8,6 @@ session, so that only the supervisor decides when it gets a signal.
 from __future__ import annotations
 
 import contextlib
-import ctypes
 import os
 import signal
 import subprocess
@@ -23,14 +22,11 @@ from typing import IO, Any
 import yaml
 
 from flexarm_control.params import config_path
+from flexarm_control.parent_death import signal_on_parent_death
 
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
 # that inherits it would skip its own re-exec and fail to import rclpy.
 _BOOTSTRAP_GUARD = '_ROS_WHEELS_BOOTSTRAP_COMPLETE'
-_PR_SET_PDEATHSIG = 1
-# Looked up now: between fork and exec the child must not dlopen (another thread may hold
-# the loader's lock).
-_prctl = ctypes.CDLL(None, use_errno=True).prctl
 
 
 @dataclass(frozen=True)
@@ -159,7 +155,7 @@ def _terminate_with_parent() -> None:
     sends the signal when the starting *thread* ends, so nodes are started from threads that
     live as long as the graph (the main thread, or a watchdog that ends with the graph).
     """
-    _prctl(_PR_SET_PDEATHSIG, int(signal.SIGTERM), 0, 0, 0)
+    signal_on_parent_death(signal.SIGTERM)
 
 
 @contextlib.contextmanager

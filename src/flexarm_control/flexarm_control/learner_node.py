@@ -18,13 +18,15 @@ model stays active. The current model is also remembered in
 (:mod:`flexarm_control.model_store`: a damaged record is reported, not announced, and never
 makes a new model overwrite an old one).
 
-Policy: one collection at a time; a collection goal arriving while another runs is rejected
-(one that wins the race past that check is aborted with FAILED, "busy"). A training request
-while a collection runs is refused (it would slow the collection down; train on the finished
-dataset), as is one while a timed-out training job still occupies the worker. Every failure
-gives an error code or message; nothing escapes a callback. The executor has
-``EXECUTOR_THREADS`` threads, so a running collection and a training request (each holding one
-thread while it waits) leave threads for the joint states, tip poses and cancel requests.
+A model the compensator cannot run (one that takes the payload as an input) is refused before
+training, so it never becomes current. Policy: one collection at a time; a collection goal
+arriving while another runs is rejected (one that wins the race past that check is aborted
+with FAILED, "busy"). A training request while a collection runs is refused (it would slow
+the collection down; train on the finished dataset), as is one while a timed-out training job
+still occupies the worker. Every failure gives an error code or message; nothing escapes a
+callback. The executor has ``EXECUTOR_THREADS`` threads, so a running collection and a
+training request (each holding one thread while it waits) leave threads for the joint
+states, tip poses and cancel requests.
 """
 from __future__ import annotations
 
@@ -51,7 +53,7 @@ from flexarm_control.model_store import DamagedRecord, next_version, read_curren
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.params import CONFIG_DIR
-from flexarm_control.predictors import KINDS
+from flexarm_control.predictors import KINDS, make_predictor
 from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
                                       travel_order)
 from flexarm_control.training import Metrics, Screening, TrainingWorker, train
@@ -302,6 +304,10 @@ class LearnerNode(Node):
             settings = json.loads(request.settings_json) if request.settings_json else {}
             if not isinstance(settings, dict):
                 raise ValueError('settings_json must be a JSON object')
+            if make_predictor(kind, settings).settings['payload_input']:
+                raise ValueError('the compensator cannot run a model that takes the payload as '
+                                 'an input (it does not know the payload yet); the current '
+                                 'model stays')
             if not path.exists():
                 raise ValueError(f'no dataset at {path}: collect samples first')
             metrics, samples_hash = self._trainer.run(

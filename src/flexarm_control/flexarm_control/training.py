@@ -32,6 +32,8 @@ from __future__ import annotations
 import itertools
 import json
 import multiprocessing
+import os
+import signal
 from collections.abc import Callable, Mapping
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
@@ -47,6 +49,7 @@ from sklearn.model_selection import GroupKFold
 from flexarm_control.compensator import deflection_slope
 from flexarm_control.dataset import Dataset
 from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.parent_death import signal_on_parent_death
 from flexarm_control.predictors import Predictor, make_predictor
 
 MIN_SAMPLES = 8
@@ -293,8 +296,20 @@ def train(kind: str, settings: Mapping[str, Any] | None, dataset: Dataset, folds
     return predictor, metrics
 
 
+def _worker_start(parent: int, initializer: Callable[[], None] | None) -> None:
+    """Worker process start: die with the process that started it (a learner killed with
+    SIGKILL would otherwise leave its worker running, reparented to init), then
+    ``initializer``."""
+    signal_on_parent_death(signal.SIGKILL)
+    if os.getppid() != parent:      # the parent died before the line above
+        os._exit(1)
+    if initializer is not None:
+        initializer()
+
+
 class TrainingWorker:
-    """Runs training jobs one at a time in a worker process (``spawn``) of its own.
+    """Runs training jobs one at a time in a worker process (``spawn``) of its own, which dies
+    with the process (the thread) that started it.
 
     A job that outlives its timeout cannot be stopped: it keeps the worker until it ends and
     :meth:`run` refuses new jobs until then. A worker that died (killed, out of memory) is
@@ -308,7 +323,8 @@ class TrainingWorker:
 
     def _start(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(max_workers=1, mp_context=multiprocessing.get_context('spawn'),
-                                   initializer=self._initializer)
+                                   initializer=_worker_start,
+                                   initargs=(os.getpid(), self._initializer))
 
     def run(self, job: Callable[..., Any], *args: Any, timeout: float) -> Any:
         """``job(*args)`` in the worker; its result, or its exception re-raised here.

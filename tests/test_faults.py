@@ -1,0 +1,80 @@
+"""Fault injection at node level: what a hostile but fair site does to the graph.
+
+Each test runs in a ROS domain of its own with bounded waits (conftest.py).
+"""
+import os
+import signal
+import time
+from pathlib import Path
+
+import pytest
+import rclpy
+from rclpy.context import Context
+
+from flexarm_control.client import FlexarmClient
+from flexarm_control.model_store import read_current
+
+pytestmark = pytest.mark.node
+
+
+def children(pid: int) -> set[int]:
+    """PIDs whose parent is ``pid`` (zombies excluded)."""
+    found = set()
+    for stat in Path('/proc').glob('[0-9]*/stat'):
+        try:
+            fields = stat.read_text().rsplit(')', 1)[1].split()
+        except OSError:
+            continue
+        if int(fields[1]) == pid and fields[0] != 'Z':
+            found.add(int(stat.parent.name))
+    return found
+
+
+def alive(pid: int) -> bool:
+    try:
+        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+    except OSError:
+        return False
+    return state != 'Z'
+
+
+@pytest.fixture
+def learner(launch, domain_id, tmp_path, write_dataset):
+    """Simulator and learner with a dataset ``good``; the learner's process and a client."""
+    data, models = tmp_path / 'data', tmp_path / 'models'
+    data.mkdir()
+    write_dataset(data / 'good.jsonl', count=20)
+    launch('flexarm_sim', real_time_factor=10.0)
+    node = launch('flexarm_learner', data_directory=str(data), model_directory=str(models))
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    client = FlexarmClient('test_client', context=context)
+    try:
+        client.wait_until_ready(timeout=30.0, compensator=False)
+        yield node, client, models
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_learner_killed_after_training_leaves_no_worker(learner, wait_for):
+    node, client, _ = learner
+    trained = client.train('rbf', dataset='good', timeout=60)
+    assert trained.success, trained.message
+    pid = node.process.pid
+    workers = children(pid)
+    assert workers, 'the training worker process was not found'
+    os.kill(pid, signal.SIGKILL)                  # the learner only, not its process group
+    wait_for(lambda: not any(alive(w) for w in workers), 5.0,
+             f'the learner\'s children {sorted(workers)} to die with it')
+
+
+def test_a_model_the_compensator_cannot_run_never_becomes_current(learner):
+    _, client, models = learner
+    good = client.train('rbf', dataset='good', timeout=60)
+    assert good.success, good.message
+    refused = client.train('mlp', {'hidden': [10], 'payload_input': True}, dataset='good',
+                           timeout=60)
+    assert not refused.success and 'payload' in refused.message, refused.message
+    time.sleep(0.5)
+    assert read_current(models)['version'] == good.model_version

@@ -5,7 +5,7 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.launcher import _lock_is_stale
+from flexarm_control.launcher import _lock_is_stale, _mapped_files
 from flexarm_control.supervisor import Graph
 
 pytestmark = pytest.mark.node
@@ -58,4 +58,7 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
     assert all(code == 0 for code in clean.values()), clean       # SIGINT: clean exits
     stale = [p for p in Path('/dev/shm').glob('fastrtps_*_el') if _lock_is_stale(p)]
     assert stale == []
+    mapped = _mapped_files(Path('/dev/shm'))           # vision's ports, killed with SIGKILL
+    assert [p.name for p in Path('/dev/shm').glob('fastrtps_port*') if str(p) not in mapped
+            and p.stat().st_uid == os.getuid()] == []
     assert (tmp_path / 'bags' / 'graph' / 'metadata.yaml').exists()

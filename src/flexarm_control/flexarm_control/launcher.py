@@ -207,7 +207,14 @@ def _stop_all(nodes: list[NodeProcess], timeout: float) -> dict[str, int | None]
 
 
 def remove_stale_shm(shm_dir: Path = Path('/dev/shm')) -> int:
-    """Remove Fast DDS shared-memory files whose owning process is gone; return how many."""
+    """Remove Fast DDS shared-memory files whose owning processes are gone; return how many.
+
+    Segments (``fastrtps_<id>`` with their ``_el`` lock file) are stale when no process holds
+    the lock. Ports (``fastrtps_port<N>`` with ``sem.fastrtps_port<N>_mutex``) are shared by
+    every participant that listens on them and have no lock: a port file of this user is stale
+    when no process maps it (``/proc/*/maps``; a process whose map cannot be read, such as a
+    container's init, is taken not to). A process that dies with SIGKILL leaves both kinds.
+    """
     removed = 0
     for lock in shm_dir.glob('fastrtps_*_el'):
         segment = lock.with_name(lock.name.removesuffix('_el'))
@@ -218,12 +225,41 @@ def remove_stale_shm(shm_dir: Path = Path('/dev/shm')) -> int:
                     removed += 1
                 except OSError:
                     pass
+    mapped = _mapped_files(shm_dir)
+    for port in shm_dir.glob('fastrtps_port*'):
+        try:
+            mine = port.stat().st_uid == os.getuid()
+        except OSError:
+            continue
+        if not mine or port.name.endswith('_el') or str(port) in mapped:
+            continue
+        for path in (port, shm_dir / f'sem.{port.name}_mutex'):
+            try:
+                path.unlink()
+                removed += 1
+            except OSError:
+                pass
     for mutex in shm_dir.glob('sem.fastrtps_port*_mutex'):
         port = mutex.name.removeprefix('sem.').removesuffix('_mutex')
         if not (shm_dir / port).exists():
             mutex.unlink(missing_ok=True)
             removed += 1
     return removed
+
+
+def _mapped_files(directory: Path) -> set[str]:
+    """Paths under ``directory`` that a process maps (of the processes whose map is readable)."""
+    prefix, mapped = f'{directory}/', set()
+    for maps in Path('/proc').glob('[0-9]*/maps'):
+        try:
+            text = maps.read_text()
+        except OSError:                  # ended meanwhile, or not ours to read
+            continue
+        for line in text.splitlines():
+            path = line.split(maxsplit=5)[-1] if line.count(' ') >= 5 else ''
+            if path.startswith(prefix):
+                mapped.add(path.removesuffix(' (deleted)'))
+    return mapped
 
 
 def _lock_is_stale(lock: Path) -> bool:

@@ -125,3 +125,19 @@ def test_a_second_interrupt_does_not_cut_the_shutdown_short(tmp_path) -> None:
     finally:
         supervisor.kill()
         supervisor.stdout.close()
+
+
+def test_stale_shared_memory_ports_are_removed_and_mapped_ones_kept(tmp_path):
+    import mmap
+
+    from flexarm_control.launcher import remove_stale_shm
+
+    for port in ('fastrtps_port1', 'fastrtps_port2'):
+        (tmp_path / port).write_bytes(b'\0' * 4096)
+        (tmp_path / f'sem.{port}_mutex').write_bytes(b'\0' * 32)
+    with open(tmp_path / 'fastrtps_port1', 'r+b') as f, mmap.mmap(f.fileno(), 4096):
+        assert remove_stale_shm(tmp_path) == 2                   # port 2 and its mutex
+        assert sorted(p.name for p in tmp_path.iterdir()) == [
+            'fastrtps_port1', 'sem.fastrtps_port1_mutex']
+    assert remove_stale_shm(tmp_path) == 2                       # port 1, no longer mapped
+    assert not list(tmp_path.iterdir())

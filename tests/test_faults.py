@@ -78,3 +78,19 @@ def test_a_model_the_compensator_cannot_run_never_becomes_current(learner):
     assert not refused.success and 'payload' in refused.message, refused.message
     time.sleep(0.5)
     assert read_current(models)['version'] == good.model_version
+
+
+def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_path):
+    from flexarm_control.supervisor import Graph
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    other = rclpy.create_node('flexarm_sim', context=context)     # another graph's simulator
+    graph = Graph(domain_id, tmp_path / 'run')
+    try:
+        with pytest.raises(RuntimeError, match=f'domain {domain_id} already runs flexarm_sim'):
+            graph.start()
+        assert all(node.process is None for node in graph.nodes.values())   # nothing started
+    finally:
+        other.destroy_node()
+        rclpy.try_shutdown(context=context)

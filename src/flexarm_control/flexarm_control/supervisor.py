@@ -1,21 +1,26 @@
 """The running graph: start every node of config/graph.yaml, wait until it is ready, supervise.
 
 Used by ``flexarm up``, ``flexarm demo``/``benchmark`` and the node-level tests. One log file
-per node in the run folder. A node that dies is reported with its exit code and the last
+per node in the run folder. A graph refuses to start in a ROS domain where a node of one of
+its names already runs (another flexarm graph: two simulators would publish ``/clock`` and
+``/joint_states``, and the learner could measure against the other arm's joints), and it is
+ready only when each of its own nodes is discovered, besides the topics and servers. A node that dies is reported with its exit code and the last
 lines of its log, and restarted if graph.yaml says so (at most ``max_restarts`` times); the
 rest keeps running. :meth:`Graph.stop` shuts everything down (SIGINT, SIGTERM, SIGKILL) and
 removes stale Fast DDS shared-memory files.
 """
 from __future__ import annotations
 
+import contextlib
 import time
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from flexarm_control import topics
 from flexarm_control.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
 
+DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 # What "ready" means: (kind, name) pairs that must be discovered in the graph.
 READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
@@ -44,23 +49,43 @@ class Graph:
                       for spec in specs}
 
     def start(self) -> None:
+        """Start every node; RuntimeError, and nothing started, if the domain already runs a
+        node of one of their names."""
+        with self._probe() as probe:
+            deadline = time.monotonic() + DISCOVERY_WAIT
+            while time.monotonic() < deadline:
+                taken = sorted(set(probe.get_node_names()) & set(self.nodes))
+                if taken:
+                    raise RuntimeError(
+                        f'ROS domain {self.domain_id} already runs {", ".join(taken)}: another '
+                        'flexarm graph? Stop it, or start this one with another domain id')
+                time.sleep(0.1)
         self.run_dir.mkdir(parents=True, exist_ok=True)
         for node in self.nodes.values():
             node.start()
 
-    def wait_ready(self, timeout: float) -> None:
-        """Wait until the topics, actions and services of a working graph are discovered.
-
-        Raises TimeoutError naming what did not come up (and any node that died meanwhile).
-        """
+    @contextlib.contextmanager
+    def _probe(self) -> Iterator[Any]:
+        """A node of the supervisor's own in the graph's domain, for discovery."""
         import rclpy
         from rclpy.context import Context
 
         context = Context()
         rclpy.init(context=context, domain_id=self.domain_id)
         node = rclpy.create_node('flexarm_supervisor', context=context)
-        deadline = time.monotonic() + timeout
         try:
+            yield node
+        finally:
+            node.destroy_node()
+            rclpy.try_shutdown(context=context)
+
+    def wait_ready(self, timeout: float) -> None:
+        """Wait until this graph's nodes, topics, actions and services are discovered.
+
+        Raises TimeoutError naming what did not come up (and any node that died meanwhile).
+        """
+        deadline = time.monotonic() + timeout
+        with self._probe() as node:
             while True:
                 missing = self._missing(node)
                 if not missing:
@@ -71,15 +96,13 @@ class Graph:
                                        f'{", ".join(missing)}' + (
                                            f'; died: {", ".join(dead)}' if dead else ''))
                 time.sleep(0.2)
-        finally:
-            node.destroy_node()
-            rclpy.try_shutdown(context=context)
 
-    @staticmethod
-    def _missing(node: Any) -> list[str]:
+    def _missing(self, node: Any) -> list[str]:
+        found_nodes = set(node.get_node_names())
         found_topics = {name for name, _ in node.get_topic_names_and_types()}
         found_services = {name for name, _ in node.get_service_names_and_types()}
-        missing = [t for t in READY_TOPICS
+        missing = [f'node {name}' for name in self.nodes if name not in found_nodes]
+        missing += [t for t in READY_TOPICS
                    if t not in found_topics or not node.count_publishers(t)]
         missing += [a for a in READY_ACTIONS if f'{a}/_action/send_goal' not in found_services]
         missing += [s for s in READY_SERVICES if s not in found_services]

@@ -94,3 +94,51 @@ def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_p
     finally:
         other.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def moving_graph(launch, domain_id):
+    """Simulator (real time: a long move takes seconds) and compensator; their processes and
+    a client."""
+    sim = launch('flexarm_sim', real_time_factor=1.0)
+    compensator = launch('flexarm_compensator')
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    client = FlexarmClient('test_client', context=context)
+    try:
+        client.wait_until_ready(timeout=30.0, learner=False)
+        yield sim, compensator, client
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def test_a_client_notices_its_server_die_mid_goal(moving_graph):
+    import math
+    import threading
+
+    from flexarm_control.client import ServerLost
+
+    _, compensator, client = moving_graph
+    phases, outcome = [], {}
+
+    def move() -> None:
+        try:
+            client.move_to(1.0, -0.5, math.radians(-100), mode='rigid', timeout=120,
+                           feedback=lambda fb: phases.append(fb.phase))
+        except Exception as exc:   # the outcome is what the test looks at
+            outcome['error'] = exc
+
+    thread = threading.Thread(target=move)
+    thread.start()
+    deadline = time.monotonic() + 20
+    while 'moving' not in phases and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert 'moving' in phases, 'the goal did not start moving'
+    os.kill(compensator.process.pid, signal.SIGKILL)
+    killed = time.monotonic()
+    thread.join(timeout=15)
+    assert not thread.is_alive(), 'the client still waits for a dead server'
+    assert isinstance(outcome.get('error'), ServerLost), outcome
+    assert 'flexarm_compensator' in str(outcome['error'])
+    assert time.monotonic() - killed < 6.0

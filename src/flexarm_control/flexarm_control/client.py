@@ -7,7 +7,11 @@
 
 Every call blocks with a timeout (seconds, wall clock) and raises :class:`TimeoutError` when
 it runs out; a goal that the server rejects raises :class:`GoalRejected` with its reason, and
-one that ends without success but without an error code raises :class:`GoalFailed`. A timeout
+one that ends without success but without an error code raises :class:`GoalFailed`. While a
+goal runs the client watches its server (:class:`ServerWatch`): a server that stops answering
+for ``SERVER_SILENCE`` seconds (killed) or is replaced by another instance (restarted: it
+does not know the goal) raises :class:`ServerLost`, naming the node, instead of waiting out
+the timeout. A timeout
 or a Ctrl-C (KeyboardInterrupt) while a goal runs cancels it (bounded wait) before the
 exception goes on, so the arm stops. :func:`init_client` leaves SIGINT to Python: rclpy's own
 handler would shut the context down before the cancel could be sent.
@@ -43,6 +47,8 @@ MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
          'closed_loop': MoveToPose.Goal.MODE_CLOSED_LOOP}
 _ENDED = {GoalStatus.STATUS_CANCELED: 'canceled', GoalStatus.STATUS_ABORTED: 'aborted'}
 _SPIN_SLICE = 0.1   # [s] waits spin in slices so that a Ctrl-C is raised at once
+SERVER_SILENCE = 3.0  # [s] without an answer from a goal's action server: it is gone
+_PROBE_PERIOD = 0.5   # [s] between the watch's requests to the server
 
 
 class GoalRejected(RuntimeError):
@@ -51,6 +57,53 @@ class GoalRejected(RuntimeError):
 
 class GoalFailed(RuntimeError):
     """The goal ended without success and without an error code in its result."""
+
+
+class ServerLost(GoalFailed):
+    """The action server went away while the goal ran: the goal is lost."""
+
+
+class ServerWatch:
+    """Tells whether a goal's action server is still the one that accepted the goal.
+
+    Every ``_PROBE_PERIOD`` it sends the server a cancel request for a goal id nobody has (it
+    cancels nothing; a live server answers within milliseconds) and lists the publishers of
+    the action's status topic. DDS discovery takes its lease duration (tens of seconds) to
+    forget a killed process, so silence is the fast sign of death; a status publisher that
+    was not there at acceptance is a restarted server.
+    """
+
+    def __init__(self, node: Node, client: ActionClient) -> None:
+        self._node, self._client = node, client
+        self._status_topic = f'{client._action_name}/_action/status'
+        self._probe = ClientGoalHandle(client, UUID(uuid=list(uuid.uuid4().bytes)), None)
+        self._servers = self._status_publishers()
+        self._names = sorted(set(self._servers.values())) or ['unknown node']
+        self._pending: Future | None = None
+        self._sent = self._answered = time.monotonic()
+
+    def _status_publishers(self) -> dict[bytes, str]:
+        return {bytes(info.endpoint_gid): info.node_name for info in
+                self._node.get_publishers_info_by_topic(self._status_topic)}
+
+    def lost(self) -> str | None:
+        """Why the server is gone, or None while it serves the goal."""
+        now = time.monotonic()
+        if self._pending is not None and self._pending.done():
+            self._answered, self._pending = now, None
+        if self._pending is None and now - self._sent >= _PROBE_PERIOD:
+            self._pending, self._sent = self._probe.cancel_goal_async(), now
+        current = self._status_publishers()
+        if not self._servers:            # not discovered at acceptance: the first seen is it
+            self._servers, self._names = current, sorted(set(current.values())) or self._names
+        server = f'{self._client._action_name} ({", ".join(self._names)})'
+        if now - self._answered > SERVER_SILENCE:
+            return (f'{server} stopped answering {now - self._answered:.1f} s ago while the '
+                    'goal ran: the node died; the goal is lost')
+        if set(current) - set(self._servers):
+            return (f'{server} was restarted while the goal ran: the new instance does not '
+                    'know the goal; it is lost')
+        return None
 
 
 class FlexarmClient(Node):
@@ -164,7 +217,8 @@ class FlexarmClient(Node):
                                    'one goal at a time and is busy')
             self._goal_handle = handle
             response = self._spin_until(handle.get_result_async(),
-                                        deadline - time.monotonic(), 'the result')
+                                        deadline - time.monotonic(), 'the result',
+                                        ServerWatch(self, client).lost)
         except TimeoutError:
             self.cancel()
             raise
@@ -204,7 +258,10 @@ class FlexarmClient(Node):
             if future.done():
                 return
 
-    def _spin_until(self, future: Future, timeout: float, what: str) -> Any:
+    def _spin_until(self, future: Future, timeout: float, what: str,
+                    lost: Callable[[], str | None] = lambda: None) -> Any:
+        """The future's result; TimeoutError after ``timeout``, ServerLost when ``lost`` says
+        why the server went away."""
         deadline = time.monotonic() + timeout
         while not future.done():
             remaining = deadline - time.monotonic()
@@ -212,6 +269,9 @@ class FlexarmClient(Node):
                 raise TimeoutError(f'timed out after {timeout:.1f} s waiting for {what}')
             if not self.context.ok():
                 raise RuntimeError(f'ROS was shut down while waiting for {what}')
+            reason = lost()
+            if reason is not None:
+                raise ServerLost(reason)
             self._executor.spin_until_future_complete(
                 future, timeout_sec=min(remaining, _SPIN_SLICE))
         return future.result()

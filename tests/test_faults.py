@@ -4,6 +4,7 @@ Each test runs in a ROS domain of its own with bounded waits (conftest.py).
 """
 import os
 import signal
+import socket
 import time
 from pathlib import Path
 
@@ -142,3 +143,48 @@ def test_a_client_notices_its_server_die_mid_goal(moving_graph):
     assert isinstance(outcome.get('error'), ServerLost), outcome
     assert 'flexarm_compensator' in str(outcome['error'])
     assert time.monotonic() - killed < 6.0
+
+
+def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait_for):
+    from flexarm_control import controller_protocol as proto
+
+    port = 47000 + 2 * domain_id
+    launch('flexarm_fake_controller', robot='bridge', port=port)
+
+    def connect() -> tuple[socket.socket, proto.Decoder]:
+        deadline = time.monotonic() + 20
+        while True:
+            try:
+                conn = socket.create_connection(('127.0.0.1', port), timeout=1.0)
+                return conn, proto.Decoder()
+            except OSError:
+                if time.monotonic() > deadline:
+                    raise
+                time.sleep(0.2)
+
+    def first_frame(conn: socket.socket, decoder: proto.Decoder) -> proto.Frame | None:
+        """The first frame from the controller, or None if it closed the connection."""
+        deadline = time.monotonic() + 5
+        while time.monotonic() < deadline:
+            data = conn.recv(4096)
+            if not data:
+                return None
+            frames, _ = decoder.feed(data)
+            if frames:
+                return frames[0]
+        pytest.fail('no frame from the controller within 5 s')
+
+    first, first_decoder = connect()
+    assert first_frame(first, first_decoder).type == proto.HELLO
+    second, second_decoder = connect()
+    refusal = first_frame(second, second_decoder)
+    assert refusal.type == proto.ERROR and refusal.fields['code'] == proto.E_BUSY
+    second.settimeout(2.0)
+    assert second.recv(4096) == b''              # closed after the refusal
+    second.close()
+    first.close()
+    third, third_decoder = connect()             # served at once once the first has gone
+    started = time.monotonic()
+    assert first_frame(third, third_decoder).type == proto.HELLO
+    assert time.monotonic() - started < 2.0
+    third.close()

@@ -4,7 +4,8 @@ The simulator (:class:`~flexarm_sim.sim_node.SimNode`) with its joint interface 
 topics to a TCP server: it serves JOINT_STATE frames at the joint-state rate and executes
 JOINT_COMMAND frames, so ``flexarm_bridge`` can stand between it and the graph. What the real
 world provides outside a robot controller stays on ROS: ``/clock``, the tip camera and the
-ground truth. Listens on loopback unless ``host`` says otherwise; one PC at a time. On link
+ground truth. Listens on loopback unless ``host`` says otherwise; one PC at a time: a second
+connection gets an ERROR frame (code 5, busy) and is closed at once, never queued. On link
 loss (peer closed, or no frame for ``heartbeat_timeout``) it holds the arm, as PROTOCOL.md
 requires of a controller.
 """
@@ -44,23 +45,40 @@ class FakeController(SimNode):
         self.get_logger().info(f'controller protocol v{proto.VERSION} on {host}:{port}')
 
     def _serve(self) -> None:
+        """Accept connections: the first one is served, any other refused while it lasts."""
         while self._running:
             try:
                 conn, peer = self._server.accept()
             except (TimeoutError, OSError):
                 continue
-            self.get_logger().info(f'PC connected from {peer}')
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
-            conn.settimeout(0.1)
             with self._send_lock:            # HELLO goes out before any JOINT_STATE
+                if self._client is not None:
+                    self._refuse(conn, peer)
+                    continue
+                self.get_logger().info(f'PC connected from {peer}')
                 self._client = conn
                 self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
-            self._talk(conn)
-            with self._send_lock:
-                self._client = None
-            conn.close()
-            self.hold()
-            self.get_logger().warning('link to the PC lost: arm held')
+            threading.Thread(target=self._serve_client, args=(conn,), daemon=True).start()
+
+    def _refuse(self, conn: socket.socket, peer: object) -> None:
+        """Tell a second PC that another one is connected, and close its connection."""
+        self.get_logger().warning(f'connection from {peer} refused: another PC is connected')
+        try:
+            conn.sendall(proto.encode(proto.ERROR, 0, code=proto.E_BUSY,
+                                      text='another PC is connected (one at a time)'))
+        except OSError:
+            pass
+        conn.close()
+
+    def _serve_client(self, conn: socket.socket) -> None:
+        conn.settimeout(0.1)
+        self._talk(conn)
+        with self._send_lock:
+            self._client = None
+        conn.close()
+        self.hold()
+        self.get_logger().warning('link to the PC lost: arm held')
 
     def _talk(self, conn: socket.socket) -> None:
         decoder, heard = proto.Decoder(), time.monotonic()

@@ -372,3 +372,14 @@ def test_two_goals_passing_the_busy_check_together(in_process, domain_id):
     finally:
         second.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def test_no_model_says_why_an_announced_one_was_not_loaded(in_process, tmp_path):
+    node, client, _ = in_process
+    damaged = tmp_path / 'damaged.model'
+    damaged.write_bytes(b'not a model')
+    node._on_model(ModelInfo(version='7', kind='gp', path=str(damaged)))
+    result = client.move_to(*TARGET, mode='predictive', timeout=30)
+    assert result.error_code == Result.NO_MODEL
+    assert 'the model version 7 from' in result.error_string
+    assert 'could not be loaded' in result.error_string, result.error_string

@@ -188,3 +188,15 @@ def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait
     assert first_frame(third, third_decoder).type == proto.HELLO
     assert time.monotonic() - started < 2.0
     third.close()
+
+
+def test_training_reports_damaged_dataset_records(learner):
+    _, client, _ = learner
+    path = Path(client.train('rbf', dataset='good', timeout=60).model_path)
+    assert path.exists()
+    dataset = path.parent.parent / 'data' / 'good.jsonl'
+    with open(dataset, 'ab') as f:
+        f.write(b'{"crc32": "00000000", "sample": {}}\n{"torn')      # a bad and a torn line
+    trained = client.train('rbf', dataset='good', timeout=60)
+    assert trained.success, trained.message
+    assert '2 damaged record(s)' in trained.message and 'lines 22, 23' in trained.message

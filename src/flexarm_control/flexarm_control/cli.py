@@ -216,6 +216,8 @@ def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
         if len(m.excluded_samples):
             print(f'excluded as outliers: {len(m.excluded_samples)} sample(s), dataset '
                   f'indices {list(m.excluded_samples)}')
+        if response.message:
+            print(response.message)
     else:
         print(response.message)
     return {'ok': response.success, 'message': response.message,

@@ -111,6 +111,7 @@ class CompensatorNode(Node):
         self._arm = ArmInterface(self, self._group)
         self._predictor: Predictor | None = None
         self._model_version = ''
+        self._load_error = ''          # why the last announced model was not loaded
         self._busy = threading.Lock()
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
@@ -136,9 +137,10 @@ class CompensatorNode(Node):
                 raise ValueError('it takes the payload as an input, which the compensator does '
                                  'not know')
         except (OSError, ValueError) as exc:
-            self.get_logger().error(f'cannot load model {what} from {path}: {exc}; '
-                                    'keeping the previous one')
+            self._load_error = f'the model {what} from {path} could not be loaded: {exc}'
+            self.get_logger().error(f'{self._load_error}; keeping the previous one')
             return
+        self._load_error = ''
         info = info or ModelInfo(version=path, kind=predictor.kind, path=path)
         self._predictor, self._model_version = predictor, info.version
         self._active_pub.publish(info)
@@ -197,7 +199,9 @@ class CompensatorNode(Node):
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
-            return fail(REFUSALS[planned.code], planned.reason)
+            return fail(REFUSALS[planned.code], planned.reason + (
+                f'; {self._load_error}' if planned.code == 'no_model' and self._load_error
+                else ''))
         plan = planned.plan
         if planned.note:
             self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: {planned.note}')

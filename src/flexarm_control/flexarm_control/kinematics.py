@@ -167,17 +167,21 @@ def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = N
             raise UnreachableError(f'joint2 = {extension:.4f} m outside its limits')
         q = _solve_fixed(geometry, pose, float(extension))
         if q is None:
-            raise UnreachableError(
-                f'pose (x={pose[0]:.4f} m, y={pose[1]:.4f} m, phi={math.degrees(pose[2]):.2f}'
-                f' deg) is out of reach of the rigid arm with joint2 = {extension:.4f} m')
+            raise UnreachableError(f'pose {describe_pose(pose)} is out of reach of the rigid '
+                                   f'arm with joint2 = {extension:.4f} m')
         return q
     for candidate in _extension_candidates(geometry, pose):
         q = _solve_fixed(geometry, pose, candidate)
         if q is not None:
             return q
-    raise UnreachableError(
-        f'pose (x={pose[0]:.4f} m, y={pose[1]:.4f} m, phi={math.degrees(pose[2]):.2f} deg) '
-        'is out of reach of the rigid arm inside its joint limits')
+    raise UnreachableError(f'pose {describe_pose(pose)} is out of reach of the rigid arm '
+                           'inside its joint limits')
+
+
+def describe_pose(pose: np.ndarray) -> str:
+    """``(x=… m, y=… m, phi=… deg)``, six significant digits (any magnitude stays short)."""
+    return (f'(x={float(pose[0]):.6g} m, y={float(pose[1]):.6g} m, '
+            f'phi={math.degrees(float(pose[2])):.6g} deg)')
 
 
 def elbow_bend(geometry: ArmGeometry, joints: np.ndarray) -> float:

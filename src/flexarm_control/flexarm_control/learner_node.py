@@ -78,7 +78,7 @@ def metrics_msg(m: Metrics) -> PredictionMetrics:
 
 def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
                    model_path: str, geometry: ArmGeometry,
-                   screening: Screening) -> tuple[Metrics, str]:
+                   screening: Screening) -> tuple[Metrics, str, list[int]]:
     """Training job, run in the learner's worker process: fit, save atomically.
 
     A worker process of its own keeps training at full speed while the node serves
@@ -89,7 +89,7 @@ def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
                                screening=screening)
     Path(model_path).parent.mkdir(parents=True, exist_ok=True)
     predictor.save(model_path)
-    return metrics, dataset.hash
+    return metrics, dataset.hash, dataset.skipped_lines
 
 
 def _warm_up() -> None:
@@ -310,7 +310,7 @@ class LearnerNode(Node):
                                  'model stays')
             if not path.exists():
                 raise ValueError(f'no dataset at {path}: collect samples first')
-            metrics, samples_hash = self._trainer.run(
+            metrics, samples_hash, skipped = self._trainer.run(
                 train_and_save, kind, settings, str(path), self._folds, str(model_path),
                 self._geometry, self._screening, timeout=self._train_timeout)
             info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version),
@@ -324,6 +324,10 @@ class LearnerNode(Node):
             return self._train_failed(response, f'{type(exc).__name__}: {exc}')
         self._model_pub.publish(info)
         response.success, response.model_version = True, info.version
+        if skipped:
+            response.message = (f'{len(skipped)} damaged record(s) of {path} skipped (lines '
+                                f'{", ".join(map(str, skipped))})')
+            self.get_logger().warn(response.message)
         response.model_path, response.metrics = info.path, info.metrics
         self.get_logger().info(
             f'model v{version} ({kind} {metrics.selected_settings}, {metrics.samples} samples) '

@@ -84,17 +84,20 @@ class Graph:
 
         Raises TimeoutError naming what did not come up (and any node that died meanwhile).
         """
-        deadline = time.monotonic() + timeout
+        started = time.monotonic()
         with self._probe() as node:
             while True:
                 missing = self._missing(node)
                 if not missing:
                     return
                 dead = self.check()
-                if time.monotonic() > deadline or (dead and not self._restarted(dead)):
+                waited = time.monotonic() - started
+                if dead and not self._restarted(dead):
+                    raise TimeoutError(f'graph not ready: {", ".join(dead)} died after '
+                                       f'{waited:.0f} s; missing {", ".join(missing)}')
+                if waited > timeout:
                     raise TimeoutError(f'graph not ready after {timeout:.0f} s: missing '
-                                       f'{", ".join(missing)}' + (
-                                           f'; died: {", ".join(dead)}' if dead else ''))
+                                       f'{", ".join(missing)}')
                 time.sleep(0.2)
 
     def _missing(self, node: Any) -> list[str]:

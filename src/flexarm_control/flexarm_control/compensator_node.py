@@ -9,8 +9,9 @@ usable model — is :mod:`flexarm_control.planning`; every result, feedback and
 ``/compensator/outcomes`` message carries the plan's distance from the learned data and the
 model's std there. The algorithm lives in :mod:`flexarm_control.compensator`; this node
 validates goals, moves the arm through :class:`~flexarm_control.arm_interface.ArmInterface`,
-reports feedback and results, and hot-reloads the predictor the learner announces on ``/learner/model`` and
-republishes the one it uses on the latched ``/compensator/active_model``.
+reports feedback and results, and hot-reloads the predictor the learner announces on
+``/learner/model`` and republishes the one it uses on the latched
+``/compensator/active_model``.
 
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
 arriving together can both pass that check: execution decides, and the one that finds the
@@ -298,7 +299,8 @@ class CompensatorNode(Node):
             measured_pose=result.measured_pose, measured=result.measured,
             position_error=result.position_error, angle_error=result.angle_error,
             iterations=result.iterations, data_distance=result.data_distance,
-            prediction_std=result.prediction_std, error_code=result.error_code, error_string=result.error_string))
+            prediction_std=result.prediction_std, error_code=result.error_code,
+            error_string=result.error_string))
 
 
 def main(args: list[str] | None = None) -> None:

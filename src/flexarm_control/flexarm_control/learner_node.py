@@ -2,11 +2,11 @@
 (``/train``), seed section 2-1 steps 2-3.
 
 Collection moves the arm through the controller's command topic to space-filling poses of a
-region (:mod:`flexarm_control.sampling`), visited in a short-travel order, waits until the joints arrive and the tip is settled,
-averages a few valid ``/tip_pose`` frames and appends the sample to the dataset — on disk,
-fsync'ed — before the next move; the sample is also published on ``/learner/samples`` for bags.
-A failed measurement is retried, then the pose is skipped and counted, never stored. Cancel
-holds the arm and keeps every sample collected.
+region (:mod:`flexarm_control.sampling`), visited in a short-travel order, waits until the
+joints arrive and the tip is settled, averages a few valid ``/tip_pose`` frames and appends the
+sample to the dataset — on disk, fsync'ed — before the next move; the sample is also published
+on ``/learner/samples`` for bags. A failed measurement is retried, then the pose is skipped and
+counted, never stored. Cancel holds the arm and keeps every sample collected.
 
 Collection poses cover the region grown by ``coverage_margin``, where compensated targets of
 the region's edge are commanded. Training (in a worker process, :mod:`flexarm_control.training`)

@@ -1,13 +1,14 @@
 """The running graph: start every node of config/graph.yaml, wait until it is ready, supervise.
 
 Used by ``flexarm up``, ``flexarm demo``/``benchmark`` and the node-level tests. One log file
-per node in the run folder. A graph refuses to start in a ROS domain where a node of one of
-its names already runs (another flexarm graph: two simulators would publish ``/clock`` and
+per node in the run folder. A graph refuses to start in a ROS domain where a node of one of its
+names already runs (another flexarm graph: two simulators would publish ``/clock`` and
 ``/joint_states``, and the learner could measure against the other arm's joints), and it is
-ready only when each of its own nodes is discovered, besides the topics and servers. A node that dies is reported with its exit code and the last
-lines of its log, and restarted if graph.yaml says so (at most ``max_restarts`` times); the
-rest keeps running. :meth:`Graph.stop` shuts everything down (SIGINT, SIGTERM, SIGKILL) and
-removes stale Fast DDS shared-memory files.
+ready only when each of its own nodes is discovered, besides the topics and servers. A node
+that dies is reported with its exit code and the last lines of its log, and restarted if
+graph.yaml says so (at most ``max_restarts`` times); the rest keeps running. :meth:`Graph.stop`
+shuts everything down (SIGINT, SIGTERM, SIGKILL) and removes stale Fast DDS shared-memory
+files.
 """
 from __future__ import annotations
 

@@ -9,12 +9,12 @@ the model checked for solvability (pure core of the learner).
    held-out error (the worst 10 % of samples left out, so one bad sample cannot choose) wins.
 2. **Outlier screening**: a sample whose held-out residual is ``outlier_threshold`` robust
    standard deviations (1.4826 × median |residual|) off in some output, and more than
-   ``outlier_floor`` there, is excluded — the worst one, then the chosen settings are
-   validated again without it, at most ``max_outlier_fraction`` of the samples (the choice of
-   step 1 stands: its trimmed score already ignores a bad sample); excluded samples that the
-   model of the kept ones does not contradict are taken back. The floor (1 mm, 2 mrad) is what a real sharp
-   feature cannot explain: held-out residuals of good samples reach ~0.5 mm at the edges of
-   the sampled region and across the backlash step of joint4. The metrics list the excluded
+   ``outlier_floor`` there, is excluded — the worst one, then the chosen settings are validated
+   again without it, at most ``max_outlier_fraction`` of the samples (the choice of step 1
+   stands: its trimmed score already ignores a bad sample); excluded samples that the model of
+   the kept ones does not contradict are taken back. The floor (1 mm, 2 mrad) is what a real
+   sharp feature cannot explain: held-out residuals of good samples reach ~0.5 mm at the edges
+   of the sampled region and across the backlash step of joint4. The metrics list the excluded
    samples by their index in the dataset.
 3. **Solvability**: the model fitted on the kept samples must change its deflection slower
    than the commanded pose, :func:`~flexarm_control.compensator.deflection_slope` ≤

@@ -1,14 +1,15 @@
 """Multilayer perceptron predictor (the paper's network: one hidden layer of 10 units).
 
-Full-batch L-BFGS (scipy's L-BFGS-B, at most ``max_iterations`` iterations) on the mean
-squared error of the normalised outputs plus ``weight_decay`` × Σ w² over the weight
-matrices; loss and gradient come from torch autograd (CPU, float64, one thread). scipy's
-optimiser instead of ``torch.optim`` saves the ~1.4 s first-use import of ``torch._dynamo``.
-Several random restarts (Glorot-uniform weights drawn from a generator seeded with ``seed``)
-are trained and the one with the lowest final objective is kept, so a fit is deterministic
-for a seed. Defaults: 1000 iterations, 4 restarts (1 in the learner's cross-validation fits),
-weight decay 1e-4 unless the learner chooses it by cross-validation: the earlier 300
-iterations and 1e-5 trained faster but missed more targets of a region. Prediction runs the same network in numpy (cheaper per single query than torch).
+Full-batch L-BFGS (scipy's L-BFGS-B, at most ``max_iterations`` iterations) on the mean squared
+error of the normalised outputs plus ``weight_decay`` × Σ w² over the weight matrices; loss and
+gradient come from torch autograd (CPU, float64, one thread). scipy's optimiser instead of
+``torch.optim`` saves the ~1.4 s first-use import of ``torch._dynamo``. Several random restarts
+(Glorot-uniform weights drawn from a generator seeded with ``seed``) are trained and the one
+with the lowest final objective is kept, so a fit is deterministic for a seed. Defaults: 1000
+iterations, 4 restarts (1 in the learner's cross-validation fits), weight decay 1e-4 unless the
+learner chooses it by cross-validation: the earlier 300 iterations and 1e-5 trained faster but
+missed more targets of a region. Prediction runs the same network in numpy (cheaper per single
+query than torch).
 """
 from __future__ import annotations
 

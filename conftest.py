@@ -76,6 +76,8 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
         yield node
     finally:
         executor.shutdown(timeout_sec=2.0)
+        for waitable in list(node.waitables):   # a test's action servers: destroy_node
+            waitable.destroy()                   # leaves them, and the node, alive
         node.destroy_node()
         rclpy.try_shutdown(context=context)
         thread.join(timeout=2.0)

@@ -383,3 +383,4 @@ def test_no_model_says_why_an_announced_one_was_not_loaded(in_process, tmp_path)
     assert result.error_code == Result.NO_MODEL
     assert 'the model version 7 from' in result.error_string
     assert 'could not be loaded' in result.error_string, result.error_string
+

@@ -303,6 +303,11 @@ class CompensatorNode(Node):
             error_string=result.error_string))
 
 
+    def destroy_node(self) -> None:
+        self._server.destroy()           # Node.destroy_node leaves actions (and the node) alive
+        super().destroy_node()
+
+
 def main(args: list[str] | None = None) -> None:
     run(CompensatorNode, args, partial(MultiThreadedExecutor, num_threads=EXECUTOR_THREADS))
 

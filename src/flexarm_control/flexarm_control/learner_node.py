@@ -346,6 +346,7 @@ class LearnerNode(Node):
 
     def destroy_node(self) -> None:
         self._trainer.shutdown()
+        self._collect_server.destroy()   # Node.destroy_node leaves actions (and the node) alive
         super().destroy_node()
 
     def _announce_current(self) -> None:

@@ -120,3 +120,28 @@ def _write_dataset(path: Path, count: int = 12, bad: int | None = None) -> None:
             if i == bad:
                 deflection[:2] += [0.006, -0.008]
             writer.append(Sample(i, q, 0.0, np.zeros(3), deflection, deflection, 6, 1e-5))
+
+
+@pytest.fixture
+def ready_client(domain_id: int) -> Iterator[Callable[..., Any]]:
+    """``ready_client(**what)``: a FlexarmClient in a context of its own on the test's domain,
+    after ``wait_until_ready(timeout=30, **what)``; destroyed when the test ends."""
+    import rclpy
+    from rclpy.context import Context
+
+    from flexarm_control.client import FlexarmClient
+
+    made: list[tuple[Any, Any]] = []
+
+    def make(**what: Any) -> Any:
+        context = Context()
+        rclpy.init(context=context, domain_id=domain_id)
+        client = FlexarmClient('test_client', context=context)
+        made.append((client, context))
+        client.wait_until_ready(timeout=30.0, **what)
+        return client
+
+    yield make
+    for client, context in made:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)

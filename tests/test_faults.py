@@ -12,7 +12,6 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from flexarm_control.client import FlexarmClient
 from flexarm_control.model_store import read_current
 
 pytestmark = pytest.mark.node
@@ -40,22 +39,14 @@ def alive(pid: int) -> bool:
 
 
 @pytest.fixture
-def learner(launch, domain_id, tmp_path, write_dataset):
+def learner(launch, tmp_path, write_dataset, ready_client):
     """Simulator and learner with a dataset ``good``; the learner's process and a client."""
     data, models = tmp_path / 'data', tmp_path / 'models'
     data.mkdir()
     write_dataset(data / 'good.jsonl', count=20)
     launch('flexarm_sim', real_time_factor=10.0)
     node = launch('flexarm_learner', data_directory=str(data), model_directory=str(models))
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    client = FlexarmClient('test_client', context=context)
-    try:
-        client.wait_until_ready(timeout=30.0, compensator=False)
-        yield node, client, models
-    finally:
-        client.destroy_node()
-        rclpy.try_shutdown(context=context)
+    return node, ready_client(compensator=False), models
 
 
 def test_a_learner_killed_after_training_leaves_no_worker(learner, wait_for):
@@ -98,20 +89,12 @@ def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_p
 
 
 @pytest.fixture
-def moving_graph(launch, domain_id):
+def moving_graph(launch, ready_client):
     """Simulator (real time: a long move takes seconds) and compensator; their processes and
     a client."""
     sim = launch('flexarm_sim', real_time_factor=1.0)
     compensator = launch('flexarm_compensator')
-    context = Context()
-    rclpy.init(context=context, domain_id=domain_id)
-    client = FlexarmClient('test_client', context=context)
-    try:
-        client.wait_until_ready(timeout=30.0, learner=False)
-        yield sim, compensator, client
-    finally:
-        client.destroy_node()
-        rclpy.try_shutdown(context=context)
+    return sim, compensator, ready_client(learner=False)
 
 
 def test_a_client_notices_its_server_die_mid_goal(moving_graph):

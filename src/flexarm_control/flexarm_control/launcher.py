@@ -217,33 +217,32 @@ def remove_stale_shm(shm_dir: Path = Path('/dev/shm')) -> int:
     """
     removed = 0
     for lock in shm_dir.glob('fastrtps_*_el'):
-        segment = lock.with_name(lock.name.removesuffix('_el'))
         if _lock_is_stale(lock):
-            for path in (lock, segment):
-                try:
-                    path.unlink()
-                    removed += 1
-                except OSError:
-                    pass
+            removed += _unlink(lock, lock.with_name(lock.name.removesuffix('_el')))
     mapped = _mapped_files(shm_dir)
     for port in shm_dir.glob('fastrtps_port*'):
         try:
             mine = port.stat().st_uid == os.getuid()
         except OSError:
             continue
-        if not mine or port.name.endswith('_el') or str(port) in mapped:
-            continue
-        for path in (port, shm_dir / f'sem.{port.name}_mutex'):
-            try:
-                path.unlink()
-                removed += 1
-            except OSError:
-                pass
+        if mine and not port.name.endswith('_el') and str(port) not in mapped:
+            removed += _unlink(port, shm_dir / f'sem.{port.name}_mutex')
     for mutex in shm_dir.glob('sem.fastrtps_port*_mutex'):
         port = mutex.name.removeprefix('sem.').removesuffix('_mutex')
         if not (shm_dir / port).exists():
-            mutex.unlink(missing_ok=True)
+            removed += _unlink(mutex)
+    return removed
+
+
+def _unlink(*paths: Path) -> int:
+    """Remove ``paths``; how many were removed."""
+    removed = 0
+    for path in paths:
+        try:
+            path.unlink()
             removed += 1
+        except OSError:
+            pass
     return removed
 
 

@@ -19,6 +19,7 @@ from std_msgs.msg import Float64MultiArray
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control import controller_protocol as proto
+from flexarm_control.link_auth import make_key
 from flexarm_control.link_proxy import TO_CONTROLLER, LinkProxy
 from flexarm_control.supervisor import Graph
 from flexarm_msgs.action import MoveToPose
@@ -134,12 +135,14 @@ def test_a_controller_that_drops_every_connection_is_not_hammered(launch, domain
 
 
 def test_predictive_through_the_bridge(domain_id, tmp_path):
-    """collect -> train -> PREDICTIVE move, whole graph with --robot bridge."""
+    """collect -> train -> PREDICTIVE move, whole graph with --robot bridge, over a link
+    authenticated with a site key."""
     port = 47000 + 2 * domain_id
+    key = str(make_key(tmp_path / 'site.key'))
     graph = Graph(domain_id, tmp_path / 'run', robot='bridge', report=lambda _: None,
                   parameters={'flexarm_fake_controller': {'real_time_factor': 10.0,
-                                                          'port': port},
-                              'flexarm_bridge': {'port': port},
+                                                          'port': port, 'link_key_file': key},
+                              'flexarm_bridge': {'port': port, 'link_key_file': key},
                               'flexarm_learner': {'data_directory': str(tmp_path / 'data'),
                                                   'model_directory': str(tmp_path / 'm')}})
     context = Context()
@@ -164,3 +167,4 @@ def test_predictive_through_the_bridge(domain_id, tmp_path):
     assert rigid.position_error > 10e-3                     # 13.6 mm, as with the simulator
     assert predictive.position_error < 1e-3
     assert Path(collected.dataset_path).exists()
+    assert 'link authenticated' in (tmp_path / 'run' / 'flexarm_bridge.log').read_text()

@@ -188,3 +188,104 @@ def test_training_reports_damaged_dataset_records(learner):
     trained = client.train('rbf', dataset='good', timeout=60)
     assert trained.success, trained.message
     assert '2 damaged record(s)' in trained.message and 'lines 22, 23' in trained.message
+
+
+class RawPC:
+    """A PC speaking the controller protocol by hand: with the site key or without."""
+
+    def __init__(self, port: int, auth=None) -> None:
+        from flexarm_control import controller_protocol as proto
+        deadline = time.monotonic() + 20
+        while True:
+            try:
+                self.conn = socket.create_connection(('127.0.0.1', port), timeout=0.1)
+                break
+            except OSError:
+                assert time.monotonic() < deadline, 'the fake controller does not listen'
+                time.sleep(0.2)
+        self.auth, self.decoder = auth, proto.Decoder(auth)
+        self.frames, self.errors, self.seq, self.closed = [], [], 0, False
+
+    def send(self, frame_type: int, tamper: bool = False, **fields) -> int:
+        from flexarm_control import controller_protocol as proto
+        self.seq += 1
+        key = None if self.auth is None else self.auth.sending_key(frame_type in proto.HANDSHAKE)
+        data = bytearray(proto.encode(frame_type, self.seq, key, **fields))
+        if tamper:
+            data[12] ^= 0x01                     # a bit of the payload
+        self.conn.sendall(bytes(data))
+        return self.seq
+
+    def listen(self, seconds: float) -> None:
+        """Collect frames for ``seconds`` (sending HEARTBEAT every 0.2 s once authenticated)."""
+        from flexarm_control import controller_protocol as proto
+        end, beat = time.monotonic() + seconds, 0.0
+        while time.monotonic() < end and not self.closed:
+            if self.auth is not None and self.auth.established and time.monotonic() > beat:
+                self.send(proto.HEARTBEAT, time=time.monotonic())
+                beat = time.monotonic() + 0.2
+            try:
+                data = self.conn.recv(65536)
+            except TimeoutError:
+                continue
+            except OSError:
+                data = b''
+            if not data:
+                self.closed = True
+            frames, errors = self.decoder.feed(data)
+            self.frames += frames
+            self.errors += errors
+
+    def of_type(self, frame_type: int) -> list:
+        return [f for f in self.frames if f.type == frame_type]
+
+
+def test_only_a_pc_with_the_site_key_commands_the_arm(launch, domain_id, tmp_path):
+    from flexarm_control import controller_protocol as proto
+    from flexarm_control.link_auth import PC, LinkAuth, load_key, make_key
+
+    port = 47000 + 2 * domain_id
+    key_file = make_key(tmp_path / 'site.key')
+    controller = launch('flexarm_fake_controller', robot='bridge', port=port,
+                        link_key_file=str(key_file))
+    stranger = RawPC(port)                       # no key: a plain command, then silence
+    stranger.listen(0.5)
+    assert stranger.frames == [] and any('no link key' in e for e in stranger.errors)
+    stranger.send(proto.JOINT_COMMAND, positions=[0.3, 0.7, 0.0, 0.0])
+    stranger.listen(3.0)
+    assert stranger.closed, 'the controller keeps a PC that never authenticates'
+
+    pc = RawPC(port, LinkAuth(load_key(key_file), PC))
+    pc.listen(0.5)
+    hello, = pc.of_type(proto.HELLO)
+    pc.auth.start_session(hello.fields['nonce'])
+    pc.send(proto.AUTH, nonce=pc.auth.nonce)
+    pc.listen(0.5)
+    state = pc.of_type(proto.JOINT_STATE)[-1]
+    assert not state.fields['status'] & proto.STATUS_MOVING    # the stranger moved nothing
+    start = state.fields['positions']
+    target = [start[0] + 0.02, *start[1:]]
+    valid = pc.send(proto.JOINT_COMMAND, positions=target)
+    tampered = pc.send(proto.JOINT_COMMAND, tamper=True, positions=target)
+    pc.conn.sendall(proto.encode(proto.JOINT_COMMAND, valid, pc.auth.sending_key(False),
+                                 positions=[start[0] - 0.2, *start[1:]]))    # replayed seq
+    pc.listen(1.5)
+    pc.conn.close()
+    assert [(a.fields['acked'], a.fields['code']) for a in pc.of_type(proto.ACK)] == [
+        (valid, proto.OK)]
+    assert tampered not in [a.fields['acked'] for a in pc.of_type(proto.ACK)]
+    last = pc.of_type(proto.JOINT_STATE)[-1].fields['positions']
+    assert last[0] > start[0] + 0.005            # moving to the valid target only
+    log = controller.log_path.read_text()
+    assert 'tag mismatch' in log and 'replayed' in log and 'requires authentication' in log
+
+
+def test_the_link_leaves_loopback_only_with_a_key(launch, domain_id, wait_for):
+    port = 47000 + 2 * domain_id
+    controller = launch('flexarm_fake_controller', robot='bridge', host='0.0.0.0', port=port)
+    bridge = launch('flexarm_bridge', robot='bridge', host='192.0.2.1', port=port)   # TEST-NET
+    wait_for(lambda: controller.returncode is not None and bridge.returncode is not None,
+             30.0, 'both to refuse')
+    assert controller.returncode == bridge.returncode == 1
+    assert 'refusing to listen' in controller.log_path.read_text()
+    assert 'refusing to connect' in bridge.log_path.read_text()

@@ -16,6 +16,9 @@ Link handling (a background thread does all socket I/O; ROS callbacks never bloc
   link loss (protocol). The backoff restarts from ``retry_min`` only once a controller's
   HELLO was accepted, so one that accepts and drops connections is not hammered;
 * commands and joint states pass only once the HELLO of the connection has been accepted;
+* with ``link_key_file`` the link is authenticated (PROTOCOL.md, Authentication): the HELLO must
+  be tagged with the site key, the bridge answers with AUTH and tags every frame; without a key
+  the bridge refuses to start for a controller that is not on a loopback address.
 * malformed frames → rejected and logged; the link survives, unless ``max_errors``
   consecutive frames are rejected, then it is reset.
 """
@@ -32,6 +35,7 @@ from std_msgs.msg import Float64MultiArray
 from flexarm_control import controller_protocol as proto
 from flexarm_control import topics
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
+from flexarm_control.link_auth import PC, LinkAuth, site_key_for
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 
@@ -50,6 +54,14 @@ class BridgeNode(Node):
                                 '[s] silence from the controller that counts as link loss')
         self._max_errors = declare(self, 'max_errors', 20,
                                    'consecutive malformed frames before the link is reset')
+        key_file = declare(self, 'link_key_file', '',
+                           'site key file; required for a controller off this machine')
+        try:
+            self._site_key = site_key_for(self._host, key_file)
+        except ValueError as exc:
+            self.get_logger().fatal(f'refusing to connect: {exc}')
+            raise SystemExit(1) from None
+        self._auth: LinkAuth | None = None        # of the current connection, with a site key
         self._pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
         self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS, self._on_command, 10)
         self._lock = threading.Lock()         # guards _linked, _seq and every send
@@ -73,10 +85,15 @@ class BridgeNode(Node):
                                     '(send a fresh command once it is back)')
 
     def _send(self, sock: socket.socket, frame_type: int, **fields) -> bool:
-        """Send one frame (hold ``_lock``); whether it went out."""
+        """Send one frame (hold ``_lock``); whether it went out (not before AUTH, if keyed)."""
+        key = None
+        if self._auth is not None:
+            key = self._auth.sending_key(frame_type in proto.HANDSHAKE)
+            if key is None:
+                return False
         self._seq += 1
         try:
-            sock.sendall(proto.encode(frame_type, self._seq, **fields))
+            sock.sendall(proto.encode(frame_type, self._seq, key, **fields))
             return True
         except OSError:
             return False
@@ -113,7 +130,9 @@ class BridgeNode(Node):
 
     def _receive(self, sock: socket.socket) -> str:
         """Read frames until the link fails; the reason it did."""
-        decoder = proto.Decoder()
+        with self._lock:
+            self._auth = None if self._site_key is None else LinkAuth(self._site_key, PC)
+        decoder = proto.Decoder(self._auth)
         heard = sent = time.monotonic()
         errors = 0
         while self._running:
@@ -147,14 +166,23 @@ class BridgeNode(Node):
 
     def _handle(self, frame: proto.Frame, sock: socket.socket) -> None:
         if frame.type == proto.HELLO:
-            if (frame.fields['version'] != proto.VERSION
-                    or frame.fields['names'] != list(JOINT_NAMES)):
-                self.get_logger().error(f'controller speaks {frame.fields}; need version '
-                                        f'{proto.VERSION} with joints {list(JOINT_NAMES)}')
+            version = proto.VERSION if self._auth is None else proto.AUTH_VERSION
+            if frame.fields['version'] != version or frame.fields['names'] != list(JOINT_NAMES):
+                self.get_logger().error(
+                    f'controller speaks version {frame.fields["version"]} with joints '
+                    f'{frame.fields["names"]}; need version {version} with {list(JOINT_NAMES)}')
                 return
             with self._lock:
+                if self._linked is sock:
+                    self.get_logger().error('second HELLO on one connection ignored')
+                    return
+                if self._auth is not None:
+                    self._auth.start_session(frame.fields['nonce'])
+                    self._send(sock, proto.AUTH, nonce=self._auth.nonce)
                 self._linked = sock
-            self.get_logger().info('controller HELLO accepted: forwarding fresh commands')
+            self.get_logger().info('controller HELLO accepted'
+                                   + ('' if self._auth is None else ', link authenticated')
+                                   + ': forwarding fresh commands')
         elif frame.type == proto.JOINT_STATE and self._linked is sock:
             if len(frame.fields['positions']) != len(JOINT_NAMES):
                 self.get_logger().warning('JOINT_STATE with the wrong number of joints dropped')

@@ -3,12 +3,15 @@
 Humans type millimetres and degrees; everything below the CLI is SI. Every subcommand prints
 for humans and, with ``--json``, ends its output with one line of JSON holding its result.
 The graph must be running (``flexarm up``) for move/collect/train, in the same ROS_DOMAIN_ID.
+DDS discovery stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the
+environment sets another range or ``flexarm up --discovery subnet`` widens it on purpose.
 """
 from __future__ import annotations
 
 import argparse
 import json
 import math
+import os
 import signal
 import sys
 from collections.abc import Callable, Sequence
@@ -109,13 +112,21 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
 
     name = args.name or time.strftime('up-%Y%m%d-%H%M%S')
     simulated = {'real_time_factor': args.rtf}
+    link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
     params: dict[str, dict[str, Any]] = {'flexarm_sim': simulated,
-                                         'flexarm_fake_controller': simulated}
+                                         'flexarm_fake_controller': simulated | link,
+                                         'flexarm_bridge': link}
     if args.record:
         params['flexarm_recorder'] = {'bag_name': args.record}
+    discovery = args.discovery.upper()
+    if discovery != 'LOCALHOST':
+        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
+        print(f'DDS discovery widened to {discovery}: any host there that joins the ROS '
+              'domain can command this arm (these DDS wheels have no security)', flush=True)
     with reserved_domain(args.domain_id) as domain:
         graph = Graph(domain, REPO / 'runs' / name, robot=args.robot, parameters=params,
-                      optional=('flexarm_recorder',) if args.record else ())
+                      optional=('flexarm_recorder',) if args.record else (),
+                      discovery=discovery)
         started, ready = time.monotonic(), None
         print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain}; logs in '
               f'{graph.run_dir}', flush=True)
@@ -244,6 +255,19 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
 
 
 @command
+def cmd_keygen(args: argparse.Namespace) -> dict[str, Any]:
+    """Write a new site key for the controller link (give it to the PC and the controller)."""
+    from flexarm_control.link_auth import make_key
+
+    if os.path.exists(args.path):
+        raise ValueError(f'{args.path} exists; a new key would lock out whoever uses it')
+    path = make_key(args.path)
+    print(f'site key written to {path} (mode 600). Use it on both ends: '
+          f'flexarm up --robot bridge --link-key {path}, and the controller\'s configuration')
+    return {'ok': True, 'path': str(path)}
+
+
+@command
 def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
     """Tables 7 and 8 sensitivity study on the simulator (offline, no graph needed)."""
     from flexarm_control.study import main as study_main
@@ -292,6 +316,11 @@ def build_parser() -> argparse.ArgumentParser:
     up.add_argument('--rtf', type=float, default=1.0, help='simulator real-time factor')
     up.add_argument('--name', default='', help='run folder name under runs/')
     up.add_argument('--timeout', type=float, default=60.0, help='[s] to become ready')
+    up.add_argument('--link-key', default='', metavar='FILE',
+                    help='site key of the controller link (flexarm keygen); required when the '
+                         'controller is not on this machine')
+    up.add_argument('--discovery', choices=['localhost', 'subnet'], default='localhost',
+                    help='DDS discovery range; subnet exposes the graph to the network')
 
     for name, func in (('demo', cmd_demo), ('benchmark', cmd_benchmark)):
         p = sub.add_parser(name, help=func.__doc__)
@@ -329,11 +358,15 @@ def build_parser() -> argparse.ArgumentParser:
     bag.add_argument('action', choices=['info', 'export'])
     bag.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
     bag.add_argument('--out', default='', help='export folder (default: the bag folder)')
+
+    keygen = sub.add_parser('keygen', help=cmd_keygen.__doc__)
+    keygen.add_argument('path', help='key file to create')
     return parser
 
 
 def main(argv: Sequence[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     # SIGTERM stops a command like Ctrl-C does, so that a graph it started is shut down
     # (its nodes run in sessions of their own and do not get the signal themselves).
     signal.signal(signal.SIGTERM, _interrupt)

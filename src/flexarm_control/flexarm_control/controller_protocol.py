@@ -2,10 +2,12 @@
 
 Specification for implementers: src/flexarm_control/PROTOCOL.md. Frames are little-endian::
 
-    magic 0xFA 0x57 | version u8 | type u8 | seq u32 | length u16 | payload | crc32 u32
+    magic 0xFA 0x57 | version u8 | type u8 | seq u32 | length u16 | payload | trailer
 
-The CRC-32 (zlib) covers everything before it. :class:`Decoder` is incremental and never
-raises: garbage, a corrupt CRC, an unknown type, a wrong payload size or non-finite values come
+Version 1 frames end with a CRC-32 (zlib) of everything before it; version 2 frames, the
+authenticated link (:mod:`flexarm_control.link_auth`), with a 16-byte HMAC-SHA256 tag instead.
+:class:`Decoder` is incremental and never raises: garbage, a bad CRC or tag, an unknown type, a
+wrong payload size, non-finite values, a replayed frame or a frame of the other version come
 back as errors, and it resynchronises on the next magic.
 """
 from __future__ import annotations
@@ -15,15 +17,19 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 
+from flexarm_control.link_auth import NONCE_SIZE, TAG_SIZE, LinkAuth, tag
+
 MAGIC = b'\xfaW'
-VERSION = 1
+VERSION = 1               # plain frames, CRC-32: loopback links without a key
+AUTH_VERSION = 2          # authenticated frames, HMAC tag: any link with a site key
 HEADER = struct.Struct('<2sBBIH')
 CRC = struct.Struct('<I')
 MAX_PAYLOAD = 1024
 
-HELLO, JOINT_STATE, JOINT_COMMAND, ACK, ERROR, HEARTBEAT = 1, 2, 3, 4, 5, 6
+HELLO, JOINT_STATE, JOINT_COMMAND, ACK, ERROR, HEARTBEAT, AUTH = 1, 2, 3, 4, 5, 6, 7
 TYPE_NAMES = {HELLO: 'HELLO', JOINT_STATE: 'JOINT_STATE', JOINT_COMMAND: 'JOINT_COMMAND',
-              ACK: 'ACK', ERROR: 'ERROR', HEARTBEAT: 'HEARTBEAT'}
+              ACK: 'ACK', ERROR: 'ERROR', HEARTBEAT: 'HEARTBEAT', AUTH: 'AUTH'}
+HANDSHAKE = frozenset({HELLO, AUTH})      # tagged with the handshake key, not a session key
 
 # ERROR / ACK codes
 OK, E_MALFORMED, E_LIMITS, E_VERSION, E_STATE, E_BUSY = 0, 1, 2, 3, 4, 5
@@ -42,12 +48,17 @@ def _floats(n: int) -> struct.Struct:
     return struct.Struct(f'<{n}d')
 
 
-def encode(frame_type: int, seq: int, **fields) -> bytes:
-    """Bytes of one frame; ``fields`` as documented per type in PROTOCOL.md."""
+def encode(frame_type: int, seq: int, key: bytes | None = None, **fields) -> bytes:
+    """Bytes of one frame; ``fields`` as documented per type in PROTOCOL.md.
+
+    Without ``key`` a version 1 frame (CRC-32), with it a version 2 frame tagged with ``key``.
+    """
     if frame_type == HELLO:
         names = [name.encode() for name in fields['names']]
         payload = struct.pack('<HB', fields['version'], len(names)) + b''.join(
-            struct.pack('<B', len(name)) + name for name in names)
+            struct.pack('<B', len(name)) + name for name in names) + fields.get('nonce', b'')
+    elif frame_type == AUTH:
+        payload = fields['nonce']
     elif frame_type == JOINT_STATE:
         q, v = fields['positions'], fields['velocities']
         payload = (struct.pack('<dB', fields['time'], len(q)) + _floats(len(q)).pack(*q)
@@ -63,22 +74,30 @@ def encode(frame_type: int, seq: int, **fields) -> bytes:
         payload = struct.pack('<d', fields['time'])
     else:
         raise ValueError(f'unknown frame type {frame_type}')
-    head = HEADER.pack(MAGIC, VERSION, frame_type, seq & 0xFFFFFFFF, len(payload)) + payload
-    return head + CRC.pack(zlib.crc32(head))
+    version = VERSION if key is None else AUTH_VERSION
+    head = HEADER.pack(MAGIC, version, frame_type, seq & 0xFFFFFFFF, len(payload)) + payload
+    return head + (CRC.pack(zlib.crc32(head)) if key is None else tag(key, head))
 
 
-def _parse(frame_type: int, payload: bytes) -> dict:
+def _parse(frame_type: int, payload: bytes, version: int) -> dict:
     """Fields of a payload; ValueError with the reason when it is malformed."""
     if frame_type == HELLO:
-        version, n = struct.unpack_from('<HB', payload)
+        hello_version, n = struct.unpack_from('<HB', payload)
         names, offset = [], 3
         for _ in range(n):
             size = payload[offset]
             names.append(payload[offset + 1:offset + 1 + size].decode())
             offset += 1 + size
-        if offset != len(payload):
-            raise ValueError(f'HELLO of {n} joint names needs {offset} bytes, got {len(payload)}')
-        return {'version': version, 'names': names}
+        nonce = NONCE_SIZE if version == AUTH_VERSION else 0
+        if offset + nonce != len(payload):
+            raise ValueError(f'HELLO of {n} joint names needs {offset + nonce} bytes, '
+                             f'got {len(payload)}')
+        fields = {'version': hello_version, 'names': names}
+        return fields | {'nonce': payload[offset:]} if nonce else fields
+    if frame_type == AUTH:
+        if len(payload) != NONCE_SIZE:
+            raise ValueError(f'AUTH needs a {NONCE_SIZE}-byte nonce, got {len(payload)} bytes')
+        return {'nonce': payload}
     if frame_type == JOINT_STATE:
         t, n = struct.unpack_from('<dB', payload)
         if len(payload) != 9 + 16 * n + 4:
@@ -117,12 +136,16 @@ def _check_finite(values: list[float]) -> None:
 class Decoder:
     """Bytes in, frames and errors out; survives any byte stream.
 
-    ``rejected`` counts the frames rejected so far (a bad length, CRC, version or payload);
-    skipped garbage between frames is reported but not counted.
+    Without ``auth`` it accepts version 1 frames only; with it, version 2 frames tagged with
+    the keys of ``auth`` (the handshake key for HELLO and AUTH, the session key for the rest,
+    which are refused before the session starts) and with increasing sequence numbers.
+    ``rejected`` counts the frames rejected so far (a bad length, CRC, tag, version, sequence
+    or payload); skipped garbage between frames is reported but not counted.
     """
 
-    def __init__(self) -> None:
+    def __init__(self, auth: LinkAuth | None = None) -> None:
         self._buffer = bytearray()
+        self._auth = auth
         self.rejected = 0
 
     def feed(self, data: bytes) -> tuple[list[Frame], list[str]]:
@@ -147,23 +170,51 @@ class Decoder:
                 del self._buffer[:1]
                 continue
             end = HEADER.size + length
-            if len(self._buffer) < end + CRC.size:
+            if len(self._buffer) < end + _trailer(version):
                 break
-            crc, = CRC.unpack_from(self._buffer, end)
-            if crc != zlib.crc32(self._buffer[:end]):
-                errors.append('CRC mismatch: resynchronising')
+            verdict = self._check(version, frame_type, seq, end)
+            if verdict is not None:
+                error, resync = verdict
+                errors.append(error)
                 self.rejected += 1
-                del self._buffer[:1]
+                del self._buffer[:1 if resync else end + _trailer(version)]
                 continue
             payload = bytes(self._buffer[HEADER.size:end])
-            del self._buffer[:end + CRC.size]
-            if version != VERSION:
-                errors.append(f'protocol version {version} not supported (want {VERSION})')
-                self.rejected += 1
-                continue
+            del self._buffer[:end + _trailer(version)]
             try:
-                frames.append(Frame(frame_type, seq, _parse(frame_type, payload)))
+                frames.append(Frame(frame_type, seq, _parse(frame_type, payload, version)))
             except (ValueError, IndexError, struct.error) as exc:
                 errors.append(f'malformed {TYPE_NAMES.get(frame_type, frame_type)}: {exc}')
                 self.rejected += 1
         return frames, errors
+
+    def _check(self, version: int, frame_type: int, seq: int, end: int) -> tuple[str, bool] | None:
+        """Why the complete frame at the buffer's start is refused, and whether to resync
+        (drop one byte: it may not be a frame at all) rather than skip it; None if it is good.
+        """
+        name = TYPE_NAMES.get(frame_type, f'type {frame_type}')
+        if version == AUTH_VERSION:
+            if self._auth is None:
+                return (f'authenticated (version {AUTH_VERSION}) {name} refused: this side has '
+                        'no link key', False)
+            key = self._auth.receiving_key(frame_type in HANDSHAKE)
+            if key is None:
+                return f'{name} before the link was authenticated: refused', False
+            if tag(key, self._buffer[:end]) != self._buffer[end:end + TAG_SIZE]:
+                return 'authentication tag mismatch: resynchronising', True
+            if frame_type not in HANDSHAKE and not self._auth.fresh(seq):
+                return f'replayed or reordered {name} (sequence {seq}) refused', False
+            return None
+        crc, = CRC.unpack_from(self._buffer, end)
+        if crc != zlib.crc32(self._buffer[:end]):
+            return 'CRC mismatch: resynchronising', True
+        if version != VERSION:
+            return f'protocol version {version} not supported (want {VERSION})', False
+        if self._auth is not None:
+            return (f'unauthenticated (version {VERSION}) {name} refused: this link requires '
+                    'authentication', False)
+        return None
+
+
+def _trailer(version: int) -> int:
+    return TAG_SIZE if version == AUTH_VERSION else CRC.size

@@ -27,6 +27,7 @@ from flexarm_control.parent_death import signal_on_parent_death
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
 # that inherits it would skip its own re-exec and fail to import rclpy.
 _BOOTSTRAP_GUARD = '_ROS_WHEELS_BOOTSTRAP_COMPLETE'
+DISCOVERY_RANGES = ('LOCALHOST', 'SUBNET')
 
 
 @dataclass(frozen=True)
@@ -65,12 +66,20 @@ def load_optional(path: Path | None = None) -> dict[str, NodeSpec]:
 
 
 def ros_env(domain_id: int, log_dir: Path | None = None,
-            base: Mapping[str, str] | None = None) -> dict[str, str]:
-    """Environment of a node process: isolated domain, localhost discovery, own log dir."""
+            base: Mapping[str, str] | None = None,
+            discovery: str = 'LOCALHOST') -> dict[str, str]:
+    """Environment of a node process: isolated domain, discovery range, own log dir.
+
+    ``discovery`` (ROS_AUTOMATIC_DISCOVERY_RANGE) is LOCALHOST unless the caller widens it on
+    purpose: the DDS of the PyPI wheels has no security plugins, so every participant that
+    discovers the graph can publish commands to it.
+    """
+    if discovery not in DISCOVERY_RANGES:
+        raise ValueError(f'discovery range {discovery!r}; choose one of {DISCOVERY_RANGES}')
     env = dict(os.environ if base is None else base)
     env.pop(_BOOTSTRAP_GUARD, None)
     env['ROS_DOMAIN_ID'] = str(domain_id)
-    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = 'LOCALHOST'
+    env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
     env['PYTHONUNBUFFERED'] = '1'
     if log_dir is not None:
         env['ROS_LOG_DIR'] = str(log_dir)

@@ -34,7 +34,7 @@ class Graph:
     def __init__(self, domain_id: int, run_dir: Path, robot: str = 'sim',
                  parameters: Mapping[str, Mapping[str, Any]] | None = None,
                  optional: tuple[str, ...] = (), max_restarts: int = 3,
-                 report: Callable[[str], None] = print) -> None:
+                 report: Callable[[str], None] = print, discovery: str = 'LOCALHOST') -> None:
         specs = load_graph(robot)
         extra = load_optional()
         unknown = set(optional) - set(extra)
@@ -43,7 +43,7 @@ class Graph:
         specs += [extra[name] for name in optional]
         self.domain_id, self.run_dir = domain_id, run_dir
         self.max_restarts, self._report = max_restarts, report
-        env = ros_env(domain_id, run_dir / 'ros_log')
+        env = ros_env(domain_id, run_dir / 'ros_log', discovery=discovery)
         parameters = parameters or {}
         self.nodes = {spec.name: NodeProcess(spec, env, run_dir / f'{spec.name}.log',
                                              parameters.get(spec.name))

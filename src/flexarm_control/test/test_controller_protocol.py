@@ -9,6 +9,7 @@ import numpy as np
 import pytest
 
 from flexarm_control import controller_protocol as proto
+from flexarm_control.link_auth import CONTROLLER, LinkAuth
 
 STATE = dict(time=12.5, positions=[0.1, 0.6, -0.5, -0.4], velocities=[0.0, 0.01, 0.0, -0.2],
              status=proto.STATUS_MOVING)
@@ -89,5 +90,10 @@ def test_random_bytes_never_raise_and_good_frames_get_through_after_them():
 
 def test_protocol_document_example_is_what_the_codec_sends():
     document = (Path(__file__).parents[1] / 'PROTOCOL.md').read_text()
-    example = re.search(r'`(fa 57 [0-9a-f |]+)`', document).group(1)
-    assert bytes.fromhex(example.replace('|', '')) == proto.encode(proto.HEARTBEAT, 5, time=1.0)
+    plain, tagged = re.findall(r'`(fa 57 [0-9a-f |]+)`', document)
+    assert bytes.fromhex(plain.replace('|', '')) == proto.encode(proto.HEARTBEAT, 5, time=1.0)
+    site = bytes(range(32))
+    assert bytes.fromhex(tagged.replace('|', '')) == proto.encode(proto.HEARTBEAT, 5, site,
+                                                                  time=1.0)
+    handshake_key = re.search(r'`K_hs` =\s+`([0-9a-f]{64})`', document).group(1)
+    assert LinkAuth(site, CONTROLLER).sending_key(True).hex() == handshake_key

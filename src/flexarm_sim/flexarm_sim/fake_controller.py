@@ -4,10 +4,12 @@ The simulator (:class:`~flexarm_sim.sim_node.SimNode`) with its joint interface 
 topics to a TCP server: it serves JOINT_STATE frames at the joint-state rate and executes
 JOINT_COMMAND frames, so ``flexarm_bridge`` can stand between it and the graph. What the real
 world provides outside a robot controller stays on ROS: ``/clock``, the tip camera and the
-ground truth. Listens on loopback unless ``host`` says otherwise; one PC at a time: a second
-connection gets an ERROR frame (code 5, busy) and is closed at once, never queued. On link
-loss (peer closed, or no frame for ``heartbeat_timeout``) it holds the arm, as PROTOCOL.md
-requires of a controller.
+ground truth. Listens on loopback unless ``host`` says otherwise, and refuses to listen
+anywhere else without ``link_key_file`` (PROTOCOL.md, Authentication); with a key it speaks
+only the authenticated protocol and executes nothing before the PC's AUTH. One PC at a time: a
+second connection gets an ERROR frame (code 5, busy) and is closed at once, never queued. On
+link loss (peer closed, or no frame for ``heartbeat_timeout``, which also ends a connection
+that does not authenticate) it holds the arm, as PROTOCOL.md requires of a controller.
 """
 from __future__ import annotations
 
@@ -19,6 +21,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 
 from flexarm_control import controller_protocol as proto
 from flexarm_control.kinematics import JOINT_NAMES
+from flexarm_control.link_auth import CONTROLLER, LinkAuth, site_key_for
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare
 from flexarm_sim.dynamics import ArmState
@@ -35,14 +38,23 @@ class FakeController(SimNode):
         port = declare(self, 'port', 47800, 'TCP port to listen on')
         self._heartbeat_timeout = declare(self, 'heartbeat_timeout', 1.0,
                                           '[s, wall] silence after which the link is lost')
+        key_file = declare(self, 'link_key_file', '',
+                           'site key file; required to listen on a non-loopback address')
+        try:
+            self._site_key = site_key_for(host, key_file)
+        except ValueError as exc:
+            self.get_logger().fatal(f'refusing to listen: {exc}')
+            raise SystemExit(1) from None
         self._client: socket.socket | None = None
+        self._auth: LinkAuth | None = None        # of the current client, with a site key
         self._send_lock = threading.RLock()
         self._seq = 0
         self._server = socket.create_server((host, port), reuse_port=False)
         self._server.settimeout(0.2)
         self._running = True
         threading.Thread(target=self._serve, daemon=True).start()
-        self.get_logger().info(f'controller protocol v{proto.VERSION} on {host}:{port}')
+        version = proto.VERSION if self._site_key is None else proto.AUTH_VERSION
+        self.get_logger().info(f'controller protocol v{version} on {host}:{port}')
 
     def _serve(self) -> None:
         """Accept connections: the first one is served, any other refused while it lasts."""
@@ -58,7 +70,12 @@ class FakeController(SimNode):
                     continue
                 self.get_logger().info(f'PC connected from {peer}')
                 self._client = conn
-                self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
+                if self._site_key is None:
+                    self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
+                else:
+                    self._auth = LinkAuth(self._site_key, CONTROLLER)
+                    self._send(proto.HELLO, version=proto.AUTH_VERSION, names=list(JOINT_NAMES),
+                               nonce=self._auth.nonce)
             threading.Thread(target=self._serve_client, args=(conn,), daemon=True).start()
 
     def _refuse(self, conn: socket.socket, peer: object) -> None:
@@ -75,13 +92,13 @@ class FakeController(SimNode):
         conn.settimeout(0.1)
         self._talk(conn)
         with self._send_lock:
-            self._client = None
+            self._client, self._auth = None, None
         conn.close()
         self.hold()
         self.get_logger().warning('link to the PC lost: arm held')
 
     def _talk(self, conn: socket.socket) -> None:
-        decoder, heard = proto.Decoder(), time.monotonic()
+        decoder, heard = proto.Decoder(self._auth), time.monotonic()
         while self._running and time.monotonic() - heard < self._heartbeat_timeout:
             try:
                 data = conn.recv(4096)
@@ -97,18 +114,35 @@ class FakeController(SimNode):
                 self._send(proto.ERROR, code=proto.E_MALFORMED, text=error)
             for frame in frames:
                 heard = time.monotonic()
-                if frame.type == proto.JOINT_COMMAND:
+                if frame.type == proto.AUTH:
+                    self._authenticate(frame.fields['nonce'])
+                elif frame.type == proto.JOINT_COMMAND:
                     reason = self.apply_command(frame.fields['positions'])
                     self._send(proto.ACK, acked=frame.seq,
                                code=proto.OK if reason is None else proto.E_LIMITS)
 
+    def _authenticate(self, pc_nonce: bytes) -> None:
+        """The PC's AUTH: start the session (joint states flow, commands are accepted)."""
+        with self._send_lock:
+            if self._auth is None or self._auth.established:
+                self.get_logger().warning('AUTH ignored: the session is already established')
+                return
+            self._auth.start_session(pc_nonce)
+        self.get_logger().info('PC authenticated')
+
     def _send(self, frame_type: int, **fields) -> None:
+        """Send a frame to the current PC; nothing but HELLO before its AUTH, if keyed."""
         with self._send_lock:
             if self._client is None:
                 return
+            key = None
+            if self._auth is not None:
+                key = self._auth.sending_key(frame_type in proto.HANDSHAKE)
+                if key is None:
+                    return
             self._seq += 1
             try:
-                self._client.sendall(proto.encode(frame_type, self._seq, **fields))
+                self._client.sendall(proto.encode(frame_type, self._seq, key, **fields))
             except OSError:
                 pass      # the reader notices the broken link
 

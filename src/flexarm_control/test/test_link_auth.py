@@ -1,0 +1,121 @@
+"""The authenticated controller link: handshake, tags, freshness, key files, loopback rule."""
+import os
+import stat
+
+import pytest
+
+from flexarm_control import controller_protocol as proto
+from flexarm_control.link_auth import (CONTROLLER, KEY_BYTES, PC, LinkAuth, is_loopback,
+                                       load_key, make_key, site_key_for)
+
+SITE_KEY = bytes(range(KEY_BYTES))
+NAMES = ['joint1', 'joint2', 'joint3', 'joint4']
+COMMAND = dict(positions=[0.1, 0.6, -0.4, -0.3])
+
+
+def handshake(pc_key: bytes = SITE_KEY) -> tuple[LinkAuth, LinkAuth, proto.Decoder,
+                                                   proto.Decoder]:
+    """Controller and PC after HELLO and AUTH: (controller, pc, its decoder, the PC's)."""
+    controller, pc = LinkAuth(SITE_KEY, CONTROLLER), LinkAuth(pc_key, PC)
+    at_controller, at_pc = proto.Decoder(controller), proto.Decoder(pc)
+    hello = proto.encode(proto.HELLO, 1, controller.sending_key(True), version=2, names=NAMES,
+                         nonce=controller.nonce)
+    frames, errors = at_pc.feed(hello)
+    if frames:
+        pc.start_session(frames[0].fields['nonce'])
+    auth = proto.encode(proto.AUTH, 1, pc.sending_key(True), nonce=pc.nonce)
+    frames, _ = at_controller.feed(auth)
+    if frames:
+        controller.start_session(frames[0].fields['nonce'])
+    return controller, pc, at_controller, at_pc
+
+
+def test_a_session_carries_frames_both_ways():
+    controller, pc, at_controller, at_pc = handshake()
+    assert controller.established and pc.established
+    command = proto.encode(proto.JOINT_COMMAND, 2, pc.sending_key(False), **COMMAND)
+    frames, errors = at_controller.feed(command)
+    assert errors == [] and frames[0].fields == COMMAND and frames[0].seq == 2
+    state = proto.encode(proto.HEARTBEAT, 2, controller.sending_key(False), time=1.0)
+    frames, errors = at_pc.feed(state)
+    assert errors == [] and frames[0].fields == {'time': 1.0}
+
+
+def test_tampered_replayed_reflected_and_foreign_frames_are_refused():
+    controller, pc, at_controller, _ = handshake()
+    good = proto.encode(proto.JOINT_COMMAND, 5, pc.sending_key(False), **COMMAND)
+    tampered = bytearray(good)
+    tampered[12] ^= 0x01                                   # one bit of a joint angle
+    frames, errors = at_controller.feed(bytes(tampered))
+    assert frames == [] and any('tag mismatch' in e for e in errors)
+    assert at_controller.feed(good)[0]                      # the genuine one passes
+    frames, errors = at_controller.feed(good)               # ... once
+    assert frames == [] and 'replayed' in errors[0]
+    older = proto.encode(proto.JOINT_COMMAND, 4, pc.sending_key(False), **COMMAND)
+    assert at_controller.feed(older)[0] == []               # reordered
+    reflected = proto.encode(proto.JOINT_COMMAND, 9, controller.sending_key(False), **COMMAND)
+    assert at_controller.feed(reflected)[0] == []           # its own key, from the wire
+    plain = proto.encode(proto.JOINT_COMMAND, 10, **COMMAND)
+    frames, errors = at_controller.feed(plain)
+    assert frames == [] and 'requires authentication' in errors[-1]
+    assert at_controller.rejected == 5
+
+
+def test_a_frame_of_another_connection_is_worthless():
+    _, old_pc, _, _ = handshake()
+    recorded = proto.encode(proto.JOINT_COMMAND, 100, old_pc.sending_key(False), **COMMAND)
+    _, _, at_controller, _ = handshake()                   # a new connection: new nonces
+    frames, errors = at_controller.feed(recorded)
+    assert frames == [] and 'tag mismatch' in errors[0]
+
+
+def test_without_the_site_key_nothing_is_accepted():
+    controller, pc, at_controller, at_pc = handshake(pc_key=bytes(KEY_BYTES))
+    assert not pc.established and not controller.established    # HELLO refused by the PC
+    at_controller = proto.Decoder(controller)
+    auth = proto.encode(proto.AUTH, 1, pc.sending_key(True), nonce=pc.nonce)
+    frames, errors = at_controller.feed(auth)
+    assert frames == [] and 'tag mismatch' in errors[0]    # its AUTH is refused
+    for key in (pc.sending_key(True), SITE_KEY):
+        command = proto.encode(proto.JOINT_COMMAND, 2, key, **COMMAND)
+        frames, errors = at_controller.feed(command)
+        assert frames == [] and 'before the link was authenticated' in errors[-1]
+    frames, errors = proto.Decoder().feed(proto.encode(proto.HEARTBEAT, 1, SITE_KEY, time=1.0))
+    assert frames == [] and 'no link key' in errors[0]     # a PC without a key is told why
+
+
+def test_garbage_around_authenticated_frames_resynchronises():
+    controller, pc, at_controller, _ = handshake()
+    frames = [proto.encode(proto.HEARTBEAT, seq, pc.sending_key(False), time=float(seq))
+              for seq in range(2, 6)]
+    stream = b'\xfaW\x02\x03junk' + frames[0] + bytes(range(256)) + b''.join(frames[1:])
+    decoded = []
+    for i in range(0, len(stream), 7):
+        decoded += at_controller.feed(stream[i:i + 7])[0]
+    assert [f.seq for f in decoded] == [2, 3, 4, 5]
+
+
+def test_key_files(tmp_path):
+    path = make_key(tmp_path / 'site.key')
+    assert stat.S_IMODE(path.stat().st_mode) == 0o600
+    assert len(load_key(path)) == KEY_BYTES
+    os.chmod(path, 0o644)
+    with pytest.raises(ValueError, match='chmod 600'):
+        load_key(path)
+    short = tmp_path / 'short.key'
+    short.write_text('abcd\n')
+    short.chmod(0o600)
+    with pytest.raises(ValueError, match='at least'):
+        load_key(short)
+    with pytest.raises(ValueError, match='missing'):
+        load_key(tmp_path / 'missing')
+
+
+def test_a_link_off_loopback_needs_a_key(tmp_path):
+    assert is_loopback('127.0.0.1') and is_loopback('localhost') and is_loopback('::1')
+    assert not is_loopback('0.0.0.0') and not is_loopback('') and not is_loopback('10.1.2.3')
+    assert site_key_for('127.0.0.1', '') is None
+    with pytest.raises(ValueError, match='must be authenticated'):
+        site_key_for('0.0.0.0', '')
+    key = make_key(tmp_path / 'k')
+    assert site_key_for('10.1.2.3', str(key)) == load_key(key)

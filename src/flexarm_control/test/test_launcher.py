@@ -51,6 +51,11 @@ def test_ros_env_isolates_the_domain_and_drops_the_bootstrap_guard() -> None:
     assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     assert '_ROS_WHEELS_BOOTSTRAP_COMPLETE' not in env
     assert env['PATH'] == '/bin'
+    widened = ros_env(42, base={'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'})
+    assert widened['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'    # only when asked for
+    assert ros_env(42, discovery='SUBNET')['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SUBNET'
+    with pytest.raises(ValueError, match='discovery range'):
+        ros_env(42, discovery='EVERYWHERE')
 
 
 def test_graph_has_one_controller_and_the_control_nodes() -> None:

@@ -128,6 +128,44 @@ def test_a_client_notices_its_server_die_mid_goal(moving_graph):
     assert time.monotonic() - killed < 6.0
 
 
+
+def test_a_collection_client_notices_the_learner_die_and_no_sample_is_lost(launch, tmp_path,
+                                                                          ready_client):
+    import threading
+
+    from flexarm_control.client import ServerLost
+    from flexarm_control.dataset import load_dataset
+
+    launch('flexarm_sim', real_time_factor=10.0)
+    launch('flexarm_vision')
+    learner = launch('flexarm_learner', data_directory=str(tmp_path / 'data'))
+    client = ready_client(compensator=False)
+    done, outcome = [], {}
+
+    def collect() -> None:
+        try:
+            client.collect(40, dataset='d', timeout=600,
+                           feedback=lambda fb: done.append(fb.k - fb.skipped))
+        except Exception as exc:   # the outcome is what the test looks at
+            outcome['error'] = exc
+
+    thread = threading.Thread(target=collect)
+    thread.start()
+    deadline = time.monotonic() + 60
+    while (not done or done[-1] < 3) and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert done and done[-1] >= 3, 'the collection did not get going'
+    os.kill(learner.process.pid, signal.SIGKILL)
+    killed = time.monotonic()
+    thread.join(timeout=15)
+    assert not thread.is_alive(), 'the client still waits for a dead learner'
+    assert isinstance(outcome.get('error'), ServerLost), outcome
+    assert 'flexarm_learner' in str(outcome['error'])
+    assert time.monotonic() - killed < 6.0
+    dataset = load_dataset(tmp_path / 'data' / 'd.jsonl')
+    assert dataset.skipped_lines == []
+    assert len(dataset.samples) >= done[-1]        # every sample reported is on disk
+
 def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait_for):
     from flexarm_control import controller_protocol as proto
 

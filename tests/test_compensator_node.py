@@ -108,6 +108,32 @@ def test_a_goal_beyond_the_learned_data_is_refused_or_warned(graph):
     assert warned.data_distance > 3.0 or warned.prediction_std > 0.3e-3
 
 
+def test_provenance_tolerances_and_dry_run(graph):
+    client, joints = graph
+    outcomes = []
+    client.create_subscription(GoalOutcome, topics.OUTCOMES, outcomes.append, 10)
+    spin_for(client, 0.5)
+    before = joints['q'].copy()
+    plan = client.move_to(*TARGET, mode='predictive', dry_run=True, timeout=60)
+    assert plan.error_code == Result.SUCCESSFUL and 'dry run' in plan.error_string
+    assert plan.iterations == 0 and not plan.measured and plan.compensation_iterations >= 1
+    assert plan.model_version and plan.model_version == client.active_model.version
+    spin_for(client, 1.0)
+    np.testing.assert_array_equal(joints['q'], before)            # nothing moved
+    versions = []
+    strict = client.move_to(*TARGET, mode='predictive', position_tolerance=1e-6, timeout=120,
+                            feedback=lambda fb: versions.append(fb.model_version))
+    assert strict.error_code == Result.TOLERANCE_NOT_MET, strict.error_string
+    assert strict.measured and 'beyond the tolerance' in strict.error_string
+    assert strict.model_version == plan.model_version and plan.model_version in versions
+    np.testing.assert_allclose(strict.joint_positions, plan.joint_positions)
+    loose = client.move_to(*TARGET, mode='predictive', position_tolerance=1e-3, timeout=120)
+    assert loose.error_code == Result.SUCCESSFUL, loose.error_string
+    rigid = client.move_to(*TARGET, mode='rigid', position_tolerance=1e-3, timeout=120)
+    assert rigid.error_code == Result.TOLERANCE_NOT_MET and rigid.model_version == ''
+    spin_for(client, 0.5)
+    assert [o.model_version for o in outcomes] == [plan.model_version] * 3 + ['']
+
 @pytest.fixture
 def no_model_graph(launch, domain_id):
     """Simulator (10x), vision and a compensator without a model; a client."""
@@ -178,6 +204,7 @@ def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(graph):
     stopped = joints['q'].copy()
     spin_for(client, 1.0)
     np.testing.assert_allclose(joints['q'], stopped, atol=1e-9)
+    np.testing.assert_allclose(outcome['result'].joint_positions, stopped, atol=0.02)
     goal = inverse(ArmGeometry.from_dict(load_config('arm.yaml')['arm']), np.array(far))
     assert np.max(np.abs(joints['q'] - goal)) > 0.05
 
@@ -285,7 +312,7 @@ def test_unusable_models_are_refused_and_the_previous_one_kept(in_process, model
                                                                tmp_path):
     node, _, _ = in_process
     node._load_model(str(model_path), 'good')
-    good = node._predictor
+    good = node._model
     joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
                                                (20, 4))
     with_payload = tmp_path / 'payload.model'
@@ -297,14 +324,15 @@ def test_unusable_models_are_refused_and_the_previous_one_kept(in_process, model
     truncated.write_bytes(model_path.read_bytes()[:1000])
     for version, path in enumerate((with_payload, empty, truncated), start=100):
         node._on_model(ModelInfo(version=str(version), kind='rbf', path=str(path)))
-        assert node._predictor is good and node._model_version == str(model_path)
+        assert node._model is good and good[1].version == str(model_path)
 
 
 def test_an_unexpected_error_aborts_with_a_reason(in_process):
     node, client, outcomes = in_process
     model = make_predictor('rbf', {'payload_input': True})   # predict needs a payload
     joints = np.random.default_rng(1).uniform(-0.5, 0.5, (10, 4))
-    node._predictor = model.fit(joints, joints[:, :3], np.linspace(0, 1, 10))
+    node._model = (model.fit(joints, joints[:, :3], np.linspace(0, 1, 10)),
+                   ModelInfo(version='7'))
     result = client.move_to(*TARGET, mode='predictive', timeout=30)
     assert result.error_code == Result.INVALID_GOAL
     assert 'internal error: ValueError' in result.error_string, result.error_string
@@ -321,8 +349,8 @@ def test_a_compensation_without_solution_is_aborted(in_process):
     # reached, though the model claims to know the region.
     flat = lambda q: np.stack([0 * q[..., 0], -forward(geometry, q)[..., 1] - 0.3,  # noqa
                                0 * q[..., 0]], axis=-1)
-    node._predictor = SimpleNamespace(predict=flat, data_distance=lambda q: 0.5,
-                                      position_std=lambda q: 0.0)
+    node._model = (SimpleNamespace(predict=flat, data_distance=lambda q: 0.5,
+                                   position_std=lambda q: 0.0), ModelInfo(version='7'))
     result = client.move_to(*TARGET, mode='predictive', timeout=60)
     assert result.error_code == Result.UNREACHABLE
     assert 'no solution' in result.error_string and result.iterations == 0

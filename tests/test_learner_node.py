@@ -10,6 +10,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control.dataset import load_dataset
+from flexarm_control.model_store import read_current
 from flexarm_control.predictors import load_predictor
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
@@ -171,3 +172,22 @@ def test_an_outlier_is_excluded_and_reported(bare_learner, write_dataset):
     assert 0 < trained.metrics.max_slope < 0.5
     model = load_predictor(trained.model_path)
     assert model.kind == 'gp' and model.metadata['metrics']['excluded_samples'] == [11]
+
+
+def test_models_carry_provenance_and_can_be_rolled_back(bare_learner):
+    (client, _), tmp = bare_learner
+    first = client.train('rbf', dataset='good', timeout=60)
+    second = client.train('rbf', {'smoothing': 0.01}, dataset='good', timeout=60)
+    assert first.success and second.success, (first.message, second.message)
+    assert read_current(tmp / 'models')['version'] == second.model_version == '5'
+    back = client.use_model(first.model_version)
+    assert back.success, back.message
+    assert back.model.version == '4' and back.model.dataset == 'good'
+    assert list(back.model.payloads) == [0.0] and back.model.warning == ''
+    assert back.model.metrics.samples == first.metrics.samples
+    assert read_current(tmp / 'models')['version'] == '4'
+    for version, why in (('3', 'not a model file'), ('99', 'no model version 99'),
+                         ('../x', 'must be a number')):
+        refused = client.use_model(version)
+        assert not refused.success and why in refused.message, refused.message
+    assert read_current(tmp / 'models')['version'] == '4'

@@ -3,7 +3,9 @@
 Shared by the compensator and the learner. Commands go to ros2_control's
 ``/forward_position_controller/commands`` (one value per joint, in ``JOINT_NAMES`` order), so a
 real controller drops in. Waits are in the node's clock (sim time under ``use_sim_time``) and
-are also capped in wall time, so a stopped ``/clock`` can never hang a goal.
+are also capped in wall time, so a stopped ``/clock`` can never hang a goal. A wait also ends
+when ``/joint_states`` stop (the controller died or its link is down: nothing the arm does can
+be seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can then exit).
 """
 from __future__ import annotations
 
@@ -31,6 +33,9 @@ from flexarm_msgs.msg import TipPose
 _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
 _POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them at once)
+# [s, wall] without /joint_states, once they came, after which the controller counts as gone
+# (at 100 Hz of sim time, even a simulator at a tenth of real time publishes every 0.1 s).
+JOINT_SILENCE = 2.0
 
 
 @dataclass(frozen=True)
@@ -48,6 +53,7 @@ class ArmInterface:
         self._cond = threading.Condition()
         self._joints: JointSnapshot | None = None
         self._joints_raw: bytes | None = None     # newest /joint_states, not yet parsed
+        self._joints_heard: float | None = None   # [s, monotonic] when the newest came
         self._frames: deque[TipPose] = deque(maxlen=frames_kept)
         self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
         # Raw: at a 10x real-time factor /joint_states arrives 1000 times a wall second; only
@@ -62,6 +68,7 @@ class ArmInterface:
     def _on_joint_state(self, raw: bytes) -> None:
         with self._cond:
             self._joints_raw = raw
+            self._joints_heard = time.monotonic()
 
     def _parse_joints(self) -> JointSnapshot | None:
         """The newest joint state (call with the lock held)."""
@@ -88,9 +95,16 @@ class ArmInterface:
     def now(self) -> Time:
         return self._node.get_clock().now()
 
+    @property
+    def controller_silent(self) -> bool:
+        """Whether ``/joint_states`` came once but not for ``JOINT_SILENCE`` s (wall)."""
+        heard = self._joints_heard
+        return heard is not None and time.monotonic() - heard > JOINT_SILENCE
+
     # --- commands ---------------------------------------------------------------------------
     def command(self, q: np.ndarray) -> None:
-        self._publisher.publish(Float64MultiArray(data=[float(v) for v in q]))
+        if self._node.context.ok():       # a node that shuts down sends nothing any more
+            self._publisher.publish(Float64MultiArray(data=[float(v) for v in q]))
 
     def hold(self) -> np.ndarray | None:
         """Stop the arm where it is: command the current joint positions."""
@@ -105,7 +119,8 @@ class ArmInterface:
                    abort: Callable[[], bool] = lambda: False) -> bool:
         """Wait until ``predicate()`` (evaluated under the lock) or ``timeout`` s of node time.
 
-        Returns False on timeout or when ``abort()`` becomes true (e.g. a cancel request).
+        Returns False on timeout, when ``abort()`` becomes true (e.g. a cancel request), when
+        ``/joint_states`` stopped (:attr:`controller_silent`) or when the node shuts down.
         Under ``use_sim_time`` the node time is 0 until the first ``/clock`` arrives and then
         jumps to the simulator's time: the wait starts counting at the first non-zero time.
         """
@@ -113,7 +128,8 @@ class ArmInterface:
         wall_deadline = time.monotonic() + _WALL_FACTOR * timeout + _WALL_SLACK
         with self._cond:
             while not predicate():
-                if abort() or time.monotonic() > wall_deadline:
+                if (abort() or time.monotonic() > wall_deadline or self.controller_silent
+                        or not self._node.context.ok()):
                     return False
                 now = self.now()
                 if start.nanoseconds == 0:

@@ -12,7 +12,7 @@ import io
 import math
 from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
@@ -25,12 +25,17 @@ from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.kinematics import wrap_angle
 
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
 MCAP_MAGIC = b'\x89MCAP0\r\n'
-MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_')
+MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_').lower()
               for name in dir(MoveToPose.Goal) if name.startswith('MODE_')}
+ERROR_NAMES = {getattr(MoveToPose.Result, name): name for name in dir(MoveToPose.Result)
+               if name.isupper() and isinstance(getattr(MoveToPose.Result, name), int)}
 CSV_FIELDS = (
-    'trial', 'mode', 'error_code', 'iterations', 'stamp_s', 'data_distance',
-    'prediction_std_mm',
+    'trial', 'mode', 'mode_name', 'error_code', 'error_name', 'succeeded', 'reason',
+    'model_version', 'iterations', 'stamp_s', 'data_distance', 'prediction_std_mm',
     'target_x_mm', 'target_y_mm', 'target_phi_deg',
     'measured', 'measured_x_mm', 'measured_y_mm', 'measured_phi_deg',
     'measured_position_error_mm', 'measured_angle_error_deg',
@@ -163,12 +168,28 @@ def _stamp_ns(stamp: Any) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
+def _pose_mm_deg(prefix: str, pose: Any) -> dict[str, float]:
+    return {f'{prefix}_x_mm': pose.x * 1e3, f'{prefix}_y_mm': pose.y * 1e3,
+            f'{prefix}_phi_deg': math.degrees(pose.phi)}
+
+
+def _errors_mm_deg(prefix: str, pose: Any, target: Any) -> dict[str, float]:
+    """Position error [mm] and signed angle error [deg] of ``pose``: pose minus target."""
+    return {f'{prefix}_position_error_mm': math.hypot(pose.x - target.x, pose.y - target.y) * 1e3,
+            f'{prefix}_angle_error_deg': math.degrees(wrap_angle(pose.phi - target.phi))}
+
+
 def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any]) -> list[dict[str, Any]]:
-    """One row per goal outcome: target, measured and true pose, errors, in mm and deg.
+    """One row per goal outcome (the columns of :data:`CSV_FIELDS`), in mm and deg.
 
     ``outcomes`` are GoalOutcome messages, ``truths`` TipPose messages of the simulator's
     ground truth; an outcome's truth is the last valid truth sample stamped at or before the
-    outcome's stamp (empty cells when there is none, or when nothing was measured).
+    outcome's stamp (empty cells when there is none, or when nothing was measured). Errors,
+    measured and true alike, are the reached pose minus the target: the position error is the
+    distance, the angle error signed and wrapped to (-180, 180] deg. They are left empty for a
+    goal that did not move the arm (refused, dry run): its distance from the target is no
+    error. ``succeeded`` is False for every goal that did not end SUCCESSFUL; the numbers of
+    such a goal are where the arm was left, not an accuracy.
     """
     truth_by_time = sorted(((_stamp_ns(t.header.stamp), t.pose) for t in truths if t.valid),
                            key=lambda item: item[0])
@@ -177,32 +198,30 @@ def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any]) -> list[dict[str,
         stamp = _stamp_ns(outcome.stamp)
         earlier = [pose for t, pose in truth_by_time if t <= stamp]
         truth = earlier[-1] if earlier else None
-        target, measured = outcome.target, outcome.measured_pose
+        target = outcome.target
         row: dict[str, Any] = {
             'trial': outcome.trial,
-            'mode': MODE_NAMES.get(outcome.mode, str(outcome.mode)),
+            'mode': outcome.mode,
+            'mode_name': MODE_NAMES.get(outcome.mode, str(outcome.mode)),
             'error_code': outcome.error_code,
+            'error_name': ERROR_NAMES.get(outcome.error_code, str(outcome.error_code)),
+            'succeeded': outcome.error_code == MoveToPose.Result.SUCCESSFUL,
+            'reason': outcome.error_string,
+            'model_version': getattr(outcome, 'model_version', ''),   # older bags: none
             'iterations': outcome.iterations,
             'stamp_s': stamp * 1e-9,
             'data_distance': outcome.data_distance,
             'prediction_std_mm': outcome.prediction_std * 1e3,
-            'target_x_mm': target.x * 1e3, 'target_y_mm': target.y * 1e3,
-            'target_phi_deg': math.degrees(target.phi),
+            **_pose_mm_deg('target', target),
             'measured': outcome.measured,
         }
         if outcome.measured:
-            row.update({
-                'measured_x_mm': measured.x * 1e3, 'measured_y_mm': measured.y * 1e3,
-                'measured_phi_deg': math.degrees(measured.phi),
-                'measured_position_error_mm': outcome.position_error * 1e3,
-                'measured_angle_error_deg': math.degrees(outcome.angle_error)})
+            row.update(_pose_mm_deg('measured', outcome.measured_pose))
+            row.update(_errors_mm_deg('measured', outcome.measured_pose, target))
         if truth is not None:
-            row.update({
-                'truth_x_mm': truth.x * 1e3, 'truth_y_mm': truth.y * 1e3,
-                'truth_phi_deg': math.degrees(truth.phi),
-                'truth_position_error_mm': math.hypot(truth.x - target.x,
-                                                      truth.y - target.y) * 1e3,
-                'truth_angle_error_deg': math.degrees(wrap_angle(truth.phi - target.phi))})
+            row.update(_pose_mm_deg('truth', truth))
+            if outcome.iterations > 0:
+                row.update(_errors_mm_deg('truth', truth, target))
         rows.append(row)
     return rows
 
@@ -232,29 +251,66 @@ def export_trials(path: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
     return csv_path, png_path
 
 
-def plot_trials(rows: Sequence[dict[str, Any]], png_path: Path, title: str) -> None:
-    """Position and angle error of every goal, by mode (true error, else measured)."""
+def _error_series(rows: Sequence[dict[str, Any]], quantity: str
+                  ) -> tuple[dict[str, tuple[list[int], list[float]]], list[int], list[int]]:
+    """What the plot shows of ``quantity`` (``position_error_mm`` or ``angle_error_deg``).
+
+    Returns ``({mode_name: (goal indices, |error|)}, failed goals, goals without an error)``:
+    only succeeded goals with an error (true, else measured) are plotted as errors.
+    """
+    by_mode: dict[str, tuple[list[int], list[float]]] = {}
+    failed, unrecorded = [], []
+    for i, row in enumerate(rows):
+        value = row.get(f'truth_{quantity}', row.get(f'measured_{quantity}'))
+        if not row['succeeded']:
+            failed.append(i)
+        elif value is None:
+            unrecorded.append(i)
+        else:
+            index, values = by_mode.setdefault(row['mode_name'], ([], []))
+            index.append(i)
+            values.append(abs(value))
+    return by_mode, failed, unrecorded
+
+
+def trials_figure(rows: Sequence[dict[str, Any]], title: str) -> Figure:
+    """Position and |angle| error of every succeeded goal by mode on log axes; goals that
+    failed, or succeeded without an error (dry runs), as marks along each axis' bottom."""
     import matplotlib
 
     matplotlib.use('Agg')
     import matplotlib.pyplot as plt
+    from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
-    fig, (ax_pos, ax_ang) = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
-    for mode in dict.fromkeys(r['mode'] for r in rows):
-        index = [i for i, r in enumerate(rows) if r['mode'] == mode]
-        for ax, truth_key, measured_key in (
-                (ax_pos, 'truth_position_error_mm', 'measured_position_error_mm'),
-                (ax_ang, 'truth_angle_error_deg', 'measured_angle_error_deg')):
-            values = [rows[i].get(truth_key, rows[i].get(measured_key, math.nan))
-                      for i in index]
+    fig, axes = plt.subplots(2, 1, figsize=(9, 6), sharex=True)
+    for ax, quantity, label in ((axes[0], 'position_error_mm', 'position error [mm]'),
+                                (axes[1], 'angle_error_deg', '|angle error| [deg]')):
+        by_mode, failed, unrecorded = _error_series(rows, quantity)
+        for mode, (index, values) in by_mode.items():
             ax.plot(index, values, 'o', label=mode)
-    ax_pos.set_ylabel('position error [mm]')
-    ax_ang.set_ylabel('angle error [deg]')
-    ax_ang.set_xlabel('goal')
-    ax_pos.set_title(f'{title}: tip error per goal (truth where recorded, else measured)')
-    ax_pos.legend()
-    for ax in (ax_pos, ax_ang):
+        for index, marker, color, what in ((failed, 'x', 'red', 'failed goals'),
+                                           (unrecorded, '|', 'gray', 'no error recorded')):
+            if index:
+                ax.plot(index, [0.0] * len(index), marker, color=color, markersize=9,
+                        transform=ax.get_xaxis_transform(), clip_on=False,
+                        label=f'{what}: {len(index)}')
+        ax.set_yscale('log')
+        ax.yaxis.set_major_formatter(FormatStrFormatter('%g'))
+        ax.yaxis.set_minor_formatter(NullFormatter())
+        ax.set_ylabel(label)
         ax.grid(True, alpha=0.3)
+    axes[1].set_xlabel('goal')
+    axes[1].xaxis.set_major_locator(MaxNLocator(integer=True))
+    axes[0].set_title(f'{title}: tip error per goal (truth where recorded, else measured)')
+    axes[0].legend(fontsize='small')
     fig.tight_layout()
+    return fig
+
+
+def plot_trials(rows: Sequence[dict[str, Any]], png_path: Path, title: str) -> None:
+    """Write :func:`trials_figure` of ``rows`` to ``png_path``."""
+    import matplotlib.pyplot as plt
+
+    fig = trials_figure(rows, title)
     atomic_write(png_path, lambda f: fig.savefig(f, dpi=100, format='png'))
     plt.close(fig)

@@ -1,23 +1,69 @@
 """``flexarm``: the command line of the flexarm system.
 
-Humans type millimetres and degrees; everything below the CLI is SI. Every subcommand prints
-for humans and, with ``--json``, ends its output with one line of JSON holding its result.
-The graph must be running (``flexarm up``) for move/collect/train, in the same ROS_DOMAIN_ID.
-DDS discovery stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the
-environment sets another range or ``flexarm up --discovery subnet`` widens it on purpose.
+Humans type millimetres and degrees and read them back (every printed pose carries its units);
+everything below the CLI is SI, and so is the ``--json`` result. Every outcome is said in
+words: results on stdout, anything else (refused, failed, busy, timeout, interrupted) on
+stderr as ``flexarm COMMAND: …``; ``--json`` ends stdout with one line of JSON holding the
+result and its ``exit_code``. Arguments are checked before anything connects. Whatever takes
+more than a moment shows progress on stderr (bars, waiting lines, goal feedback) unless
+``--quiet`` or ``--json``. The graph must be running (``flexarm up``) for move/collect/train,
+in the same ROS_DOMAIN_ID. DDS discovery stays on this machine
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the environment sets another range or
+``flexarm up --discovery subnet`` widens it on purpose.
+
+Exit codes (:class:`flexarm_control.outcome_text.Exit`):
+
+    0    success
+    1    the server refused the goal or it failed (its result code by name, and a hint)
+    2    usage error: bad arguments, refused before connecting
+    3    no graph answered within --wait, a server was lost mid-goal, or the goal outlasted
+         --timeout (it was cancelled)
+    4    busy: another goal or collection runs; try again when it has ended
+    130  interrupted (Ctrl-C or SIGTERM): a running goal was cancelled and the command says
+         where the arm stopped
 """
 from __future__ import annotations
 
 import argparse
+import contextlib
 import json
 import math
 import os
+import re
 import signal
 import sys
-from collections.abc import Callable, Sequence
+import textwrap
+import threading
+from collections.abc import Callable, Iterator, Sequence
+from pathlib import Path
+from types import FrameType
 from typing import Any
 
+from flexarm_control import topics
+from flexarm_control.outcome_text import (COLLECT_HINTS, EXIT_MEANINGS, MOVE_HINTS, TRAIN_HINT,
+                                          Exit, busy_text, code_name, failure_text,
+                                          human_units, is_busy, pose_text)
+from flexarm_control.params import CONFIG_DIR
+
+REPO = CONFIG_DIR.parent
 COMMANDS: dict[str, Callable[[argparse.Namespace], dict[str, Any]]] = {}
+UINT32_MAX = 2 ** 32 - 1
+MAX_DOMAIN_ID = 232       # the largest ROS_DOMAIN_ID whose DDS ports exist
+_GENERATED_MESSAGE = re.compile(r'[/\\](?:msg|srv|action)[/\\]_\w+\.py$')   # rosidl's Python
+_RESIGNAL = 0.005         # [s] until a signal that came during a message conversion is resent
+
+
+class Outcome(Exception):
+    """A command's outcome other than success: its words, exit code and JSON fields."""
+
+    def __init__(self, text: str, code: Exit, /, **fields: Any) -> None:
+        super().__init__(text)
+        self.code, self.fields = code, fields
+
+
+def usage(message: str) -> Outcome:
+    """A usage error: bad arguments, found before connecting."""
+    return Outcome(message, Exit.USAGE)
 
 
 def command(func: Callable[[argparse.Namespace], dict[str, Any]]):
@@ -38,47 +84,221 @@ def pose_dict(pose: Any) -> dict[str, float]:
     return {'x': pose.x, 'y': pose.y, 'phi': pose.phi}
 
 
-def _connect(args: argparse.Namespace, learner: bool):
+# --- progress -------------------------------------------------------------------------------
+def _progress(args: argparse.Namespace) -> bool:
+    return not (args.quiet or args.json)
+
+
+@contextlib.contextmanager
+def _elapsed(what: str, args: argparse.Namespace) -> Iterator[None]:
+    """While the block runs: after a second, 'WHAT ... mm:ss' on stderr, counting."""
+    if not _progress(args):
+        yield
+        return
+    from tqdm import tqdm
+
+    line = tqdm(desc=what, bar_format='{desc} ... {elapsed}', delay=1.0, leave=False)
+    stop = threading.Event()
+
+    def tick() -> None:
+        while not stop.wait(0.5):
+            line.update(0)
+
+    ticker = threading.Thread(target=tick, daemon=True)
+    ticker.start()
+    try:
+        yield
+    finally:
+        stop.set()
+        ticker.join()
+        line.close()
+
+
+@contextlib.contextmanager
+def _steps(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, str], None]]:
+    """A progress bar on stderr fed by ``progress(done, total, step)`` calls."""
+    from tqdm import tqdm
+
+    bars: list[Any] = []      # made by the first call, which knows the total
+
+    def progress(done: int, total: int, step: str) -> None:
+        if not bars:
+            bars.append(tqdm(desc=what, total=total, unit='step', disable=not _progress(args)))
+        bars[0].set_postfix_str(step, refresh=False)
+        bars[0].update(done - bars[0].n)
+
+    try:
+        yield progress
+    finally:
+        for bar in bars:
+            bar.close()
+
+
+# --- checks before connecting ---------------------------------------------------------------
+def _learner_config() -> dict[str, Any]:
+    from flexarm_control.params import load_config
+
+    return load_config('learner.yaml', node_name='flexarm_learner')
+
+
+def _check_region(region: str) -> None:
+    presets = _learner_config()['regions']
+    if region and region not in presets:
+        raise usage(f'unknown region "{region}"; presets of config/learner.yaml: '
+                    f'{", ".join(presets)}')
+
+
+def _check_dataset(name: str) -> None:
+    if name:
+        from flexarm_control.learner_node import dataset_name_error
+
+        reason = dataset_name_error(name)
+        if reason is not None:
+            raise usage(reason)
+
+
+def _check_kind(kind: str) -> None:
+    if kind:
+        from flexarm_control.predictors import KINDS
+
+        if kind not in KINDS:
+            raise usage(f'unknown predictor kind "{kind}"; known kinds: {", ".join(KINDS)}')
+
+
+def _check_strategy(strategy: str) -> None:
+    if strategy:
+        from flexarm_control.sampling import STRATEGIES
+
+        if strategy not in STRATEGIES:
+            raise usage(f'unknown strategy "{strategy}"; known: {", ".join(STRATEGIES)}')
+
+
+def _check_bag(path: str) -> None:
+    from flexarm_control.bag_tools import MCAP_MAGIC, mcap_path
+
+    try:
+        file = mcap_path(path)
+    except FileNotFoundError as exc:
+        raise usage(f'{exc} (a bag is bags/NAME or its .mcap file)') from None
+    with open(file, 'rb') as f:
+        if f.read(len(MCAP_MAGIC)) != MCAP_MAGIC:
+            raise usage(f'{file} is not an MCAP bag')
+
+
+# --- the graph --------------------------------------------------------------------------------
+@contextlib.contextmanager
+def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
+    """A client of the graph once its servers answer (a waiting line meanwhile); shut down
+    when the block ends."""
+    import rclpy
+
     from flexarm_control.client import init_client
 
     client = init_client(args.domain_id)
-    client.wait_until_ready(timeout=args.wait, learner=learner)
-    return client
+    try:
+        domain = client.context.get_domain_id()
+        try:
+            with _elapsed(f'waiting for the flexarm graph in ROS_DOMAIN_ID={domain}', args):
+                client.wait_until_ready(timeout=args.wait, learner=learner)
+        except KeyboardInterrupt:
+            raise Outcome('interrupted while waiting for the graph; nothing was sent',
+                          Exit.INTERRUPTED) from None
+        yield client
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown()
 
 
-def _shutdown(client: Any) -> None:
-    import rclpy
+def _goal(run: Callable[[], Any], server: str, interrupted: Callable[[Any], str]) -> Any:
+    """``run()``'s result; busy, lost and interrupted goals as outcomes
+    (``interrupted(result)`` words the cancelled goal's result, None if none arrived)."""
+    from flexarm_control.client import GoalInterrupted, GoalRejected, ServerLost
 
-    client.destroy_node()
-    rclpy.try_shutdown()
+    try:
+        return run()
+    except GoalRejected:
+        raise Outcome(busy_text(server), Exit.BUSY) from None
+    except ServerLost as exc:
+        raise Outcome(str(exc), Exit.NO_GRAPH) from None
+    except GoalInterrupted as exc:
+        if exc.accepted is False:
+            raise Outcome('interrupted; the server had not accepted the goal: nothing moved',
+                          Exit.INTERRUPTED) from None
+        if exc.accepted is None:
+            raise Outcome('interrupted before the server answered whether it accepted the '
+                          'goal; if it did, the goal runs on', Exit.INTERRUPTED) from None
+        raise Outcome(interrupted(exc.result), Exit.INTERRUPTED) from None
+
+
+def _no_result() -> str:
+    from flexarm_control.client import CANCEL_WAIT
+
+    return f'cancelled; no result from the server within {CANCEL_WAIT:.0f} s'
+
+
+# --- move -------------------------------------------------------------------------------------
+def _measured_text(pose: Any, position_error: float, angle_error: float) -> str:
+    return (f'measured {pose_text((pose.x, pose.y, pose.phi))}; error '
+            f'{mm(position_error):.3f} mm, {deg(angle_error):.4f} deg')
+
+
+def _show_feedback(fb: Any) -> None:
+    measured = (' ' + _measured_text(fb.measured_pose, fb.position_error, fb.angle_error)
+                if fb.measured else '')
+    print(f'  [{fb.iteration}] {fb.phase}{measured}', flush=True)
+
+
+def _move_text(result: Any) -> str:
+    """A MoveToPose result in words: reached (how well), refused or failed (why)."""
+    from flexarm_msgs.action import MoveToPose
+
+    if result.error_code != MoveToPose.Result.SUCCESSFUL:
+        return failure_text(code_name(MoveToPose.Result, result.error_code),
+                            result.error_string, MOVE_HINTS, moved=result.iterations > 0)
+    reached = (f'reached in {result.iterations} move(s): ' + _measured_text(
+        result.measured_pose, result.position_error, result.angle_error) if result.measured
+        else f'moved in {result.iterations} move(s), not measured')
+    learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
+               f'std {mm(result.prediction_std):.3f} mm'
+               if result.data_distance or result.prediction_std else '')
+    notes = f'; {human_units(result.error_string)}' if result.error_string else ''
+    return reached + learned + notes
+
+
+def _move_interrupted(result: Any) -> str:
+    """Where a cancelled goal left the arm: the rigid pose of the joints it stopped at."""
+    import numpy as np
+
+    from flexarm_control.kinematics import ArmGeometry, forward
+    from flexarm_control.params import load_config
+    from flexarm_msgs.action import MoveToPose
+
+    if result is None:
+        return f'{_no_result()}: where the arm stopped is unknown'
+    if result.error_code != MoveToPose.Result.CANCELED:
+        return f'interrupted after the goal had ended: {_move_text(result)}'
+    geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
+    pose = forward(geometry, np.array(result.joint_positions))
+    return f'cancelled; arm stopped at {pose_text(pose)} (rigid kinematics of its joints)'
 
 
 @command
 def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
     """Move the tip to X Y PHI [mm mm deg]."""
-    from flexarm_control.client import GoalRejected
+    from flexarm_msgs.action import MoveToPose
 
-    client = _connect(args, learner=False)
-
-    def show(fb: Any) -> None:
-        measured = (f' measured ({fb.measured_pose.x * 1e3:.2f}, {fb.measured_pose.y * 1e3:.2f}, '
-                    f'{deg(fb.measured_pose.phi):.3f}) error {mm(fb.position_error):.3f} mm '
-                    f'{deg(fb.angle_error):.4f} deg' if fb.measured else '')
-        print(f'  [{fb.iteration}] {fb.phase}{measured}', flush=True)
-
-    try:
-        result = client.move_to(args.x / 1e3, args.y / 1e3, math.radians(args.phi),
-                                mode=args.mode,
-                                position_tolerance=args.position_tolerance / 1e3,
-                                angle_tolerance=math.radians(args.angle_tolerance),
-                                max_iterations=args.max_iterations, trial=args.trial,
-                                timeout=args.timeout,
-                                allow_extrapolation=args.allow_extrapolation, feedback=show)
-    except GoalRejected as exc:
-        return {'ok': False, 'error_code': None, 'error_string': str(exc)}
-    finally:
-        _shutdown(client)
-    out = {'ok': result.error_code == 0, 'error_code': result.error_code,
+    feedback = _show_feedback if _progress(args) else None
+    with _session(args, learner=False) as client:
+        result = _goal(lambda: client.move_to(
+            args.x / 1e3, args.y / 1e3, math.radians(args.phi), mode=args.mode,
+            position_tolerance=args.position_tolerance / 1e3,
+            angle_tolerance=math.radians(args.angle_tolerance),
+            max_iterations=args.max_iterations, trial=args.trial, timeout=args.timeout,
+            allow_extrapolation=args.allow_extrapolation, feedback=feedback),
+            topics.MOVE_TO_POSE, _move_interrupted)
+    out = {'ok': result.error_code == MoveToPose.Result.SUCCESSFUL,
+           'error_code': result.error_code,
+           'error_name': code_name(MoveToPose.Result, result.error_code),
            'error_string': result.error_string, 'mode': args.mode,
            'target': {'x': args.x / 1e3, 'y': args.y / 1e3, 'phi': math.radians(args.phi)},
            'joint_positions': list(result.joint_positions),
@@ -89,27 +309,123 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'iterations': result.iterations,
            'compensation_iterations': result.compensation_iterations,
            'data_distance': result.data_distance, 'prediction_std': result.prediction_std}
-    learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
-               f'std {mm(result.prediction_std):.3f} mm'
-               if result.data_distance or result.prediction_std else '')
-    if out['ok']:
-        print(f'reached in {result.iterations} move(s)' + (
-            f': error {mm(result.position_error):.3f} mm, {deg(result.angle_error):.4f} deg'
-            if result.measured else ' (no measurement)') + learned
-            + (f'; {result.error_string}' if result.error_string else ''))
-    else:
-        print(f'failed ({result.error_code}): {result.error_string}')
+    if not out['ok']:
+        if is_busy(result.error_string):      # lost the race of two goals sent together
+            raise Outcome(busy_text(topics.MOVE_TO_POSE), Exit.BUSY, **out)
+        raise Outcome(_move_text(result), Exit.FAILED, **out)
+    print(_move_text(result))
     return out
 
 
+# --- learner ----------------------------------------------------------------------------------
+def _collect_kept(result: Any) -> str:
+    return (f'{result.collected} collected, {result.skipped} skipped; {result.total} samples '
+            f'in {result.dataset_path}')
+
+
+def _collect_interrupted(result: Any) -> str:
+    from flexarm_msgs.action import CollectSamples
+
+    if result is None:
+        return f'{_no_result()}; the samples collected before are kept in the dataset'
+    if result.error_code != CollectSamples.Result.CANCELED:
+        return f'interrupted after the collection had ended: {_collect_kept(result)}'
+    return f'cancelled; the samples collected are kept: {_collect_kept(result)}'
+
+
+@command
+def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
+    """Collect N deflection samples with the learner."""
+    max_count = _learner_config()['max_count']
+    if args.count > max_count:
+        raise usage(f'count must be 1..{max_count} (max_count of config/learner.yaml), '
+                    f'got {args.count}')
+    _check_region(args.region)
+    _check_strategy(args.strategy)
+    _check_dataset(args.dataset)
+    from tqdm import tqdm
+
+    from flexarm_msgs.action import CollectSamples
+
+    with _session(args, learner=True) as client:
+        bar = tqdm(total=args.count, unit='sample', desc='collect', disable=not _progress(args))
+        try:
+            result = _goal(lambda: client.collect(
+                args.count, region=args.region, strategy=args.strategy, seed=args.seed,
+                dataset=args.dataset, timeout=args.timeout,
+                feedback=lambda fb: bar.update(fb.k - bar.n)),
+                topics.COLLECT_SAMPLES, _collect_interrupted)
+        finally:
+            bar.close()
+    name = code_name(CollectSamples.Result, result.error_code)
+    out = {'ok': result.error_code == CollectSamples.Result.SUCCESSFUL,
+           'error_code': result.error_code, 'error_name': name,
+           'error_string': result.error_string, 'collected': result.collected,
+           'skipped': result.skipped, 'total': result.total,
+           'dataset_path': result.dataset_path}
+    if out['ok']:
+        print(_collect_kept(result) + (
+            f' ({human_units(result.error_string)})' if result.error_string else ''))
+        return out
+    if is_busy(result.error_string):
+        raise Outcome(busy_text(topics.COLLECT_SAMPLES), Exit.BUSY, **out)
+    moved = name != 'INVALID_GOAL'
+    raise Outcome(failure_text(name, result.error_string, COLLECT_HINTS, moved) + (
+        f'\n  dataset: {_collect_kept(result)}' if moved else ''), Exit.FAILED, **out)
+
+
+@command
+def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
+    """Train a predictor (mlp, rbf, gp) on a dataset; prints the validation metrics."""
+    _check_kind(args.kind)
+    _check_dataset(args.dataset)
+    what = f'training {args.kind or "the default kind"} on dataset {args.dataset or "default"}'
+    with _session(args, learner=True) as client:
+        try:
+            with _elapsed(what, args):
+                response = client.train(args.kind, args.settings, dataset=args.dataset,
+                                        timeout=args.timeout)
+        except KeyboardInterrupt:
+            raise Outcome('interrupted; the learner finishes this training anyway (training '
+                          'cannot be cancelled) and announces its model if it succeeds',
+                          Exit.INTERRUPTED) from None
+    m = response.metrics
+    out = {'ok': response.success, 'message': response.message,
+           'model_version': response.model_version, 'model_path': response.model_path,
+           'metrics': {k: getattr(m, k) for k in (
+               'validation', 'samples', 'max_error_x', 'max_error_y', 'max_error_phi',
+               'mean_error_x', 'mean_error_y', 'mean_error_phi', 'selected_settings',
+               'max_slope')} | {'excluded_samples': list(m.excluded_samples)}}
+    if not response.success:
+        if is_busy(response.message):
+            raise Outcome(response.message, Exit.BUSY, **out)
+        raise Outcome(f'{human_units(response.message)}\n  what to do: {TRAIN_HINT}',
+                      Exit.FAILED, **out)
+    print(f'model v{response.model_version} at {response.model_path} '
+          f'(chosen by validation: {m.selected_settings})\n'
+          f'{m.validation}, {m.samples} samples: max |error| x {mm(m.max_error_x):.3f} mm, '
+          f'y {mm(m.max_error_y):.3f} mm, phi {deg(m.max_error_phi):.4f} deg; mean '
+          f'{mm(m.mean_error_x):.3f} mm, {mm(m.mean_error_y):.3f} mm, '
+          f'{deg(m.mean_error_phi):.4f} deg')
+    if len(m.excluded_samples):
+        print(f'excluded as outliers: {len(m.excluded_samples)} sample(s), dataset '
+              f'indices {list(m.excluded_samples)}')
+    if response.message:
+        print(human_units(response.message))
+    return out
+
+
+# --- graph and experiments --------------------------------------------------------------------
 @command
 def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     """Start the graph (one process per node), wait until ready, supervise until Ctrl-C."""
     import time
 
-    from flexarm_control.experiment import REPO, reserved_domain
+    from flexarm_control.experiment import reserved_domain
     from flexarm_control.supervisor import Graph
 
+    if args.link_key and not os.path.isfile(args.link_key):
+        raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
     name = args.name or time.strftime('up-%Y%m%d-%H%M%S')
     simulated = {'real_time_factor': args.rtf}
     link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
@@ -147,8 +463,18 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
 
 
-def _interrupt(signum: int, frame: Any) -> None:
-    """SIGTERM handler: shut down like Ctrl-C."""
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    """SIGINT/SIGTERM: raise KeyboardInterrupt, so that a running goal is cancelled.
+
+    Never while rclpy converts a ROS message (Python code of a generated message module
+    called from its C++ layer): there pybind11 would turn the exception into a RuntimeError
+    ('Unable to convert call argument') and the goal would run on. The signal is sent again
+    ``_RESIGNAL`` later instead (a conversion takes microseconds)."""
+    while frame is not None:
+        if _GENERATED_MESSAGE.search(frame.f_code.co_filename):
+            threading.Timer(_RESIGNAL, os.kill, (os.getpid(), signum)).start()
+            return
+        frame = frame.f_back
     raise KeyboardInterrupt
 
 
@@ -158,18 +484,22 @@ def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
     from flexarm_control.experiment import (ExperimentSettings, reserved_domain,
                                             run_experiment, table_text)
 
+    _check_kind(args.kind)
     settings = ExperimentSettings(
         name=args.name or time.strftime(f'{args.command}-%Y%m%d-%H%M%S'),
         samples=args.samples, kind=args.kind, real_time_factor=args.rtf,
         record=not args.no_record, seed=args.seed, **overrides)
     with reserved_domain(args.domain_id) as domain:
-        summary = run_experiment(settings, domain, progress=not args.json)
+        summary = run_experiment(settings, domain, progress=_progress(args))
     print(table_text(summary))
     print(f'results in {summary["results"]}' + (
         f', bag in {summary["bag"]}' if summary['bag'] else '') +
         f'; {summary["seconds"]:.0f} s in all')
     out = {k: v for k, v in summary.items() if k != 'trials'}
     out['ok'] = not summary['nodes_died']
+    if not out['ok']:
+        raise Outcome(f'node(s) died during the run: {", ".join(summary["nodes_died"])} (their '
+                      f'logs are in runs/{settings.name}/)', Exit.FAILED, **out)
     return out
 
 
@@ -186,70 +516,39 @@ def cmd_benchmark(args: argparse.Namespace) -> dict[str, Any]:
 
 
 @command
-def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
-    """Collect N deflection samples with the learner."""
-    from tqdm import tqdm
+def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
+    """Tables 7 and 8 sensitivity study on the simulator (offline, no graph needed)."""
+    _check_region(args.region)
+    from flexarm_control.study import QUICK, run_study, table_text, write_study
 
-    client = _connect(args, learner=True)
-    bar = tqdm(total=args.count, unit='sample', disable=args.json)
-    try:
-        result = client.collect(args.count, region=args.region, strategy=args.strategy,
-                                seed=args.seed, dataset=args.dataset, timeout=args.timeout,
-                                feedback=lambda fb: bar.update(fb.k - bar.n))
-    finally:
-        bar.close()
-        _shutdown(client)
-    print(f'{result.collected} collected, {result.skipped} skipped; {result.total} samples in '
-          f'{result.dataset_path}' + (f' ({result.error_string})' if result.error_string else ''))
-    return {'ok': result.error_code == 0, 'error_code': result.error_code,
-            'error_string': result.error_string, 'collected': result.collected,
-            'skipped': result.skipped, 'total': result.total,
-            'dataset_path': result.dataset_path}
+    overrides = {'region': args.region, 'seeds': args.seeds} | (QUICK if args.quick else {})
+    with _steps('study', args) as progress:
+        result = run_study(overrides, progress)
+    paths = write_study(result, Path(args.out) / args.region)
+    print(table_text(result))
+    print(f"written: {', '.join(str(p) for p in paths.values())} "
+          f"({result['elapsed_s']:.0f} s)")
+    return {'ok': True, **result, **{k: str(v) for k, v in paths.items()}}
 
 
-@command
-def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
-    """Train a predictor (mlp, rbf, gp) on a dataset; prints the validation metrics."""
-    client = _connect(args, learner=True)
-    try:
-        settings = json.loads(args.settings) if args.settings else {}
-        response = client.train(args.kind, settings, dataset=args.dataset, timeout=args.timeout)
-    finally:
-        _shutdown(client)
-    m = response.metrics
-    if response.success:
-        print(f'model v{response.model_version} at {response.model_path} '
-              f'(chosen by validation: {m.selected_settings})\n'
-              f'{m.validation}, {m.samples} samples: max |error| x {mm(m.max_error_x):.3f} mm, '
-              f'y {mm(m.max_error_y):.3f} mm, phi {deg(m.max_error_phi):.4f} deg; mean '
-              f'{mm(m.mean_error_x):.3f} mm, {mm(m.mean_error_y):.3f} mm, '
-              f'{deg(m.mean_error_phi):.4f} deg')
-        if len(m.excluded_samples):
-            print(f'excluded as outliers: {len(m.excluded_samples)} sample(s), dataset '
-                  f'indices {list(m.excluded_samples)}')
-        if response.message:
-            print(response.message)
-    else:
-        print(response.message)
-    return {'ok': response.success, 'message': response.message,
-            'model_version': response.model_version, 'model_path': response.model_path,
-            'metrics': {k: getattr(m, k) for k in (
-                'validation', 'samples', 'max_error_x', 'max_error_y', 'max_error_phi',
-                'mean_error_x', 'mean_error_y', 'mean_error_phi', 'selected_settings',
-                'max_slope')} | {'excluded_samples': list(m.excluded_samples)}}
-
-
+# --- files ------------------------------------------------------------------------------------
 @command
 def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
     """Inspect a recorded bag (info) or export its trials as CSV + PNG (export)."""
+    _check_bag(args.path)
+    from mcap.exceptions import McapError
+
     from flexarm_control.bag_tools import bag_info, export_trials, format_bag_info
 
-    if args.action == 'info':
-        info = bag_info(args.path)
-        print(format_bag_info(info))
-        return {'ok': True, **info}
-    out_dir = args.out or str(args.path).rstrip('/')
-    csv_path, png_path = export_trials(args.path, out_dir)
+    try:
+        if args.action == 'info':
+            info = bag_info(args.path)
+            print(format_bag_info(info))
+            return {'ok': True, **info}
+        out_dir = args.out or str(args.path).rstrip('/')
+        csv_path, png_path = export_trials(args.path, out_dir)
+    except McapError as exc:
+        raise Outcome(f'{args.path} is damaged: {exc}', Exit.FAILED) from None
     print(f'trials: {csv_path}\nplot:   {png_path}')
     return {'ok': True, 'csv': str(csv_path), 'png': str(png_path)}
 
@@ -267,119 +566,242 @@ def cmd_keygen(args: argparse.Namespace) -> dict[str, Any]:
     return {'ok': True, 'path': str(path)}
 
 
-@command
-def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
-    """Tables 7 and 8 sensitivity study on the simulator (offline, no graph needed)."""
-    from flexarm_control.study import main as study_main
+# --- arguments --------------------------------------------------------------------------------
+class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter,
+                     argparse.RawDescriptionHelpFormatter):
+    """Shows each option's default, unless it is empty or its help says what it is."""
 
-    argv = ['--region', args.region, '--seeds', str(args.seeds)] + (
-        ['--quick'] if args.quick else [])
-    return {'ok': study_main(argv) == 0}
+    def _get_help_string(self, action: argparse.Action) -> str | None:
+        default = action.default
+        if (default is None or default is False or default == '' or default == {}
+                or '(default' in (action.help or '')):
+            return action.help
+        return super()._get_help_string(action)
+
+
+def _checked(convert: Callable[[str], Any], ok: Callable[[Any], bool],
+             rule: str) -> Callable[[str], Any]:
+    """An argparse type: ``convert(text)`` if that works and the value is ``ok``."""
+    def parse(text: str) -> Any:
+        try:
+            value = convert(text)
+        except ValueError:
+            value = None
+        if value is None or not ok(value):
+            raise argparse.ArgumentTypeError(f'must be {rule}, got {text!r}')
+        return value
+    return parse
+
+
+def _json_object(text: str) -> dict[str, Any]:
+    try:
+        value = json.loads(text)
+    except json.JSONDecodeError as exc:
+        raise argparse.ArgumentTypeError(f'not valid JSON ({exc}): {text!r}') from None
+    if not isinstance(value, dict):
+        raise argparse.ArgumentTypeError(f'must be a JSON object, e.g. \'{{"hidden": [10]}}\', '
+                                         f'got {text!r}')
+    return value
+
+
+_positive_int = _checked(int, lambda v: 0 < v <= UINT32_MAX, 'a whole number > 0')
+_natural = _checked(int, lambda v: 0 <= v <= UINT32_MAX, 'a whole number >= 0')
+_domain = _checked(int, lambda v: 0 <= v <= MAX_DOMAIN_ID, f'a ROS domain 0..{MAX_DOMAIN_ID}')
+_finite = _checked(float, math.isfinite, 'a finite number')
+_non_negative = _checked(float, lambda v: math.isfinite(v) and v >= 0, 'a number >= 0')
+_positive = _checked(float, lambda v: math.isfinite(v) and v > 0, 'a number > 0')
+
+
+def _output_options(parser: argparse.ArgumentParser, default: Any) -> None:
+    """--json and --quiet, accepted before and after the subcommand."""
+    parser.add_argument('--json', action='store_true', default=default,
+                        help='end the output with one line of JSON holding the result '
+                             '(SI units; implies --quiet)')
+    parser.add_argument('--quiet', action='store_true', default=default,
+                        help='no progress output (bars, waiting lines, goal feedback)')
+
+
+def _graph_options(parser: argparse.ArgumentParser, wait: bool) -> None:
+    """--domain-id, and --wait for commands that talk to a running graph."""
+    parser.add_argument('--domain-id', type=_domain, default=None, metavar='N', help=(
+        'ROS_DOMAIN_ID of the graph (default: the environment\'s, else 0)' if wait else
+        'ROS_DOMAIN_ID to start the graph in (default: a free one)'))
+    if wait:
+        parser.add_argument('--wait', type=_positive, default=30.0, metavar='S',
+                            help='[s] to wait for the graph\'s servers to answer')
+
+
+def _move_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('x', type=_finite, help='target x [mm] (horizontal, base frame)')
+    p.add_argument('y', type=_finite, help='target y [mm] (up)')
+    p.add_argument('phi', type=_finite, help='target tool angle [deg] from +x')
+    p.add_argument('--mode', choices=['rigid', 'predictive', 'closed_loop'],
+                   default='predictive',
+                   help='rigid: rigid inverse kinematics; predictive: compensate the learned '
+                        'deflection (needs a model); closed_loop: predictive (rigid without a '
+                        'model), then corrected from the measured tip')
+    p.add_argument('--position-tolerance', type=_non_negative, default=0.0, metavar='MM',
+                   help='[mm] CLOSED_LOOP corrects until within it (0: the compensator\'s '
+                        'default); RIGID/PREDICTIVE: if given, the measured error must be '
+                        'within it, else TOLERANCE_NOT_MET')
+    p.add_argument('--angle-tolerance', type=_non_negative, default=0.0, metavar='DEG',
+                   help='[deg] as --position-tolerance, for the tool angle')
+    p.add_argument('--max-iterations', type=_natural, default=0, metavar='N',
+                   help='CLOSED_LOOP only: corrective moves after the first (0: the '
+                        'compensator\'s default)')
+    p.add_argument('--allow-extrapolation', action='store_true',
+                   help='run a PREDICTIVE goal beyond the learned data (with a warning) '
+                        'instead of refusing it')
+    p.add_argument('--trial', default='', help='trial name for logs and bags')
+    p.add_argument('--timeout', type=_positive, default=300.0, metavar='S',
+                   help='[s] for the goal; then it is cancelled')
+
+
+def _collect_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('count', type=_positive_int, metavar='N', help='samples to collect')
+    p.add_argument('--region', default='',
+                   help='region preset of config/learner.yaml (default: the learner\'s, AB)')
+    p.add_argument('--strategy', default='',
+                   help='sobol | halton | lhs | random (default: the learner\'s, sobol)')
+    p.add_argument('--seed', type=_natural, default=0, help='seed of the sampling strategy')
+    p.add_argument('--dataset', default='',
+                   help='dataset name: data/NAME.jsonl (default: the learner\'s, default)')
+    p.add_argument('--timeout', type=_positive, default=3600.0, metavar='S',
+                   help='[s] for the collection; then it is cancelled')
+
+
+def _train_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('kind', nargs='?', default='',
+                   help='mlp | rbf | gp (default: the learner\'s, gp)')
+    p.add_argument('--settings', type=_json_object, default={},
+                   help='kind-specific settings, a JSON object, e.g. \'{"hidden": [10]}\' '
+                        '(default: the kind\'s)')
+    p.add_argument('--dataset', default='', help='dataset name (default: the learner\'s)')
+    p.add_argument('--timeout', type=_positive, default=300.0, metavar='S',
+                   help='[s] for the training')
+
+
+def _up_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
+    p.add_argument('--record', default='', metavar='NAME', help='record bags/NAME/NAME.mcap')
+    p.add_argument('--rtf', type=_positive, default=1.0, help='simulator real-time factor')
+    p.add_argument('--name', default='', help='run folder runs/NAME (default: up-DATE-TIME)')
+    p.add_argument('--timeout', type=_positive, default=60.0, metavar='S',
+                   help='[s] to become ready')
+    p.add_argument('--link-key', default='', metavar='FILE',
+                   help='site key of the controller link (flexarm keygen); required when the '
+                        'controller is not on this machine')
+    p.add_argument('--discovery', choices=['localhost', 'subnet'], default='localhost',
+                   help='DDS discovery range; subnet exposes the graph to the network')
+
+
+def _experiment_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--samples', type=_positive_int, default=40,
+                   help='learning samples per region')
+    p.add_argument('--kind', default='', help="predictor kind (default: the learner's, gp)")
+    p.add_argument('--rtf', type=_positive, default=10.0, help='simulator real-time factor')
+    p.add_argument('--seed', type=_natural, default=1, help='seed of samples and targets')
+    p.add_argument('--name', default='',
+                   help='results/NAME, bags/NAME, runs/NAME (default: COMMAND-DATE-TIME)')
+    p.add_argument('--no-record', action='store_true', help='do not write a bag')
+
+
+def _benchmark_arguments(p: argparse.ArgumentParser) -> None:
+    _experiment_arguments(p)
+    p.add_argument('--random', type=_natural, default=50,
+                   help='held-out random targets per region A and B')
+
+
+def _study_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--region', default='paper', help='region preset of config/learner.yaml')
+    p.add_argument('--seeds', type=_positive_int, default=3,
+                   help='repetitions of every configuration')
+    p.add_argument('--quick', action='store_true', help='small grid, for a smoke run')
+    p.add_argument('--out', default=str(REPO / 'results' / 'study'),
+                   help='results go to OUT/REGION/')
+
+
+def _bag_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('action', choices=['info', 'export'])
+    p.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
+    p.add_argument('--out', default='', help='export folder (default: the bag folder)')
+
+
+def _keygen_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('path', help='key file to create')
+
+
+# subcommand: (its arguments, graph options: None = none, True = with --wait, False = without)
+SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | None]] = {
+    'up': (_up_arguments, False),
+    'move': (_move_arguments, True),
+    'collect': (_collect_arguments, True),
+    'train': (_train_arguments, True),
+    'demo': (_experiment_arguments, False),
+    'benchmark': (_benchmark_arguments, False),
+    'study': (_study_arguments, None),
+    'bag': (_bag_arguments, None),
+    'keygen': (_keygen_arguments, None),
+}
 
 
 def build_parser() -> argparse.ArgumentParser:
-    parser = argparse.ArgumentParser(prog='flexarm', description=__doc__.splitlines()[0])
-    # Global options, accepted before or after the subcommand.
-    common = argparse.ArgumentParser(add_help=False)
-    for p, default in ((parser, None), (common, argparse.SUPPRESS)):
-        p.add_argument('--json', action='store_true', default=default or False,
-                       help='end the output with one line of JSON holding the result')
-        p.add_argument('--domain-id', type=int, default=default,
-                       help='ROS_DOMAIN_ID of the graph (default: from the environment; '
-                            'up/demo/benchmark: a free one)')
-        p.add_argument('--wait', type=float, default=default or 30.0,
-                       help='seconds to wait for the graph to be ready')
-    sub = parser.add_subparsers(dest='command', required=True)
-    add_parser = sub.add_parser
-    sub.add_parser = lambda *a, **k: add_parser(*a, parents=[common], **k)  # type: ignore
-
-    move = sub.add_parser('move', help=cmd_move.__doc__)
-    move.add_argument('x', type=float, help='[mm]')
-    move.add_argument('y', type=float, help='[mm]')
-    move.add_argument('phi', type=float, help='[deg]')
-    move.add_argument('--mode', choices=['rigid', 'predictive', 'closed_loop'],
-                      default='predictive')
-    move.add_argument('--position-tolerance', type=float, default=0.0,
-                      help='[mm] closed loop stops within it (0: server default)')
-    move.add_argument('--angle-tolerance', type=float, default=0.0,
-                      help='[deg] (0: server default)')
-    move.add_argument('--max-iterations', type=int, default=0)
-    move.add_argument('--allow-extrapolation', action='store_true',
-                      help='run a PREDICTIVE goal beyond the learned data (with a warning) '
-                           'instead of refusing it')
-    move.add_argument('--trial', default='', help='trial name for logs and bags')
-    move.add_argument('--timeout', type=float, default=300.0, help='[s]')
-
-    up = sub.add_parser('up', help=cmd_up.__doc__)
-    up.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
-    up.add_argument('--record', default='', metavar='NAME', help='record bags/NAME/NAME.mcap')
-    up.add_argument('--rtf', type=float, default=1.0, help='simulator real-time factor')
-    up.add_argument('--name', default='', help='run folder name under runs/')
-    up.add_argument('--timeout', type=float, default=60.0, help='[s] to become ready')
-    up.add_argument('--link-key', default='', metavar='FILE',
-                    help='site key of the controller link (flexarm keygen); required when the '
-                         'controller is not on this machine')
-    up.add_argument('--discovery', choices=['localhost', 'subnet'], default='localhost',
-                    help='DDS discovery range; subnet exposes the graph to the network')
-
-    for name, func in (('demo', cmd_demo), ('benchmark', cmd_benchmark)):
-        p = sub.add_parser(name, help=func.__doc__)
-        p.add_argument('--samples', type=int, default=40, help='learning samples per region')
-        p.add_argument('--kind', default='', help="predictor kind (default: the learner's)")
-        p.add_argument('--rtf', type=float, default=10.0, help='simulator real-time factor')
-        p.add_argument('--seed', type=int, default=1)
-        p.add_argument('--name', default='', help='results/NAME, bags/NAME, runs/NAME')
-        p.add_argument('--no-record', action='store_true', help='do not write a bag')
-        if name == 'benchmark':
-            p.add_argument('--random', type=int, default=50,
-                           help='held-out random targets per region A and B')
-
-    collect = sub.add_parser('collect', help=cmd_collect.__doc__)
-    collect.add_argument('count', type=int)
-    collect.add_argument('--region', default='', help='region preset (config/learner.yaml)')
-    collect.add_argument('--strategy', default='', help='sobol | halton | lhs | random')
-    collect.add_argument('--seed', type=int, default=0)
-    collect.add_argument('--dataset', default='', help='dataset name')
-    collect.add_argument('--timeout', type=float, default=3600.0, help='[s]')
-
-    train = sub.add_parser('train', help=cmd_train.__doc__)
-    train.add_argument('kind', nargs='?', default='',
-                       help="mlp | rbf | gp (default: the learner's, gp)")
-    train.add_argument('--settings', default='', help='JSON object, e.g. \'{"hidden": [10]}\'')
-    train.add_argument('--dataset', default='', help='dataset name')
-    train.add_argument('--timeout', type=float, default=300.0, help='[s]')
-
-    study = sub.add_parser('study', help=cmd_study.__doc__)
-    study.add_argument('--region', default='paper', help='region preset')
-    study.add_argument('--seeds', type=int, default=3)
-    study.add_argument('--quick', action='store_true', help='small grid, for a smoke run')
-
-    bag = sub.add_parser('bag', help=cmd_bag.__doc__)
-    bag.add_argument('action', choices=['info', 'export'])
-    bag.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
-    bag.add_argument('--out', default='', help='export folder (default: the bag folder)')
-
-    keygen = sub.add_parser('keygen', help=cmd_keygen.__doc__)
-    keygen.add_argument('path', help='key file to create')
+    epilog = 'exit codes:\n' + '\n'.join(
+        textwrap.fill(text, 79, initial_indent=f'  {int(code):>3}  ', subsequent_indent=' ' * 7)
+        for code, text in EXIT_MEANINGS.items())
+    parser = argparse.ArgumentParser(prog='flexarm', description=__doc__.splitlines()[0]
+                                     .replace('``', ''),
+                                     epilog=epilog, formatter_class=_HelpFormatter)
+    _output_options(parser, False)
+    output = argparse.ArgumentParser(add_help=False)
+    _output_options(output, argparse.SUPPRESS)     # after the subcommand: only when given
+    sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
+    for name, (arguments, graph) in SUBCOMMANDS.items():
+        doc = COMMANDS[name].__doc__
+        p = sub.add_parser(name, help=doc, description=doc, parents=[output],
+                           formatter_class=_HelpFormatter)
+        arguments(p)
+        if graph is not None:
+            _graph_options(p, wait=graph)
     return parser
 
 
-def main(argv: Sequence[str] | None = None) -> int:
-    args = build_parser().parse_args(argv)
-    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
-    # SIGTERM stops a command like Ctrl-C does, so that a graph it started is shut down
-    # (its nodes run in sessions of their own and do not get the signal themselves).
-    signal.signal(signal.SIGTERM, _interrupt)
+def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:
+    """The command's result and exit code; any outcome but success said on stderr."""
+    fields: dict[str, Any] = {}
     try:
         result = COMMANDS[args.command](args)
-    except (TimeoutError, ValueError, RuntimeError) as exc:
-        result = {'ok': False, 'error_string': str(exc)}
-        print(f'flexarm {args.command}: {exc}', file=sys.stderr)
+        return result, Exit.OK
+    except Outcome as exc:
+        message, code, fields = str(exc), exc.code, exc.fields
+    except TimeoutError as exc:
+        message, code = str(exc), Exit.NO_GRAPH
     except KeyboardInterrupt:
-        result = {'ok': False, 'error_string': 'interrupted'}
+        message, code = 'interrupted', Exit.INTERRUPTED
+    except (ValueError, RuntimeError, OSError) as exc:
+        message, code = str(exc), Exit.FAILED
+    print(f'flexarm {args.command}: {message}', file=sys.stderr, flush=True)
+    return {'ok': False, 'error_string': message} | fields | {'outcome': message}, code
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:        # --help (0), or a usage error argparse has printed (2)
+        return int(exc.code or 0)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    # SIGTERM stops a command like Ctrl-C does: a running goal is cancelled and a graph it
+    # started is shut down (its nodes run in sessions of their own and do not get the signal).
+    # Both go through _interrupt, which keeps them out of rclpy's message conversions.
+    previous = {s: signal.signal(s, _interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        result, code = _run(args)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
     if args.json:
-        print(json.dumps(result))
-    return 0 if result.get('ok', True) else 1
+        print(json.dumps(result | {'exit_code': int(code)}))
+    return int(code)
 
 
 if __name__ == '__main__':

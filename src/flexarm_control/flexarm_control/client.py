@@ -13,8 +13,10 @@ for ``SERVER_SILENCE`` seconds (killed) or is replaced by another instance (rest
 does not know the goal) raises :class:`ServerLost`, naming the node, instead of waiting out
 the timeout. A timeout
 or a Ctrl-C (KeyboardInterrupt) while a goal runs cancels it (bounded wait) before the
-exception goes on, so the arm stops. :func:`init_client` leaves SIGINT to Python: rclpy's own
-handler would shut the context down before the cancel could be sent.
+exception goes on, so the arm stops; Ctrl-C raises :class:`GoalInterrupted` (a
+KeyboardInterrupt) with the cancelled goal's result, e.g. where the arm stopped.
+:func:`init_client` leaves SIGINT to Python: rclpy's own handler would shut the context down
+before the cancel could be sent.
 Units are SI (m, rad); converting from mm/deg is the caller's (the CLI's) business.
 """
 from __future__ import annotations
@@ -39,7 +41,7 @@ from rclpy.task import Future
 from flexarm_control import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import ModelInfo, PlanarPose
-from flexarm_msgs.srv import Train
+from flexarm_msgs.srv import Train, UseModel
 from unique_identifier_msgs.msg import UUID
 
 MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
@@ -49,6 +51,7 @@ _ENDED = {GoalStatus.STATUS_CANCELED: 'canceled', GoalStatus.STATUS_ABORTED: 'ab
 _SPIN_SLICE = 0.1   # [s] waits spin in slices so that a Ctrl-C is raised at once
 SERVER_SILENCE = 3.0  # [s] without an answer from a goal's action server: it is gone
 _PROBE_PERIOD = 0.5   # [s] between the watch's requests to the server
+CANCEL_WAIT = 5.0     # [s] after Ctrl-C: acceptance, cancel and the cancelled goal's result
 
 
 class GoalRejected(RuntimeError):
@@ -61,6 +64,19 @@ class GoalFailed(RuntimeError):
 
 class ServerLost(GoalFailed):
     """The action server went away while the goal ran: the goal is lost."""
+
+
+class GoalInterrupted(KeyboardInterrupt):
+    """Ctrl-C while a goal ran; the goal was cancelled (if it had been accepted).
+
+    ``accepted``: whether the server accepted the goal (None: no answer in time).
+    ``result``: the cancelled goal's result (MoveToPose: ``joint_positions`` where the arm
+    stopped), or None when none arrived within ``CANCEL_WAIT``.
+    """
+
+    def __init__(self, accepted: bool | None, result: Any = None) -> None:
+        super().__init__('interrupted')
+        self.accepted, self.result = accepted, result
 
 
 class ServerWatch:
@@ -113,6 +129,7 @@ class FlexarmClient(Node):
         super().__init__(node_name, context=context)
         # The Train client first: see _wait_responsive for why the order matters.
         self._train = self.create_client(Train, topics.TRAIN)
+        self._use_model = self.create_client(UseModel, topics.USE_MODEL)
         self._move = ActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
         self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
         self._executor = SingleThreadedExecutor(context=self.context)
@@ -125,8 +142,11 @@ class FlexarmClient(Node):
 
     def wait_until_ready(self, timeout: float = 30.0, learner: bool = True,
                          compensator: bool = True) -> None:
-        """Wait until the compensator's and/or the learner's servers answer this client."""
+        """Wait until the compensator's and/or the learner's servers answer this client.
+
+        TimeoutError names this client's ROS domain, what is missing and the likely cause."""
         deadline = time.monotonic() + timeout
+        domain = f'ROS_DOMAIN_ID={self.context.get_domain_id()}'
         waits: list[tuple[str, Callable[[float], bool]]] = []
         if compensator:
             waits.append((topics.MOVE_TO_POSE, self._move.wait_for_server))
@@ -135,26 +155,36 @@ class FlexarmClient(Node):
                       (topics.TRAIN, self._train.wait_for_service)]
         for name, wait in waits:
             if not wait(max(0.0, deadline - time.monotonic())):
-                raise TimeoutError(f'{name} not available after {timeout:.0f} s')
+                raise TimeoutError(
+                    f'no flexarm graph in {domain} after {timeout:.3g} s ({name} not found): '
+                    'start one with `flexarm up`, or pass the domain of a running one '
+                    '(--domain-id)')
         for wanted, client in ((compensator, self._move), (learner, self._collect)):
             if wanted:
-                self._wait_responsive(client, deadline)
+                try:
+                    self._wait_responsive(client, deadline)
+                except TimeoutError as exc:
+                    raise TimeoutError(f'{exc} in {domain} after {timeout:.3g} s: its node is '
+                                       'discovered but hangs or is overloaded (see its log)'
+                                       ) from exc
 
     def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
                 position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
                 max_iterations: int = 0, trial: str = '', timeout: float = 300.0,
-                allow_extrapolation: bool = False,
+                allow_extrapolation: bool = False, dry_run: bool = False,
                 feedback: Callable[[MoveToPose.Feedback], None] | None = None,
                 ) -> MoveToPose.Result:
         """Send a MoveToPose goal and wait for its result (``allow_extrapolation``: run a
-        PREDICTIVE goal beyond the learned data with a warning instead of its refusal)."""
+        PREDICTIVE goal beyond the learned data with a warning instead of its refusal;
+        ``dry_run``: only plan, the result holds the plan and nothing moves)."""
         if mode not in MODES:
             raise ValueError(f'unknown mode {mode!r}; use one of {sorted(MODES)}')
         goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
                                mode=MODES[mode], position_tolerance=float(position_tolerance),
                                angle_tolerance=float(angle_tolerance),
                                max_iterations=int(max_iterations), trial=trial,
-                               allow_extrapolation=bool(allow_extrapolation))
+                               allow_extrapolation=bool(allow_extrapolation),
+                               dry_run=bool(dry_run))
         return self._run_goal(self._move, goal, timeout, feedback)
 
     def collect(self, count: int, region: str = '', strategy: str = '', seed: int = 0,
@@ -175,6 +205,14 @@ class FlexarmClient(Node):
         request = Train.Request(kind=kind, settings_json=json.dumps(dict(settings or {})),
                                 dataset=dataset)
         return self._spin_until(self._train.call_async(request), timeout, 'training')
+
+    def use_model(self, version: str, timeout: float = 30.0) -> UseModel.Response:
+        """Make the model ``version`` current again (roll back); the learner checks and
+        announces it. The compensator has switched once :meth:`wait_for_model` returns."""
+        if not self._use_model.wait_for_service(timeout_sec=min(timeout, 10.0)):
+            raise TimeoutError(f'{topics.USE_MODEL} not available: is the learner running?')
+        request = UseModel.Request(version=str(version))
+        return self._spin_until(self._use_model.call_async(request), timeout, 'model change')
 
     def wait_for_model(self, version: str, timeout: float = 30.0) -> ModelInfo:
         """Wait until the compensator uses the model ``version`` (after :meth:`train`)."""
@@ -210,24 +248,34 @@ class FlexarmClient(Node):
         self._wait_responsive(client, deadline)
         callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
         sent = client.send_goal_async(goal, feedback_callback=callback)
+        result_future: Future | None = None
         try:
             handle = self._spin_until(sent, deadline - time.monotonic(), 'goal acceptance')
             if not handle.accepted:
                 raise GoalRejected(f'{client._action_name} rejected the goal: the server runs '
                                    'one goal at a time and is busy')
             self._goal_handle = handle
-            response = self._spin_until(handle.get_result_async(),
-                                        deadline - time.monotonic(), 'the result',
-                                        ServerWatch(self, client).lost)
-        except TimeoutError:
+            result_future = handle.get_result_async()
+            response = self._spin_until(result_future, deadline - time.monotonic(),
+                                        'the result', ServerWatch(self, client).lost)
+        except TimeoutError as exc:
+            running = self._goal_handle is not None
             self.cancel()
-            raise
+            raise TimeoutError(f'{client._action_name}: {exc}' + (
+                '; the goal was cancelled' if running else '')) from exc
         except KeyboardInterrupt:   # Ctrl-C, possibly before the acceptance arrived
+            end, accepted, ended = time.monotonic() + CANCEL_WAIT, None, None
             with contextlib.suppress(TimeoutError, RuntimeError):   # no answer, or shut down
-                handle = self._spin_until(sent, 5.0, 'goal acceptance')
-                if handle.accepted:
-                    self._spin_until(handle.cancel_goal_async(), 5.0, 'cancel')
-            raise
+                handle = self._spin_until(sent, end - time.monotonic(), 'goal acceptance')
+                accepted = handle.accepted
+                if accepted:
+                    self._spin_until(handle.cancel_goal_async(), end - time.monotonic(),
+                                     'cancel')
+                    if result_future is None:
+                        result_future = handle.get_result_async()
+                    ended = self._spin_until(result_future, end - time.monotonic(),
+                                             'the cancelled result')
+            raise GoalInterrupted(accepted, None if ended is None else ended.result) from None
         finally:
             self._goal_handle = None
         if response.status != GoalStatus.STATUS_SUCCEEDED and response.result.error_code == 0:

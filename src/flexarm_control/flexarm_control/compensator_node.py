@@ -18,10 +18,19 @@ arriving together can both pass that check: execution decides, and the one that 
 other executing is aborted (INVALID_GOAL, "busy") before anything moves. Every accepted goal
 is validated before anything moves and aborted with an error code and reason if invalid; an
 unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never with an
-empty result. Cancel holds the arm at its current joint positions. A model that takes the
-payload as an input is refused (the compensator does not know the payload): the previous one
-stays active. The executor has ``EXECUTOR_THREADS`` threads, so an executing goal (holding
-one thread until it ends) leaves threads for joint states, tip poses, cancel and new goals.
+empty result. Cancel holds the arm at its current joint positions (the result's
+``joint_positions`` are those). A model that takes the payload as an input is refused (the
+compensator does not know the payload): the previous one stays active.
+
+Provenance and tolerances: every result, feedback and outcome names the model version its plan
+used ("" for a rigid plan); a model announced with a warning (e.g. trained at another payload)
+adds it to the result's ``error_string``. RIGID and PREDICTIVE check a tolerance only when the
+goal gives one: the measured error must be within it (TOLERANCE_NOT_MET otherwise, and
+MEASUREMENT_FAILED if the tip could not be measured to check it). A ``dry_run`` goal is planned
+and answered with the plan; nothing moves.
+
+The executor has ``EXECUTOR_THREADS`` threads, so an executing goal (holding one thread until
+it ends) leaves threads for joint states, tip poses, cancel and new goals.
 """
 from __future__ import annotations
 
@@ -110,8 +119,8 @@ class CompensatorNode(Node):
 
         self._group = ReentrantCallbackGroup()
         self._arm = ArmInterface(self, self._group)
-        self._predictor: Predictor | None = None
-        self._model_version = ''
+        self._model: tuple[Predictor, ModelInfo] | None = None     # swapped whole
+        self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)
         self._load_error = ''          # why the last announced model was not loaded
         self._busy = threading.Lock()
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
@@ -128,7 +137,7 @@ class CompensatorNode(Node):
 
     # --- model hot reload -------------------------------------------------------------------
     def _on_model(self, msg: ModelInfo) -> None:
-        if msg.version != self._model_version:
+        if self._model is None or msg.version != self._model[1].version:
             self._load_model(msg.path, f'version {msg.version}', msg)
 
     def _load_model(self, path: str, what: str, info: ModelInfo | None = None) -> None:
@@ -143,9 +152,11 @@ class CompensatorNode(Node):
             return
         self._load_error = ''
         info = info or ModelInfo(version=path, kind=predictor.kind, path=path)
-        self._predictor, self._model_version = predictor, info.version
+        self._model = (predictor, info)
         self._active_pub.publish(info)
         self.get_logger().info(f'predictor {what} loaded ({predictor.kind}) from {path}')
+        if info.warning:
+            self.get_logger().warn(f'model {info.version}: {info.warning}')
 
     # --- goal policy ------------------------------------------------------------------------
     def _on_goal(self, goal: Goal) -> GoalResponse:
@@ -186,7 +197,7 @@ class CompensatorNode(Node):
         reason = goal_error(goal)
         if reason is not None:
             return fail(Result.INVALID_GOAL, reason)
-        predictor = self._predictor
+        predictor, info = self._model or (None, None)
         if not self._arm.wait_for_joints(5.0):
             return fail(Result.CONTROLLER_TIMEOUT, 'no /joint_states from the controller')
         pos_tol = goal.position_tolerance or self._pos_tol
@@ -204,13 +215,25 @@ class CompensatorNode(Node):
                 f'; {self._load_error}' if planned.code == 'no_model' and self._load_error
                 else ''))
         plan = planned.plan
-        if planned.note:
-            self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: {planned.note}')
-        result.error_string = planned.note
+        notes = [planned.note]
+        result.model_version = info.version if planned.uses_model else ''
+        self._goal_model_version = result.model_version
+        if planned.uses_model:
+            notes.append(f'warning: model {info.version}: {info.warning}' if info.warning else '')
+        result.error_string = '; '.join(filter(None, notes))
+        if result.error_string:
+            self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: '
+                                   f'{result.error_string}')
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations
         result.predicted_deflection = planar(plan.predicted_deflection)
+        if goal.dry_run:
+            result.joint_positions = plan.joints.tolist()
+            result.commanded_pose = planar(plan.commanded_pose)
+            result.error_string = '; '.join(filter(None, ('dry run: nothing moved',
+                                                          result.error_string)))
+            return result
 
         iteration = 0
         while True:
@@ -221,24 +244,28 @@ class CompensatorNode(Node):
             result.commanded_pose = planar(plan.commanded_pose)
             if isinstance(outcome, Result):
                 outcome.iterations, outcome.joint_positions = iteration, result.joint_positions
-                outcome.commanded_pose = result.commanded_pose
-                outcome.predicted_deflection = result.predicted_deflection
-                outcome.compensation_iterations = result.compensation_iterations
-                outcome.data_distance = result.data_distance
-                outcome.prediction_std = result.prediction_std
+                if outcome.error_code == Result.CANCELED:     # where the arm was held
+                    outcome.joint_positions = self._arm.joints.positions.tolist()
+                for name in ('commanded_pose', 'predicted_deflection', 'model_version',
+                             'compensation_iterations', 'data_distance', 'prediction_std'):
+                    setattr(outcome, name, getattr(result, name))
                 return outcome
+            closed = goal.mode == Goal.MODE_CLOSED_LOOP
+            checked = closed or goal.position_tolerance > 0 or goal.angle_tolerance > 0
             if outcome is None:
-                if goal.mode == Goal.MODE_CLOSED_LOOP:
+                if checked:
                     return fail(Result.MEASUREMENT_FAILED,
                                 'no valid settled tip pose within '
-                                f'{self._measure_timeout:.0f} s after the move')
+                                f'{self._measure_timeout:.0f} s after the move'
+                                + ('' if closed else ' to check the tolerance'))
                 result.error_string = '; '.join(filter(None, (
                     result.error_string, 'moved; no valid settled tip measurement')))
                 return result
             result.measured, result.measured_pose = True, planar(outcome)
             result.position_error, result.angle_error = pose_error(target, outcome)
-            within = result.position_error <= pos_tol and result.angle_error <= ang_tol
-            if goal.mode != Goal.MODE_CLOSED_LOOP or within:
+            if not closed:
+                return self._check_tolerance(goal, result) if checked else result
+            if result.position_error <= pos_tol and result.angle_error <= ang_tol:
                 return result
             if iteration > max_iter:
                 return fail(Result.TOLERANCE_NOT_MET,
@@ -249,6 +276,23 @@ class CompensatorNode(Node):
                 plan = self._compensator.correct(plan, target, outcome)
             except UnreachableError as exc:
                 return fail(Result.UNREACHABLE, f'correction: {exc}')
+
+    @staticmethod
+    def _check_tolerance(goal: Goal, result: Result) -> Result:
+        """A RIGID/PREDICTIVE result against the tolerances its goal gave (0: not checked)."""
+        missed = []
+        if goal.position_tolerance and result.position_error > goal.position_tolerance:
+            missed.append(f'position {result.position_error * 1e3:.3f} mm > '
+                          f'{goal.position_tolerance * 1e3:.3f} mm')
+        if goal.angle_tolerance and result.angle_error > goal.angle_tolerance:
+            missed.append(f'angle {math.degrees(result.angle_error):.4f} deg > '
+                          f'{math.degrees(goal.angle_tolerance):.4f} deg')
+        if missed:
+            result.error_code = Result.TOLERANCE_NOT_MET
+            result.error_string = '; '.join(filter(None, (
+                f'measured error beyond the tolerance: {", ".join(missed)}',
+                result.error_string)))
+        return result
 
     def _move_and_measure(self, handle: ServerGoalHandle, plan: Plan, iteration: int,
                           planned: Planned):
@@ -284,6 +328,7 @@ class CompensatorNode(Node):
         fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
         if planned is not None:
             fb.data_distance, fb.prediction_std = planned.data_distance, planned.prediction_std
+            fb.model_version = self._goal_model_version
         if measured is not None and goal is not None:
             fb.measured, fb.measured_pose = True, planar(measured)
             fb.position_error, fb.angle_error = pose_error(
@@ -300,7 +345,7 @@ class CompensatorNode(Node):
             position_error=result.position_error, angle_error=result.angle_error,
             iterations=result.iterations, data_distance=result.data_distance,
             prediction_std=result.prediction_std, error_code=result.error_code,
-            error_string=result.error_string))
+            error_string=result.error_string, model_version=result.model_version))
 
 
     def destroy_node(self) -> None:

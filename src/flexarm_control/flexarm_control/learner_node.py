@@ -16,7 +16,10 @@ it atomically and announces it on the latched ``/learner/model``; on any failure
 model stays active. The current model is also remembered in
 ``<model_directory>/current.json`` and re-announced when the learner restarts
 (:mod:`flexarm_control.model_store`: a damaged record is reported, not announced, and never
-makes a new model overwrite an old one).
+makes a new model overwrite an old one). ``/learner/use_model`` makes an earlier model current
+again (roll back), with the same checks. Every announcement carries the model's provenance
+(dataset, payloads, metrics) and a warning when it was trained at another payload or for
+another arm configuration than the learner's now.
 
 A model the compensator cannot run (one that takes the payload as an input) is refused before
 training, so it never becomes current. Policy: one collection at a time; a collection goal
@@ -49,17 +52,19 @@ from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
-from flexarm_control.model_store import DamagedRecord, next_version, read_current, write_current
+from flexarm_control.model_store import (DamagedRecord, arm_fingerprint, find_model,
+                                         fit_warning, next_version, provenance, read_current,
+                                         write_current)
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.params import CONFIG_DIR
-from flexarm_control.predictors import KINDS, make_predictor
+from flexarm_control.predictors import KINDS, load_predictor, make_predictor
 from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
                                       travel_order)
 from flexarm_control.training import Metrics, Screening, TrainingWorker, train
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
-from flexarm_msgs.srv import Train
+from flexarm_msgs.srv import Train, UseModel
 
 REPO = CONFIG_DIR.parent
 EXECUTOR_THREADS = 4
@@ -72,14 +77,11 @@ def planar(pose: np.ndarray) -> PlanarPose:
     return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
 
 
-def metrics_msg(m: Metrics) -> PredictionMetrics:
-    return PredictionMetrics(**m.as_dict())
-
-
 def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
-                   model_path: str, geometry: ArmGeometry,
-                   screening: Screening) -> tuple[Metrics, str, list[int]]:
-    """Training job, run in the learner's worker process: fit, save atomically.
+                   model_path: str, geometry: ArmGeometry, screening: Screening,
+                   arm: str) -> tuple[Metrics, str, list[int]]:
+    """Training job, run in the learner's worker process: fit, record the provenance (dataset
+    name, payloads, ``arm`` fingerprint), save atomically.
 
     A worker process of its own keeps training at full speed while the node serves
     1000+ callbacks a second at 10x real time (in-process it ran 3-4x slower on the GIL).
@@ -87,6 +89,8 @@ def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
     dataset = load_dataset(dataset_path)
     predictor, metrics = train(kind, settings, dataset, folds=folds, geometry=geometry,
                                screening=screening)
+    predictor.metadata['provenance'] = provenance(
+        Path(dataset_path).stem, [s.payload for s in dataset.samples], arm)
     Path(model_path).parent.mkdir(parents=True, exist_ok=True)
     predictor.save(model_path)
     return metrics, dataset.hash, dataset.skipped_lines
@@ -119,7 +123,9 @@ class LearnerNode(Node):
 
     def __init__(self) -> None:
         super().__init__('flexarm_learner')
-        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        arm = declare_tree(self, 'arm', 'config/arm.yaml')
+        self._geometry = ArmGeometry.from_dict(arm)
+        self._arm_id = arm_fingerprint(arm)
         self._regions = regions_from_dict(declare_tree(self, 'regions', 'config/learner.yaml'))
         self._data_dir = repo_path(declare(self, 'data_directory', 'data',
                                            'datasets directory (relative: to the repository)'))
@@ -164,8 +170,9 @@ class LearnerNode(Node):
             self, CollectSamples, topics.COLLECT_SAMPLES, execute_callback=self._collect,
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
             callback_group=group)
-        self.create_service(Train, topics.TRAIN, self._train,
-                            callback_group=MutuallyExclusiveCallbackGroup())
+        models = MutuallyExclusiveCallbackGroup()      # one model change at a time
+        self.create_service(Train, topics.TRAIN, self._train, callback_group=models)
+        self.create_service(UseModel, topics.USE_MODEL, self._use_model, callback_group=models)
         self._announce_current()
 
     def dataset_path(self, name: str) -> Path:
@@ -312,10 +319,8 @@ class LearnerNode(Node):
                 raise ValueError(f'no dataset at {path}: collect samples first')
             metrics, samples_hash, skipped = self._trainer.run(
                 train_and_save, kind, settings, str(path), self._folds, str(model_path),
-                self._geometry, self._screening, timeout=self._train_timeout)
-            info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=str(version),
-                             kind=kind, path=str(model_path), dataset_hash=samples_hash,
-                             metrics=metrics_msg(metrics))
+                self._geometry, self._screening, self._arm_id, timeout=self._train_timeout)
+            info = self._model_info(str(version), model_path)
             write_current(self._model_dir, version, kind, info.path, samples_hash)
         except (ValueError, RuntimeError, OSError, TimeoutError) as exc:
             return self._train_failed(response, str(exc))
@@ -349,23 +354,58 @@ class LearnerNode(Node):
         self._collect_server.destroy()   # Node.destroy_node leaves actions (and the node) alive
         super().destroy_node()
 
+    def _model_info(self, version: str, path: Path) -> ModelInfo:
+        """The announcement of a model file: provenance, metrics and how it fits the arm now.
+
+        ValueError/OSError if the compensator could not run it (unreadable, damaged, or it
+        takes the payload as an input)."""
+        predictor = load_predictor(path)
+        if predictor.settings['payload_input']:
+            raise ValueError('the compensator cannot run a model that takes the payload as an '
+                             'input')
+        meta = predictor.metadata
+        origin = meta.get('provenance') or {}
+        info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=version,
+                         kind=predictor.kind, path=str(path),
+                         dataset_hash=str(meta.get('dataset_hash', '')),
+                         dataset=str(origin.get('dataset', '')),
+                         payloads=[float(p) for p in origin.get('payloads', [])],
+                         warning=fit_warning(meta, self._payload, self._arm_id))
+        if meta.get('metrics'):
+            info.metrics = PredictionMetrics(**meta['metrics'])
+        if info.warning:
+            self.get_logger().warn(f'model v{version}: {info.warning}')
+        return info
+
+    def _use_model(self, request: UseModel.Request,
+                   response: UseModel.Response) -> UseModel.Response:
+        try:
+            path = find_model(self._model_dir, request.version)
+            info = self._model_info(str(int(request.version)), path)
+            write_current(self._model_dir, int(info.version), info.kind, info.path,
+                          info.dataset_hash)
+        except (ValueError, OSError) as exc:
+            response.success, response.message = False, f'model not changed: {exc}'
+            self.get_logger().error(response.message)
+            return response
+        self._model_pub.publish(info)
+        self.get_logger().info(f'model v{info.version} made current on request and announced')
+        response.success, response.model = True, info
+        return response
+
     def _announce_current(self) -> None:
         try:
             current = read_current(self._model_dir)
-        except DamagedRecord as exc:
-            self.get_logger().error(f'no model announced: {exc}; train to make a new one')
+            if current is None:
+                return
+            info = self._model_info(current['version'], Path(current['path']))
+        except (DamagedRecord, ValueError, OSError) as exc:
+            self.get_logger().error(f'no model announced: {exc}; train to make a new one, or '
+                                    '`flexarm model use VERSION`')
             return
-        if current is None:
-            return
-        if not Path(current['path']).exists():
-            self.get_logger().error(f'no model announced: {current["path"]} is missing')
-            return
-        self._model_pub.publish(ModelInfo(
-            stamp=self.get_clock().now().to_msg(), version=current['version'],
-            kind=current['kind'], path=current['path'],
-            dataset_hash=str(current.get('dataset_hash', ''))))
-        self.get_logger().info(f'announced the current model v{current["version"]}')
-
+        self._model_pub.publish(info)
+        self.get_logger().info(f'announced the current model v{info.version} ({info.kind}, '
+                               f'dataset {info.dataset or "unknown"})')
 
 def main(args: list[str] | None = None) -> None:
     run(LearnerNode, args, partial(MultiThreadedExecutor, num_threads=EXECUTOR_THREADS))

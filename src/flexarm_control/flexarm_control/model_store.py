@@ -6,12 +6,22 @@ may still edit or truncate it by hand: a record that does not read as
 without announcing a model and says why), never as a crash. Version numbers only grow: the next
 one is past the current record and past every ``*-v<N>.model`` file in the directory, so a lost
 or damaged record can never make a new model overwrite an older one.
+
+Provenance: a model file's metadata holds, besides its metrics, ``provenance``: the dataset it
+was trained on, the distinct payloads of its samples and ``arm``, a fingerprint of the arm
+configuration (config/arm.yaml as the learner loaded it). :func:`fit_warning` says why a model
+may not fit the arm as configured now; :func:`list_models` is ``flexarm model list``.
 """
 from __future__ import annotations
 
+import hashlib
 import json
+import math
 import re
+from collections.abc import Callable
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from flexarm_control.atomic_file import atomic_write
 
@@ -56,3 +66,74 @@ def next_version(model_dir: Path) -> int:
     if current is not None:
         versions.append(int(current['version']))
     return max(versions, default=0) + 1
+
+
+def arm_fingerprint(arm: dict[str, Any]) -> str:
+    """A short hash of an arm configuration tree: equal configurations, equal fingerprints."""
+    return hashlib.sha256(json.dumps(arm, sort_keys=True).encode()).hexdigest()[:16]
+
+
+def provenance(dataset: str, payloads: list[float], arm: str) -> dict[str, Any]:
+    """The ``provenance`` entry of a model's metadata."""
+    return {'dataset': dataset, 'payloads': sorted({round(float(p), 6) for p in payloads}),
+            'arm': arm}
+
+
+def fit_warning(metadata: dict[str, Any], payload: float, arm: str) -> str:
+    """Why a model may not fit an arm of fingerprint ``arm`` carrying ``payload`` [kg] ('' if
+    no reason is known)."""
+    origin = metadata.get('provenance')
+    if not isinstance(origin, dict):
+        return 'trained before models recorded their dataset, payload and arm configuration'
+    reasons = []
+    payloads = origin.get('payloads') or []
+    if payloads and not any(math.isclose(p, payload, abs_tol=1e-6) for p in payloads):
+        reasons.append(f'trained at payload {", ".join(f"{p:g}" for p in payloads)} kg, the '
+                       f'arm carries {payload:g} kg now')
+    if origin.get('arm') != arm:
+        reasons.append('trained for another arm configuration (config/arm.yaml differs)')
+    return '; '.join(reasons)
+
+
+@dataclass(frozen=True)
+class ModelEntry:
+    """One model file of a model directory, as ``flexarm model list`` shows it."""
+
+    version: int
+    path: Path
+    current: bool
+    metadata: dict[str, Any] | None     # None: the file cannot be read (see ``problem``)
+    problem: str = ''
+
+
+def list_models(model_dir: Path, read: Callable[[Path], dict[str, Any]]) -> list[ModelEntry]:
+    """The ``*-v<N>.model`` files of ``model_dir`` by version; ``read(path)`` gives a file's
+    metadata (ValueError/OSError for a damaged one, reported as its ``problem``)."""
+    try:
+        current = read_current(model_dir)
+    except DamagedRecord:
+        current = None
+    entries = []
+    for path in Path(model_dir).glob('*.model'):
+        match = _MODEL_VERSION.search(path.name)
+        if not match:
+            continue
+        version = int(match.group(1))
+        is_current = current is not None and current['version'] == str(version)
+        try:
+            entries.append(ModelEntry(version, path, is_current, read(path)))
+        except (OSError, ValueError) as exc:
+            entries.append(ModelEntry(version, path, is_current, None, str(exc)))
+    return sorted(entries, key=lambda e: e.version)
+
+
+def find_model(model_dir: Path, version: str) -> Path:
+    """The model file of ``version``; ValueError if there is none (or several)."""
+    if not version.isdecimal():
+        raise ValueError(f'model version must be a number, not {version!r}')
+    found = [p for p in Path(model_dir).glob(f'*-v{int(version)}.model')
+             if _MODEL_VERSION.search(p.name)]
+    if len(found) != 1:
+        raise ValueError(f'no model version {version} in {model_dir}' if not found else
+                         f'{len(found)} files of version {version} in {model_dir}')
+    return found[0]

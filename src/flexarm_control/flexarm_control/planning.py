@@ -45,6 +45,7 @@ class Planned:
     data_distance: float   # of plan.joints from the learned data (0 when no model is used)
     prediction_std: float  # [m] the model's std of the predicted tip position there
     note: str              # warning or fallback for the operator ('' if none)
+    uses_model: bool = False   # whether the plan came from the predictor (not the rigid one)
 
 
 @dataclass(frozen=True)
@@ -98,11 +99,11 @@ def plan_goal(compensator: Compensator, mode: str, target: np.ndarray,
         return Refusal('unreachable', str(exc))
     distance, std, why = beyond_data(predictor, plan.joints, limits)
     if not why:
-        return Planned(plan, distance, std, '')
+        return Planned(plan, distance, std, '', uses_model=True)
     beyond = f'the joints to command lie beyond the learned data: {why}'
     if allow_extrapolation:
         return Planned(plan, distance, std, f'warning: {beyond}; extrapolated, the prediction '
-                                            'may be wrong there')
+                                            'may be wrong there', uses_model=True)
     if closed:
         return rigid_start(beyond, distance, std)
     return Refusal('outside_learned_data', f'{beyond}; collect samples there, or allow '

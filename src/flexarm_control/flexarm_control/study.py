@@ -22,7 +22,7 @@ import json
 import math
 import sys
 import time
-from collections.abc import Mapping, Sequence
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import Any
@@ -38,6 +38,7 @@ from flexarm_control.sampling import regions_from_dict, sample_poses
 
 FULL_SAMPLES = (10, 20, 30, 40, 50, 80, 120, 160)
 QUICK_SAMPLES = (20, 40)
+QUICK = {'samples': QUICK_SAMPLES, 'held_out': 50}   # the --quick grid, over DEFAULTS
 PAPER_HIDDEN = 10     # the paper's hidden units in Table 8 and our extended MLP rows
 # Predictor settings of the study, over each kind's defaults. The MLP's: with its default 300
 # L-BFGS iterations × 4 restarts the held-out error grows with the samples (2 mm worst at
@@ -141,9 +142,13 @@ def configurations(settings: Mapping[str, Any]) -> list[tuple[str, int | None, i
     return list(dict.fromkeys(configs))
 
 
-def run_study(settings: Mapping[str, Any] | None = None) -> dict[str, Any]:
+def run_study(settings: Mapping[str, Any] | None = None,
+              progress: Callable[[int, int, str], None] = lambda done, total, step: None,
+              ) -> dict[str, Any]:
     """The study for ``settings`` (see DEFAULTS): {'settings', 'rows', 'largest_deflection_mm',
-    'elapsed_s'}; rows are :class:`Row` fields as dicts, errors in mm and degrees."""
+    'elapsed_s'}; rows are :class:`Row` fields as dicts, errors in mm and degrees.
+    ``progress(done, total, step)`` is called before each step (measuring a seed's learning
+    data, evaluating a configuration) and once at the end."""
     start = time.monotonic()
     s = study_settings(settings)
     world = World()
@@ -151,10 +156,18 @@ def run_study(settings: Mapping[str, Any] | None = None) -> dict[str, Any]:
         raise ValueError(f"unknown region {s['region']!r}; presets: {', '.join(world.regions)}")
     configs = configurations(s)
     largest = max(n for _, _, n in configs)
-    data = [world.measured(s['region'], largest, seed) for seed in range(s['seeds'])]
+    total = s['seeds'] + len(configs)
+    data, rows = [], []
+    for seed in range(s['seeds']):
+        progress(seed, total, f'learning data, seed {seed}')
+        data.append(world.measured(s['region'], largest, seed))
     tests = [world.held_out(s['region'], s['held_out'], HELD_OUT_SEED + seed)
              for seed in range(s['seeds'])]
-    rows = [_evaluate(s, kind, hidden, n, data, tests) for kind, hidden, n in configs]
+    for k, (kind, hidden, n) in enumerate(configs):
+        progress(s['seeds'] + k, total, f'{kind}' + (f' {hidden} hidden' if hidden else '')
+                 + f', {n} samples')
+        rows.append(_evaluate(s, kind, hidden, n, data, tests))
+    progress(total, total, 'done')
     biggest = max(float(np.abs(truth[:, :2]).max()) for _, truth in tests)
     return {'settings': s, 'rows': [asdict(r) for r in rows],
             'largest_deflection_mm': 1e3 * biggest, 'elapsed_s': time.monotonic() - start}
@@ -278,7 +291,8 @@ def main(argv: Sequence[str] | None = None) -> int:
                         help='region preset (config/learner.yaml)')
     parser.add_argument('--seeds', type=int, default=DEFAULTS['seeds'])
     parser.add_argument('--quick', action='store_true',
-                        help=f'small grid for a smoke run (samples {QUICK_SAMPLES}, 50 held-out)')
+                        help=f"small grid for a smoke run (samples {QUICK_SAMPLES}, "
+                             f"{QUICK['held_out']} held-out)")
     parser.add_argument('--predictors', type=json.loads, default={},
                         help='JSON {kind: settings} over the study\'s predictor settings, '
                              'e.g. \'{"mlp": {"max_iterations": 300, "weight_decay": 1e-5}}\'')
@@ -289,7 +303,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     overrides: dict[str, Any] = {'region': args.region, 'seeds': args.seeds,
                                  'predictors': args.predictors}
     if args.quick:
-        overrides.update(samples=QUICK_SAMPLES, held_out=50)
+        overrides.update(QUICK)
     try:
         result = run_study(overrides)
     except ValueError as error:

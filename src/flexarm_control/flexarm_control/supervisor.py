@@ -8,20 +8,25 @@ ready only when each of its own nodes is discovered, besides the topics and serv
 that dies is reported with its exit code and the last lines of its log, and restarted if
 graph.yaml says so (at most ``max_restarts`` times); the rest keeps running. :meth:`Graph.stop`
 shuts everything down (SIGINT, SIGTERM, SIGKILL) and removes stale Fast DDS shared-memory
-files.
+files. The run folder's ``graph.json`` (:data:`RECORD`) says which supervisor runs which
+node processes in which domain, and how often each was restarted (``flexarm status``).
 """
 from __future__ import annotations
 
 import contextlib
+import json
+import os
 import time
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
 from flexarm_control import topics
+from flexarm_control.atomic_file import atomic_write
 from flexarm_control.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
 
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
+RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
 # What "ready" means: (kind, name) pairs that must be discovered in the graph.
 READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
@@ -41,7 +46,7 @@ class Graph:
         if unknown:
             raise ValueError(f'unknown optional nodes {sorted(unknown)}; known: {sorted(extra)}')
         specs += [extra[name] for name in optional]
-        self.domain_id, self.run_dir = domain_id, run_dir
+        self.domain_id, self.run_dir, self.robot = domain_id, run_dir, robot
         self.max_restarts, self._report = max_restarts, report
         env = ros_env(domain_id, run_dir / 'ros_log', discovery=discovery)
         parameters = parameters or {}
@@ -64,6 +69,15 @@ class Graph:
         self.run_dir.mkdir(parents=True, exist_ok=True)
         for node in self.nodes.values():
             node.start()
+        self._write_record()
+
+    def _write_record(self) -> None:
+        record = {'supervisor_pid': os.getpid(), 'domain_id': self.domain_id,
+                  'robot': self.robot,
+                  'nodes': {name: {'pid': node.process.pid if node.process else None,
+                                   'restarts': node.restarts, 'exit_code': node.returncode}
+                            for name, node in self.nodes.items()}}
+        atomic_write(self.run_dir / RECORD, lambda f: f.write(json.dumps(record).encode()))
 
     @contextlib.contextmanager
     def _probe(self) -> Iterator[Any]:
@@ -133,6 +147,8 @@ class Graph:
                 self._report(f'node {name} restarted ({node.restarts}/{self.max_restarts})')
             else:
                 node.reported = True
+        if dead:
+            self._write_record()
         return dead
 
     def stop(self, timeout: float = 5.0) -> dict[str, int | None]:

@@ -19,3 +19,4 @@ ACTIVE_MODEL = '/compensator/active_model'                  # flexarm_msgs/Model
 MOVE_TO_POSE = '/move_to_pose'                              # flexarm_msgs/action/MoveToPose
 COLLECT_SAMPLES = '/collect_samples'                        # flexarm_msgs/action/CollectSamples
 TRAIN = '/train'                                            # flexarm_msgs/srv/Train
+USE_MODEL = '/learner/use_model'                            # flexarm_msgs/srv/UseModel

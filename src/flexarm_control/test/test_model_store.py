@@ -3,8 +3,9 @@ import json
 
 import pytest
 
-from flexarm_control.model_store import (CURRENT, DamagedRecord, next_version, read_current,
-                                         write_current)
+from flexarm_control.model_store import (CURRENT, DamagedRecord, arm_fingerprint, find_model,
+                                         fit_warning, list_models, next_version, provenance,
+                                         read_current, write_current)
 
 
 def test_written_record_reads_back_and_versions_grow(tmp_path):
@@ -33,3 +34,35 @@ def test_record_ahead_of_the_files_wins(tmp_path):
     (tmp_path / 'good-rbf-v2.model').write_bytes(b'')
     (tmp_path / CURRENT).write_text(json.dumps({'version': '12', 'kind': 'rbf', 'path': 'x'}))
     assert next_version(tmp_path) == 13
+
+
+def test_fit_warning_names_another_payload_or_arm():
+    arm = arm_fingerprint({'a': 1.0, 'b': [1, 2]})
+    assert arm == arm_fingerprint({'b': [1, 2], 'a': 1.0}) != arm_fingerprint({'a': 1.5})
+    meta = {'provenance': provenance('B', [0.0, 0.0, 5.0], arm)}
+    assert meta['provenance']['payloads'] == [0.0, 5.0]
+    assert fit_warning(meta, 5.0, arm) == ''
+    assert 'payload 0, 5 kg, the arm carries 2 kg' in fit_warning(meta, 2.0, arm)
+    assert 'another arm configuration' in fit_warning(meta, 0.0, arm_fingerprint({}))
+    assert 'trained before' in fit_warning({}, 0.0, arm)
+
+
+def test_models_are_listed_by_version_and_found(tmp_path):
+    for name in ('a-gp-v2.model', 'a-gp-v10.model', 'bad-rbf-v3.model', 'notes.model'):
+        (tmp_path / name).write_text(name)
+    write_current(tmp_path, 10, 'gp', str(tmp_path / 'a-gp-v10.model'), 'h')
+
+    def read(path):
+        if 'bad' in path.name:
+            raise ValueError('damaged')
+        return {'kind': path.name.split('-')[1]}
+
+    entries = list_models(tmp_path, read)
+    assert [(e.version, e.current) for e in entries] == [(2, False), (3, False), (10, True)]
+    assert entries[1].metadata is None and entries[1].problem == 'damaged'
+    assert find_model(tmp_path, '10').name == 'a-gp-v10.model'
+    assert find_model(tmp_path, '2').name == 'a-gp-v2.model'      # not v12, not v20
+    with pytest.raises(ValueError, match='no model version 4'):
+        find_model(tmp_path, '4')
+    with pytest.raises(ValueError, match='must be a number'):
+        find_model(tmp_path, '1.model')

@@ -5,6 +5,8 @@ Bags are read back with the independent ``mcap`` readers and ``mcap_ros2`` decod
 from __future__ import annotations
 
 import csv
+import math
+import re
 import shutil
 import signal
 from pathlib import Path
@@ -13,6 +15,7 @@ from typing import Any
 import pytest
 import yaml
 from builtin_interfaces.msg import Time
+from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
@@ -22,8 +25,9 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from flexarm_control import topics
-from flexarm_control.bag_tools import bag_info, export_trials, read_messages
+from flexarm_control import bag_tools, topics
+from flexarm_control.bag_tools import (CSV_FIELDS, ERROR_NAMES, bag_info, export_trials,
+                                       read_messages, trials_figure)
 from flexarm_control.bag_writer import BagWriter
 
 QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
@@ -153,16 +157,10 @@ def _pose(x: float, y: float, phi: float) -> PlanarPose:
     return PlanarPose(x=x, y=y, phi=phi)
 
 
-def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
-    truths = [(1.0, _pose(0.5, 0.2, 0.1)), (2.0, _pose(0.6, 0.3, 0.0)),
-              (3.5, _pose(9.0, 9.0, 0.0))]
-    outcomes = [
-        GoalOutcome(stamp=_stamp(2 * 10**9 + 10), trial='t1', mode=1,
-                    target=_pose(0.601, 0.3, 0.01), measured_pose=_pose(0.6005, 0.3, 0.0),
-                    measured=True, position_error=0.0005, angle_error=-0.01, iterations=1),
-        GoalOutcome(stamp=_stamp(10**8), trial='t1', mode=0, target=_pose(0.5, 0.2, 0.0)),
-    ]
-    with BagWriter(tmp_path / 'run') as writer:
+def _write_outcome_bag(bag: Path, truths: list[tuple[float, PlanarPose]],
+                       outcomes: list[GoalOutcome]) -> None:
+    """A bag of ground-truth tip poses (stamped at ``t`` [s]) and goal outcomes."""
+    with BagWriter(bag) as writer:
         writer.add_topic(topics.TIP_POSE_TRUTH, 'flexarm_msgs/msg/TipPose')
         writer.add_topic(topics.OUTCOMES, 'flexarm_msgs/msg/GoalOutcome')
         for t, pose in truths:
@@ -172,16 +170,142 @@ def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
         for outcome in outcomes:
             writer.write(topics.OUTCOMES, serialize_message(outcome), T0)
 
+
+def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
+    truths = [(1.0, _pose(0.5, 0.2, 0.1)), (2.0, _pose(0.6, 0.3, 0.0)),
+              (3.5, _pose(9.0, 9.0, 0.0))]
+    outcomes = [
+        GoalOutcome(stamp=_stamp(2 * 10**9 + 10), trial='t1', mode=1,
+                    target=_pose(0.601, 0.3, 0.01), measured_pose=_pose(0.6005, 0.3, 0.0),
+                    measured=True, position_error=0.0005, angle_error=0.01, iterations=1),
+        GoalOutcome(stamp=_stamp(10**8), trial='t1', mode=0, target=_pose(0.5, 0.2, 0.0)),
+    ]
+    _write_outcome_bag(tmp_path / 'run', truths, outcomes)
+
     csv_path, png_path = export_trials(tmp_path / 'run', tmp_path / 'out')
     rows = list(csv.DictReader(csv_path.open()))
-    assert [r['mode'] for r in rows] == ['PREDICTIVE', 'RIGID']
+    assert [r['mode_name'] for r in rows] == ['predictive', 'rigid']
     first, second = rows
     assert float(first['truth_x_mm']) == pytest.approx(600.0)
     assert float(first['truth_position_error_mm']) == pytest.approx(1.0)
     assert float(first['truth_angle_error_deg']) == pytest.approx(-0.5729578, abs=1e-6)
     assert float(first['measured_position_error_mm']) == pytest.approx(0.5)
+    assert float(first['measured_angle_error_deg']) == pytest.approx(-0.5729578, abs=1e-6)
     assert second['truth_x_mm'] == '' and second['measured_x_mm'] == ''
     assert png_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+
+Result = MoveToPose.Result
+# (trial, mode, error code, moves, reason, target, measured pose or None, truth); the truths
+# are stamped 1 s apart and each outcome 0.5 s after its own.
+MIXED_GOALS = [
+    ('ok_below', 1, Result.SUCCESSFUL, 1, '', _pose(1.2, -0.1, -0.5),
+     _pose(1.20001, -0.1, -0.50002), _pose(1.20002, -0.1, -0.50003)),
+    ('refused', 0, Result.UNREACHABLE, 0, 'outside the workspace', _pose(4.0, 0.0, 0.0),
+     None, _pose(0.8, 1.4, 0.3)),
+    ('canceled', 2, Result.CANCELED, 1, 'canceled; arm held', _pose(1.5, 0.0, 0.0),
+     None, _pose(0.9, 0.2, 0.1)),
+    ('ok_above', 2, Result.SUCCESSFUL, 2, '', _pose(1.3, 0.2, 0.4),
+     _pose(1.3, 0.20003, 0.40001), _pose(1.3, 0.20001, 0.40002)),
+    ('dry', 1, Result.SUCCESSFUL, 0, 'dry run: nothing moved', _pose(1.0, 0.5, 0.0),
+     None, _pose(1.3, 0.2, 0.4)),
+]
+
+
+def _mixed_bag(bag: Path) -> None:
+    truths, outcomes = [], []
+    for i, (trial, mode, code, moves, reason, target, measured, truth) in enumerate(
+            MIXED_GOALS):
+        truths.append((float(i + 1), truth))
+        outcomes.append(GoalOutcome(
+            stamp=_stamp((2 * i + 3) * 10**9 // 2), trial=trial, mode=mode, target=target,
+            measured=measured is not None, measured_pose=measured or PlanarPose(),
+            # as the compensator publishes it: |angle error|, whatever its sign
+            angle_error=abs(measured.phi - target.phi) if measured else 0.0,
+            iterations=moves, error_code=code, error_string=reason,
+            model_version='' if mode == 0 else 'gp-7'))
+    _write_outcome_bag(bag, truths, outcomes)
+
+
+def test_export_csv_names_modes_error_codes_reasons_and_models(tmp_path: Path) -> None:
+    _mixed_bag(tmp_path / 'mixed')
+    csv_path, _ = export_trials(tmp_path / 'mixed', tmp_path / 'out')
+    with csv_path.open() as f:
+        reader = csv.DictReader(f)
+        header, rows = reader.fieldnames, list(reader)
+    assert header == list(CSV_FIELDS)
+    assert [r['trial'] for r in rows] == [g[0] for g in MIXED_GOALS]
+    assert [r['mode_name'] for r in rows] == [
+        'predictive', 'rigid', 'closed_loop', 'closed_loop', 'predictive']
+    assert [r['error_name'] for r in rows] == [
+        'SUCCESSFUL', 'UNREACHABLE', 'CANCELED', 'SUCCESSFUL', 'SUCCESSFUL']
+    assert [r['error_code'] for r in rows] == [str(g[2]) for g in MIXED_GOALS]
+    assert [r['succeeded'] for r in rows] == ['True', 'False', 'False', 'True', 'True']
+    assert [r['reason'] for r in rows] == [g[4] for g in MIXED_GOALS]
+    assert [r['model_version'] for r in rows] == ['gp-7', '', 'gp-7', 'gp-7', 'gp-7']
+    for row in rows:   # one plain number per cell, in the unit its name carries
+        for name in ('target_x_mm', 'target_phi_deg', 'prediction_std_mm', 'stamp_s'):
+            float(row[name])
+    assert float(rows[3]['target_y_mm']) == pytest.approx(200.0)
+    assert float(rows[3]['target_phi_deg']) == pytest.approx(math.degrees(0.4))
+
+
+def test_every_result_code_of_the_action_has_its_name() -> None:
+    action = Path(__file__).parents[2] / 'flexarm_msgs' / 'action' / 'MoveToPose.action'
+    result_part = action.read_text().split('---')[1]
+    declared = dict(re.findall(r'^int32 (\w+)=(-?\d+)', result_part, re.MULTILINE))
+    assert len(declared) >= 9 and declared['OUTSIDE_LEARNED_DATA'] == '-8'
+    assert {str(code): name for code, name in ERROR_NAMES.items()} == {
+        code: name for name, code in declared.items()}
+
+
+def test_export_signs_measured_and_true_angle_errors_alike(tmp_path: Path) -> None:
+    _mixed_bag(tmp_path / 'mixed')
+    rows = list(csv.DictReader(export_trials(tmp_path / 'mixed', tmp_path / 'out')[0].open()))
+    below, above = rows[0], rows[3]
+    for row, sign in ((below, -1.0), (above, 1.0)):   # reached pose minus target
+        measured, truth = float(row['measured_angle_error_deg']), float(
+            row['truth_angle_error_deg'])
+        assert math.copysign(1.0, measured) == math.copysign(1.0, truth) == sign
+    assert float(below['measured_angle_error_deg']) == pytest.approx(
+        math.degrees(-0.00002), abs=1e-9)
+    assert float(above['truth_angle_error_deg']) == pytest.approx(
+        math.degrees(0.00002), abs=1e-9)
+    assert float(above['measured_position_error_mm']) == pytest.approx(0.03)
+
+
+def test_export_never_plots_failed_goals_as_errors(tmp_path: Path,
+                                                   monkeypatch: pytest.MonkeyPatch) -> None:
+    figures = []
+
+    def keep(*args: Any, **kwargs: Any) -> Any:
+        figures.append(trials_figure(*args, **kwargs))
+        return figures[-1]
+
+    monkeypatch.setattr(bag_tools, 'trials_figure', keep)
+    _mixed_bag(tmp_path / 'mixed')
+    csv_path, png_path = export_trials(tmp_path / 'mixed', tmp_path / 'out')
+    rows = list(csv.DictReader(csv_path.open()))
+    # the refused goal did not move: its 3.5 m from the target is no error
+    assert rows[1]['truth_position_error_mm'] == '' and rows[1]['truth_x_mm'] != ''
+    assert rows[4]['truth_position_error_mm'] == ''     # dry run: nothing moved
+    assert float(rows[2]['truth_position_error_mm']) > 500   # canceled, arm left there
+    assert png_path.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'
+
+    (figure,) = figures
+    for ax in figure.axes:
+        assert ax.get_yscale() == 'log'
+        lines = {line.get_label(): line for line in ax.get_lines()}
+        assert set(lines) == {'predictive', 'closed_loop', 'failed goals: 2',
+                              'no error recorded: 1'}
+        assert list(lines['predictive'].get_xdata()) == [0]
+        assert list(lines['closed_loop'].get_xdata()) == [3]
+        assert list(lines['failed goals: 2'].get_xdata()) == [1, 2]
+        assert list(lines['no error recorded: 1'].get_xdata()) == [4]
+        assert ax.get_ylim()[1] < 1.0     # errors below 0.03 mm / 0.002 deg, not 600+ mm
+    position_errors = figure.axes[0].get_lines()[0].get_ydata()
+    assert list(position_errors) == pytest.approx([float(rows[0]['truth_position_error_mm'])])
+    assert 'failed goals: 2' in [t.get_text() for t in figure.axes[0].get_legend().texts]
 
 
 # ---- node level: flexarm_recorder as its own process --------------------------------------

@@ -31,8 +31,11 @@ def test_predictor_settings_merge_per_kind_and_bad_ones_are_refused():
 
 
 def test_tiny_study_writes_its_files_and_learns_the_deflection(tmp_path):
+    steps = []
     result = run_study({'seeds': 1, 'samples': [20], 'held_out': 50, 'kinds': ['mlp', 'rbf'],
-                        'paper_tables': False})
+                        'paper_tables': False}, progress=lambda *step: steps.append(step))
+    assert steps == [(0, 3, 'learning data, seed 0'), (1, 3, 'mlp 10 hidden, 20 samples'),
+                     (2, 3, 'rbf, 20 samples'), (3, 3, 'done')]
     rows = result['rows']
     assert [(r['kind'], r['samples']) for r in rows] == [('mlp', 20), ('rbf', 20)]
     # The arm sags ~20 mm in this workspace; a learned predictor must do far better than that.

@@ -1,0 +1,175 @@
+"""What ``flexarm status`` reports: a running graph seen from outside, with or without one.
+
+:func:`query` asks the graph of the client's ROS domain (node discovery, the latched model
+topics of the learner and the compensator, a second of ``/joint_states``, the payload and bag
+parameters); :func:`supervisor_record` finds the ``flexarm up`` that runs the domain (its run
+folder's ``graph.json``: node processes and restarts); :func:`status_text` formats the result
+for humans (mm and deg). Everything in the returned dict is SI and JSON-able.
+"""
+from __future__ import annotations
+
+import json
+import math
+import os
+import time
+from datetime import datetime, timezone
+from pathlib import Path
+from typing import Any
+
+from rcl_interfaces.msg import ParameterType
+from rcl_interfaces.srv import GetParameters
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from sensor_msgs.msg import JointState
+
+from flexarm_control import topics
+from flexarm_control.launcher import load_graph, load_optional
+from flexarm_control.predictors.base import read_model
+from flexarm_control.supervisor import RECORD
+from flexarm_msgs.msg import ModelInfo
+
+CONTROLLERS = {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}
+
+
+def graph_node_names() -> list[str]:
+    """Every node name config/graph.yaml knows, controller entries first."""
+    names = [s.name for robot in ('sim', 'bridge') for s in load_graph(robot)]
+    return list(dict.fromkeys(names + list(load_optional())))
+
+
+def supervisor_record(runs_dir: Path, domain_id: int) -> dict[str, Any] | None:
+    """The graph record of the live supervisor of ``domain_id`` under ``runs_dir``, if any."""
+    for path in sorted(Path(runs_dir).glob(f'*/{RECORD}'), key=lambda p: p.stat().st_mtime,
+                       reverse=True):
+        try:
+            record = json.loads(path.read_text())
+            pid = int(record['supervisor_pid'])
+            if record['domain_id'] != domain_id:
+                continue
+            os.kill(pid, 0)
+        except (OSError, ValueError, KeyError, TypeError):
+            continue          # unreadable, or its supervisor is gone
+        return record | {'run_dir': str(path.parent)}
+    return None
+
+
+def model_summary(info: ModelInfo | None) -> dict[str, Any] | None:
+    """A model announcement as a dict; ``age_s`` from the model file's creation time."""
+    if info is None:
+        return None
+    summary = {'version': info.version, 'kind': info.kind, 'dataset': info.dataset,
+               'payloads': list(info.payloads), 'samples': info.metrics.samples,
+               'validation': info.metrics.validation,
+               'max_error': [info.metrics.max_error_x, info.metrics.max_error_y,
+                             info.metrics.max_error_phi],
+               'warning': info.warning, 'path': info.path, 'age_s': None}
+    try:
+        created = datetime.fromisoformat(read_model(info.path)[0]['created'])
+        summary['age_s'] = (datetime.now(timezone.utc) - created).total_seconds()
+    except (OSError, ValueError, KeyError, TypeError):
+        pass              # another machine's path, or an older file: no age
+    return summary
+
+
+def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
+    """The status of the graph in ``client``'s domain (``client``: a FlexarmClient)."""
+    latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+    heard: dict[str, Any] = {'joint_states': 0}
+    subscriptions = [
+        client.create_subscription(ModelInfo, topics.MODEL,
+                                   lambda m: heard.__setitem__('learner', m), latched),
+        client.create_subscription(JointState, topics.JOINT_STATES,
+                                   lambda _: heard.__setitem__('joint_states',
+                                                               heard['joint_states'] + 1), 10)]
+    end = time.monotonic() + listen
+    while time.monotonic() < end:
+        client.spin_once(0.05)
+    running = set(client.get_node_names())
+    nodes = {name: name in running for name in graph_node_names()}
+    controller = next((kind for name, kind in CONTROLLERS.items() if nodes.get(name)), None)
+    status = {
+        'domain_id': client.context.get_domain_id(),
+        'nodes': nodes,
+        'controller': controller,
+        'joint_state_rate_hz': heard['joint_states'] / listen,
+        'learner_model': model_summary(heard.get('learner')),
+        'active_model': model_summary(client.active_model),
+        'payload_kg': {'learner': _parameter(client, 'flexarm_learner', 'payload')
+                       if nodes['flexarm_learner'] else None,
+                       'simulated': _parameter(client, 'flexarm_sim', 'plant.payload')
+                       if nodes['flexarm_sim'] else None},
+        'bag': _parameter(client, 'flexarm_recorder', 'bag_name')
+        if nodes['flexarm_recorder'] else None,
+    }
+    for subscription in subscriptions:
+        client.destroy_subscription(subscription)
+    return status
+
+
+def _parameter(client: Any, node: str, name: str, timeout: float = 2.0) -> Any:
+    """A parameter's value from a running node, or None if it does not answer."""
+    service = client.create_client(GetParameters, f'/{node}/get_parameters')
+    try:
+        if not service.wait_for_service(timeout_sec=timeout):
+            return None
+        future = service.call_async(GetParameters.Request(names=[name]))
+        deadline = time.monotonic() + timeout
+        while not future.done() and time.monotonic() < deadline:
+            client.spin_once(0.05)
+        if not future.done() or not future.result().values:
+            return None
+        value = future.result().values[0]
+        return {ParameterType.PARAMETER_DOUBLE: value.double_value,
+                ParameterType.PARAMETER_INTEGER: value.integer_value,
+                ParameterType.PARAMETER_STRING: value.string_value}.get(value.type)
+    finally:
+        client.destroy_client(service)
+
+
+def _model_line(label: str, model: dict[str, Any] | None) -> str:
+    if model is None:
+        return f'{label}: none'
+    age = '' if model['age_s'] is None else f', trained {_duration(model["age_s"])} ago'
+    err = model['max_error']
+    payloads = ', '.join(f'{p:g}' for p in model['payloads']) or '?'
+    line = (f'{label}: v{model["version"]} {model["kind"]}, dataset '
+            f'{model["dataset"] or "?"}, {model["samples"]} samples at {payloads} kg{age}; '
+            f'{model["validation"] or "validation"} max |error| {err[0] * 1e3:.3f} mm, '
+            f'{err[1] * 1e3:.3f} mm, {math.degrees(err[2]):.4f} deg')
+    return line + (f'\n  WARNING: {model["warning"]}' if model['warning'] else '')
+
+
+def _duration(seconds: float) -> str:
+    for unit, size in (('d', 86400), ('h', 3600), ('min', 60)):
+        if seconds >= size:
+            return f'{seconds / size:.1f} {unit}'
+    return f'{seconds:.0f} s'
+
+
+def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
+    """``flexarm status`` for humans."""
+    lines = [f'ROS_DOMAIN_ID={status["domain_id"]}']
+    if record is None:
+        lines.append('supervisor: none found (not started by `flexarm up` on this machine)')
+    else:
+        lines.append(f'supervisor: pid {record["supervisor_pid"]}, robot {record["robot"]}, '
+                     f'logs in {record["run_dir"]}')
+    restarts = {} if record is None else {n: v['restarts'] for n, v in record['nodes'].items()}
+    up = [n + (f' (restarted {restarts[n]}x)' if restarts.get(n) else '')
+          for n, alive in status['nodes'].items() if alive]
+    lines.append('nodes up: ' + (', '.join(up) or 'none: no flexarm graph in this domain '
+                                 '(start one with `flexarm up`)'))
+    if status['controller'] is None:
+        lines.append('controller: none')
+    else:
+        rate = status['joint_state_rate_hz']
+        link = f'joint states at {rate:.0f} Hz' if rate else 'NO joint states for 1 s'
+        lines.append(f'controller: {status["controller"]}, {link}')
+    lines.append(_model_line('model driving the arm (compensator)', status['active_model']))
+    learner, active = status['learner_model'], status['active_model']
+    if learner is not None and (active is None or learner['version'] != active['version']):
+        lines.append(_model_line('model announced by the learner (NOT in use)', learner))
+    payload = status['payload_kg']
+    known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
+    lines.append('payload: ' + (', '.join(known) or 'unknown'))
+    lines.append(f'recording: bags/{status["bag"]}' if status['bag'] else 'recording: no')
+    return '\n'.join(lines)

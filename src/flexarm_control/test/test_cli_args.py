@@ -1,0 +1,130 @@
+"""`flexarm` without a graph: bad input is refused before anything connects, in words, with
+exit code 2 and no traceback; help shows defaults and only the options a subcommand uses; a
+missing graph is named by its ROS domain (exit 3).
+
+Every test runs with ROS_DOMAIN_ID set to an empty domain of its own (``domain_id``): a
+command that connected instead of refusing would wait for a graph there and exit 3, not 2.
+"""
+import json
+import signal
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from flexarm_control.cli import main
+from flexarm_control.outcome_text import Exit
+
+README = str(Path(__file__).resolve().parents[3] / 'README.md')
+A1 = ['1450', '-150', '-45']
+
+BAD_INPUT = [
+    (['collect', '-5'], 'argument N: must be a whole number > 0'),
+    (['collect', '0'], 'argument N: must be a whole number > 0'),
+    (['collect', '3000'], 'count must be 1..2000 (max_count of config/learner.yaml)'),
+    (['collect', '5', '--region', 'Z'],
+     'unknown region "Z"; presets of config/learner.yaml: A, B, AB, paper'),
+    (['collect', '5', '--strategy', 'zigzag'], 'unknown strategy "zigzag"'),
+    (['collect', '5', '--dataset', '../x'], 'dataset name "../x" must be'),
+    (['collect', '5', '--seed', '-1'], 'argument --seed: must be a whole number >= 0'),
+    (['train', 'nonsense'], 'unknown predictor kind "nonsense"; known kinds: mlp, rbf, gp'),
+    (['train', 'mlp', '--settings', '[10]'], 'argument --settings: must be a JSON object'),
+    (['train', '--settings', '{hidden: 10}'], 'argument --settings: not valid JSON'),
+    (['train', '--dataset', 'a/b'], 'dataset name "a/b" must be'),
+    (['move', '1450', '-150', 'nan'], 'argument phi: must be a finite number'),
+    (['move', *A1, '--position-tolerance', '-0.1'], 'must be a number >= 0'),
+    (['move', *A1, '--max-iterations', '-1'], 'must be a whole number >= 0'),
+    (['move', *A1, '--wait', '0'], 'argument --wait: must be a number > 0'),
+    (['move', *A1, '--domain-id', '300'], 'must be a ROS domain 0..232'),
+    (['bag', 'info', 'bags/nope'], 'no bag at bags/nope'),
+    (['bag', 'export', README], 'README.md is not an MCAP bag'),
+    (['bag', 'info', 'bags/nope', '--domain-id', '3'], 'unrecognized arguments: --domain-id'),
+    (['study', '--wait', '3'], 'unrecognized arguments: --wait'),
+    (['study', '--region', 'Z'], 'unknown region "Z"'),
+    (['study', '--seeds', '0'], 'argument --seeds: must be a whole number > 0'),
+    (['demo', '--kind', 'svm'], 'unknown predictor kind "svm"'),
+    (['up', '--link-key', '/nonexistent/site.key'], 'no key file /nonexistent/site.key'),
+]
+
+
+@pytest.mark.parametrize('argv, says', BAD_INPUT, ids=[' '.join(a) for a, _ in BAD_INPUT])
+def test_bad_input_is_refused_in_words_before_connecting(argv, says, domain_id, capsys):
+    handler = signal.getsignal(signal.SIGTERM)
+    started = time.monotonic()
+    assert main(argv) == Exit.USAGE
+    assert time.monotonic() - started < 10          # refused, not waited for a graph
+    err = capsys.readouterr().err
+    assert says in err and 'Traceback' not in err
+    assert signal.getsignal(signal.SIGTERM) is handler    # main restores what it replaced
+
+
+def test_a_refusal_before_connecting_ends_the_json_output_too(domain_id, capsys):
+    assert main(['--json', 'collect', '5', '--region', 'Z']) == Exit.USAGE
+    captured = capsys.readouterr()
+    result = json.loads(captured.out.splitlines()[-1])
+    assert result['exit_code'] == 2 and not result['ok']
+    assert 'unknown region "Z"' in result['outcome'] and 'unknown region' in captured.err
+
+
+def test_help_shows_defaults_and_what_each_option_governs(capsys):
+    assert main(['move', '--help']) == 0
+    out = ' '.join(capsys.readouterr().out.split())     # unwrapped
+    for default in ('predictive', '300.0', '30.0', '0.0', '0'):
+        assert f'(default: {default})' in out
+    assert ('CLOSED_LOOP corrects until within it (0: the compensator\'s default); '
+            'RIGID/PREDICTIVE: if given, the measured error must be within it, else '
+            'TOLERANCE_NOT_MET') in out
+    assert '--max-iterations N CLOSED_LOOP only: corrective moves after the first' in out
+    assert main(['--help']) == 0
+    out = capsys.readouterr().out
+    assert 'exit codes:' in out and '130  interrupted' in out and '--quiet' in out
+
+
+@pytest.mark.parametrize('name', ['bag', 'study', 'keygen'])
+def test_offline_commands_take_only_their_own_options(name, capsys):
+    assert main([name, '--help']) == 0
+    out = capsys.readouterr().out
+    assert '--domain-id' not in out and '--wait' not in out and '--quiet' in out
+
+
+def test_no_graph_names_the_domain_the_cause_and_shows_the_wait(domain_id, capsys):
+    started = time.monotonic()
+    assert main(['move', *A1, '--wait', '2', '--domain-id', str(domain_id)]) == Exit.NO_GRAPH
+    assert time.monotonic() - started < 15
+    err = capsys.readouterr().err
+    assert (f'flexarm move: no flexarm graph in ROS_DOMAIN_ID={domain_id} after 2 s '
+            '(/move_to_pose not found): start one with `flexarm up`') in err
+    assert '--domain-id' in err and 'Traceback' not in err
+    assert f'waiting for the flexarm graph in ROS_DOMAIN_ID={domain_id} ...' in err
+
+
+@pytest.mark.parametrize('flag', ['--quiet', '--json'])
+def test_quiet_and_json_show_no_progress(flag, domain_id, capsys):
+    assert main([flag, 'collect', '5', '--wait', '1.5']) == Exit.NO_GRAPH   # env's domain
+    captured = capsys.readouterr()
+    assert 'waiting for' not in captured.err
+    assert f'ROS_DOMAIN_ID={domain_id} after 1.5 s' in captured.err
+    if flag == '--json':
+        assert json.loads(captured.out.splitlines()[-1])['exit_code'] == 3
+
+
+def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
+    """rclpy's C++ layer turns an exception raised in a generated message module into a
+    RuntimeError (the goal would not be cancelled): there the signal is sent again later."""
+    from flexarm_control.cli import _interrupt
+
+    delivered = []
+    previous = signal.signal(signal.SIGUSR1, lambda signum, frame: delivered.append(signum))
+    try:
+        inside = {'interrupt': _interrupt, 'signal': signal, 'sys': sys}
+        exec(compile('interrupt(signal.SIGUSR1, sys._getframe())',
+                     '/venv/site-packages/sensor_msgs/msg/_joint_state.py', 'exec'), inside)
+        deadline = time.monotonic() + 5.0
+        while not delivered and time.monotonic() < deadline:
+            time.sleep(0.01)
+        assert delivered == [signal.SIGUSR1]
+        with pytest.raises(KeyboardInterrupt):
+            _interrupt(signal.SIGUSR1, sys._getframe())
+    finally:
+        signal.signal(signal.SIGUSR1, previous)

@@ -1,0 +1,194 @@
+"""Node-level: what `flexarm move` says, and how it exits, when the compensator is busy, when
+the move is interrupted (Ctrl-C, SIGTERM: the goal is cancelled and the CLI says where the arm
+stopped) and when the server refuses the goal. Interrupted and busy commands run as their own
+processes, as an operator runs them; refusals call ``main`` in this process.
+"""
+from __future__ import annotations
+
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import threading
+import time
+
+import numpy as np
+import pytest
+from sensor_msgs.msg import JointState
+
+from flexarm_control import topics
+from flexarm_control.cli import main
+from flexarm_control.kinematics import ArmGeometry, forward
+from flexarm_control.outcome_text import Exit
+from flexarm_control.params import load_config
+
+pytestmark = pytest.mark.node
+B4 = ('1000', '-500', '-100')      # [mm, mm, deg] Table 10: a long move from the start pose
+A1 = ('1450', '-150', '-45')
+STOPPED = re.compile(r'cancelled; arm stopped at x=(\S+) mm, y=(\S+) mm, phi=(\S+) deg')
+
+
+class Cli:
+    """A ``flexarm`` process; its stdout and stderr lines as they arrive."""
+
+    def __init__(self, *args: str, domain_id: int) -> None:
+        self.process = subprocess.Popen(
+            [sys.executable, '-m', 'flexarm_control.cli', *args, '--domain-id', str(domain_id)],
+            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+            env={**os.environ, 'PYTHONUNBUFFERED': '1'})
+        self.out: list[str] = []
+        self.err: list[str] = []
+        self._readers = [threading.Thread(target=self._read, args=(stream, lines), daemon=True)
+                         for stream, lines in ((self.process.stdout, self.out),
+                                               (self.process.stderr, self.err))]
+        for reader in self._readers:
+            reader.start()
+
+    @staticmethod
+    def _read(stream, lines: list[str]) -> None:
+        for line in stream:
+            lines.append(line.rstrip('\n'))
+
+    def wait_line(self, text: str, timeout: float) -> None:
+        deadline = time.monotonic() + timeout
+        while not any(text in line for line in self.out):
+            if time.monotonic() > deadline or self.process.poll() is not None:
+                self.process.kill()
+                pytest.fail(f'no line with {text!r} within {timeout} s: {self.out} {self.err}')
+            time.sleep(0.02)
+
+    def finish(self, timeout: float) -> tuple[int, str]:
+        """Exit code and stderr, once the process has ended (killed after ``timeout``)."""
+        try:
+            code = self.process.wait(timeout)
+        except subprocess.TimeoutExpired:
+            self.process.kill()
+            pytest.fail(f'flexarm still ran after {timeout} s: {self.out} {self.err}')
+        for reader in self._readers:
+            reader.join(timeout=5.0)
+        return code, '\n'.join(self.err)
+
+
+class Arm:
+    """The arm's rigid tip pose [m, m, rad] from /joint_states, as a test client sees it."""
+
+    def __init__(self, client) -> None:
+        self._client, self._joints = client, []
+        self._geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
+        client.create_subscription(JointState, topics.JOINT_STATES,
+                                   lambda m: self._joints.append(np.array(m.position)), 10)
+
+    def _spin(self) -> np.ndarray | None:
+        """Let joint states arrive for 0.2 s; the latest joints before that."""
+        before = self._joints[-1] if self._joints else None
+        self._client.spin_once(0.2)
+        return before
+
+    def at_rest(self, timeout: float = 30.0) -> np.ndarray:
+        """The pose once the joints have not moved for a second."""
+        deadline, still_since = time.monotonic() + timeout, None
+        while time.monotonic() < deadline:
+            before = self._spin()
+            if before is None or np.max(np.abs(self._joints[-1] - before)) > 1e-7:
+                still_since = None
+                continue
+            still_since = still_since or time.monotonic()
+            if time.monotonic() - still_since > 1.0:
+                return forward(self._geometry, self._joints[-1])
+        pytest.fail(f'the joints did not come to rest within {timeout} s')
+
+    def away_from(self, pose: np.ndarray, distance: float, timeout: float = 30.0) -> None:
+        """Return once the tip is ``distance`` [m] away from ``pose``."""
+        deadline = time.monotonic() + timeout
+        while time.monotonic() < deadline:
+            self._spin()
+            if self._joints and np.linalg.norm(
+                    forward(self._geometry, self._joints[-1])[:2] - pose[:2]) > distance:
+                return
+        pytest.fail(f'the tip did not move {distance * 1e3:.0f} mm within {timeout} s')
+
+
+@pytest.fixture
+def arm(launch, ready_client) -> Arm:
+    """Simulator at 0.15 x real time (a long move lasts ~20 s, time for a second `flexarm`
+    process to start) and the compensator."""
+    launch('flexarm_sim', real_time_factor=0.15)
+    launch('flexarm_compensator')
+    return Arm(ready_client(learner=False))
+
+
+def stopped_pose(err: str) -> np.ndarray:
+    """The pose [m, m, rad] an interrupted `flexarm move` said the arm stopped at."""
+    found = STOPPED.search(err)
+    assert found, err
+    x, y, phi = (float(v) for v in found.groups())
+    return np.array([x / 1e3, y / 1e3, math.radians(phi)])
+
+
+def interrupt(move: Cli, signum: int, arm: Arm) -> np.ndarray:
+    """Send ``signum`` to a moving `flexarm move`; where it said the arm stopped, checked
+    against where the arm is at rest."""
+    move.process.send_signal(signum)
+    code, err = move.finish(15.0)
+    assert code == Exit.INTERRUPTED and 'Traceback' not in err, err
+    said, rest = stopped_pose(err), arm.at_rest()
+    assert np.max(np.abs(said[:2] - rest[:2])) < 0.5e-3, (said, rest)   # held where it said
+    assert abs(said[2] - rest[2]) < math.radians(0.05), (said, rest)
+    return said
+
+
+def test_busy_and_interrupted_moves_say_so_and_where_the_arm_stopped(arm, domain_id):
+    start = arm.at_rest()
+    first = Cli('move', *B4, '--mode', 'rigid', domain_id=domain_id)
+    first.wait_line('] moving', 60.0)
+    code, err = Cli('move', *A1, '--mode', 'rigid', domain_id=domain_id).finish(60.0)
+    assert code == Exit.BUSY, err
+    assert 'flexarm move: busy: another goal is running on /move_to_pose' in err
+
+    arm.away_from(start, 0.01)
+    said = interrupt(first, signal.SIGINT, arm)
+    target = np.array([float(B4[0]) / 1e3, float(B4[1]) / 1e3])
+    assert np.linalg.norm(said[:2] - target) > 0.02                      # stopped mid-way
+
+    second = Cli('move', *A1, '--mode', 'rigid', domain_id=domain_id)
+    second.wait_line('] moving', 60.0)
+    arm.away_from(said, 0.005)
+    interrupt(second, signal.SIGTERM, arm)
+
+
+def test_refusals_name_their_code_in_mm_with_a_hint(launch, domain_id, capsys):
+    launch('flexarm_sim', real_time_factor=10.0)
+    launch('flexarm_compensator')
+    graph = ['--domain-id', str(domain_id)]
+    assert main(['move', '2500', '0', '0', '--mode', 'rigid', *graph]) == Exit.FAILED
+    err = capsys.readouterr().err
+    assert 'flexarm move: refused (UNREACHABLE; nothing moved): pose (x=2500 mm, y=0 mm' in err
+    assert 'what to do: choose a target the arm can reach' in err
+    assert not re.search(r'\d m\b', err)                                 # no metres left
+
+    assert main(['move', *A1, *graph]) == Exit.FAILED                    # predictive, no model
+    err = capsys.readouterr().err
+    assert 'refused (NO_MODEL; nothing moved)' in err and 'flexarm train' in err
+
+    assert main(['move', *A1, '--mode', 'rigid', *graph]) == Exit.OK     # no camera here
+    captured = capsys.readouterr()
+    assert 'moved in 1 move(s), not measured' in captured.out, captured
+    assert '[1] moving' in captured.out
+
+
+def test_training_says_why_it_failed_and_what_it_made(launch, domain_id, tmp_path,
+                                                      write_dataset, capsys):
+    launch('flexarm_learner', data_directory=str(tmp_path), model_directory=str(tmp_path))
+    launch('flexarm_compensator')
+    write_dataset(tmp_path / 'small.jsonl', count=12)
+    graph = ['--domain-id', str(domain_id)]
+    assert main(['train', 'rbf', '--dataset', 'missing', *graph]) == Exit.FAILED
+    err = capsys.readouterr().err
+    assert f'flexarm train: training failed: no dataset at {tmp_path}/missing.jsonl' in err
+    assert 'what to do: ' in err and 'Traceback' not in err
+
+    assert main(['train', 'rbf', '--dataset', 'small', *graph]) == Exit.OK
+    out = capsys.readouterr().out
+    assert re.search(r'12 samples: max \|error\| x \S+ mm, y \S+ mm, phi \S+ deg', out), out

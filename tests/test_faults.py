@@ -88,6 +88,27 @@ def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_p
         rclpy.try_shutdown(context=context)
 
 
+
+def test_a_graph_refuses_at_once_a_domain_another_graph_of_this_machine_holds(domain_id,
+                                                                              tmp_path):
+    from flexarm_control.supervisor import Graph, _lock_domain
+
+    held = _lock_domain(domain_id)                  # as a running `flexarm up` holds it
+    graph = Graph(domain_id, tmp_path / 'run')
+    try:
+        started = time.monotonic()
+        with pytest.raises(RuntimeError, match=f'in use by another flexarm graph on this '
+                                               f'machine \\(supervisor pid {os.getpid()}\\)'):
+            graph.start()
+        assert time.monotonic() - started < 1.0      # no discovery wait needed
+        assert all(node.process is None for node in graph.nodes.values())
+        started = time.monotonic()
+        graph.stop()                                  # nothing to stop: no waiting either
+        assert time.monotonic() - started < 1.0
+    finally:
+        os.close(held)
+    os.close(_lock_domain(domain_id))                # released: free for the next graph
+
 @pytest.fixture
 def moving_graph(launch, ready_client):
     """Simulator (real time: a long move takes seconds) and compensator; their processes and

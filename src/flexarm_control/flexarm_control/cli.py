@@ -804,5 +804,18 @@ def main(argv: Sequence[str] | None = None) -> int:
     return int(code)
 
 
+def run() -> None:
+    """The ``flexarm`` command: :func:`main`, then exit at once with its code.
+
+    Output is flushed, then the interpreter's teardown is skipped: after a server died with
+    SIGKILL, Fast DDS spends seconds at exit on the dead participant's shared memory, and the
+    user would wait that long for the prompt after the outcome was already said.
+    """
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
 if __name__ == '__main__':
-    sys.exit(main())
+    run()

@@ -25,7 +25,7 @@ import contextlib
 import json
 import time
 import uuid
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
 import rclpy
@@ -79,6 +79,14 @@ class GoalInterrupted(KeyboardInterrupt):
         self.accepted, self.result = accepted, result
 
 
+_UNKNOWN = 'unknown node'
+
+
+def _known(names: Iterable[str]) -> list[str]:
+    """The node names discovery knows already (it reports '_NODE_NAME_UNKNOWN_' until then)."""
+    return sorted({n for n in names if n and n != '_NODE_NAME_UNKNOWN_'}) or [_UNKNOWN]
+
+
 class ServerWatch:
     """Tells whether a goal's action server is still the one that accepted the goal.
 
@@ -94,7 +102,7 @@ class ServerWatch:
         self._status_topic = f'{client._action_name}/_action/status'
         self._probe = ClientGoalHandle(client, UUID(uuid=list(uuid.uuid4().bytes)), None)
         self._servers = self._status_publishers()
-        self._names = sorted(set(self._servers.values())) or ['unknown node']
+        self._names = _known(self._servers.values())
         self._pending: Future | None = None
         self._sent = self._answered = time.monotonic()
 
@@ -111,7 +119,9 @@ class ServerWatch:
             self._pending, self._sent = self._probe.cancel_goal_async(), now
         current = self._status_publishers()
         if not self._servers:            # not discovered at acceptance: the first seen is it
-            self._servers, self._names = current, sorted(set(current.values())) or self._names
+            self._servers = current
+        if self._names == [_UNKNOWN] and set(current) <= set(self._servers):
+            self._names = _known(current.values())    # names arrive after the endpoints
         server = f'{self._client._action_name} ({", ".join(self._names)})'
         if now - self._answered > SERVER_SILENCE:
             return (f'{server} stopped answering {now - self._answered:.1f} s ago while the '

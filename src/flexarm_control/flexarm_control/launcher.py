@@ -194,7 +194,7 @@ def stop_all(nodes: Iterable[NodeProcess], timeout: float = 5.0) -> dict[str, in
 
 def _stop_all(nodes: list[NodeProcess], timeout: float) -> dict[str, int | None]:
     for sig, wait in ((signal.SIGINT, timeout), (signal.SIGTERM, 2.0), (signal.SIGKILL, 2.0)):
-        alive = [n for n in nodes if n.returncode is None]
+        alive = [n for n in nodes if n.process is not None and n.returncode is None]
         if not alive:
             break
         for node in alive:

@@ -1,8 +1,9 @@
 """The running graph: start every node of config/graph.yaml, wait until it is ready, supervise.
 
 Used by ``flexarm up``, ``flexarm demo``/``benchmark`` and the node-level tests. One log file
-per node in the run folder. A graph refuses to start in a ROS domain where a node of one of its
-names already runs (another flexarm graph: two simulators would publish ``/clock`` and
+per node in the run folder. A graph refuses to start in a ROS domain that another graph of this
+machine holds (a lock file per domain, :data:`LOCK_DIR`: immediate and certain, where discovery
+can take seconds under load), or where a node of one of its names already runs (another flexarm graph: two simulators would publish ``/clock`` and
 ``/joint_states``, and the learner could measure against the other arm's joints), and it is
 ready only when each of its own nodes is discovered, besides the topics and servers. A node
 that dies is reported with its exit code and the last lines of its log, and restarted if
@@ -14,8 +15,10 @@ node processes in which domain, and how often each was restarted (``flexarm stat
 from __future__ import annotations
 
 import contextlib
+import fcntl
 import json
 import os
+import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
@@ -27,6 +30,7 @@ from flexarm_control.launcher import NodeProcess, load_graph, load_optional, ros
 
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
+LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock per graph
 # What "ready" means: (kind, name) pairs that must be discovered in the graph.
 READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
@@ -47,6 +51,7 @@ class Graph:
             raise ValueError(f'unknown optional nodes {sorted(unknown)}; known: {sorted(extra)}')
         specs += [extra[name] for name in optional]
         self.domain_id, self.run_dir, self.robot = domain_id, run_dir, robot
+        self._lock: int | None = None      # file descriptor of the domain lock while started
         self.max_restarts, self._report = max_restarts, report
         env = ros_env(domain_id, run_dir / 'ros_log', discovery=discovery)
         parameters = parameters or {}
@@ -55,8 +60,20 @@ class Graph:
                       for spec in specs}
 
     def start(self) -> None:
-        """Start every node; RuntimeError, and nothing started, if the domain already runs a
-        node of one of their names."""
+        """Start every node; RuntimeError, and nothing started, if another graph of this
+        machine holds the domain or the domain already runs a node of one of their names."""
+        self._lock = _lock_domain(self.domain_id)
+        try:
+            self._check_domain_free()
+        except BaseException:
+            self._release()
+            raise
+        self.run_dir.mkdir(parents=True, exist_ok=True)
+        for node in self.nodes.values():
+            node.start()
+        self._write_record()
+
+    def _check_domain_free(self) -> None:
         with self._probe() as probe:
             deadline = time.monotonic() + DISCOVERY_WAIT
             while time.monotonic() < deadline:
@@ -66,10 +83,11 @@ class Graph:
                         f'ROS domain {self.domain_id} already runs {", ".join(taken)}: another '
                         'flexarm graph? Stop it, or start this one with another domain id')
                 time.sleep(0.1)
-        self.run_dir.mkdir(parents=True, exist_ok=True)
-        for node in self.nodes.values():
-            node.start()
-        self._write_record()
+
+    def _release(self) -> None:
+        if self._lock is not None:
+            os.close(self._lock)          # closing the descriptor releases the lock
+            self._lock = None
 
     def _write_record(self) -> None:
         record = {'supervisor_pid': os.getpid(), 'domain_id': self.domain_id,
@@ -152,7 +170,10 @@ class Graph:
         return dead
 
     def stop(self, timeout: float = 5.0) -> dict[str, int | None]:
-        return stop_all(self.nodes.values(), timeout)
+        try:
+            return stop_all(self.nodes.values(), timeout)
+        finally:
+            self._release()
 
     def __enter__(self) -> Graph:
         self.start()
@@ -160,3 +181,21 @@ class Graph:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def _lock_domain(domain_id: int) -> int:
+    """An exclusive lock on ``domain_id`` for this process (a file descriptor, held until
+    closed, released by the kernel if the process dies); RuntimeError naming the holder."""
+    LOCK_DIR.mkdir(parents=True, exist_ok=True)
+    fd = os.open(LOCK_DIR / f'{domain_id}.lock', os.O_RDWR | os.O_CREAT, 0o666)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError:
+        holder = os.read(fd, 64).decode(errors='replace').strip() or 'unknown'
+        os.close(fd)
+        raise RuntimeError(f'ROS domain {domain_id} is in use by another flexarm graph on this '
+                           f'machine (supervisor pid {holder}): stop it, or start this one with '
+                           'another domain id') from None
+    os.ftruncate(fd, 0)
+    os.pwrite(fd, str(os.getpid()).encode(), 0)
+    return fd

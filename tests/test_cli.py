@@ -192,3 +192,44 @@ def test_training_says_why_it_failed_and_what_it_made(launch, domain_id, tmp_pat
     assert main(['train', 'rbf', '--dataset', 'small', *graph]) == Exit.OK
     out = capsys.readouterr().out
     assert re.search(r'12 samples: max \|error\| x \S+ mm, y \S+ mm, phi \S+ deg', out), out
+
+
+def test_status_model_list_use_and_dry_run(launch, domain_id, tmp_path, write_dataset,
+                                           ready_client, capsys):
+    import json
+
+    data, models = tmp_path / 'data', tmp_path / 'models'
+    write_dataset(data / 'good.jsonl', count=20)
+    launch('flexarm_sim', real_time_factor=10.0)
+    launch('flexarm_learner', data_directory=str(data), model_directory=str(models))
+    launch('flexarm_compensator')
+    client = ready_client()
+    domain = ['--domain-id', str(domain_id)]
+    for _ in range(2):
+        assert client.train('rbf', dataset='good', timeout=60).success
+    client.wait_for_model('2', timeout=20)
+    capsys.readouterr()
+
+    assert main(['status', '--json', *domain]) == Exit.OK
+    out = capsys.readouterr().out
+    status = json.loads(out.splitlines()[-1])
+    assert status['active_model']['version'] == '2' and status['controller'] == 'sim'
+    assert status['active_model']['dataset'] == 'good' and status['payload_kg']['learner'] == 0, status
+    assert 'model driving the arm (compensator): v2 rbf, dataset good, 20 samples' in out
+
+    assert main(['model', 'list', '--models', str(models)]) == Exit.OK
+    listed = capsys.readouterr().out
+    assert re.search(r'^  good-rbf-v1\.model: v1 rbf', listed, re.M)
+    assert re.search(r'^\* good-rbf-v2\.model: v2 rbf', listed, re.M)
+
+    assert main(['model', 'use', '1', *domain]) == Exit.OK
+    assert 'model driving the arm now: v1 rbf' in capsys.readouterr().out
+    assert client.active_model.version == '1' or client.wait_for_model('1', 10)
+    assert main(['model', 'use', '7', *domain]) == Exit.FAILED
+    assert 'no model version 7' in capsys.readouterr().err
+
+    assert main(['move', *A1, '--dry-run', '--allow-extrapolation', '--json', *domain]) == 0
+    out = capsys.readouterr().out
+    assert 'plan (model v1; nothing moved): command x=' in out
+    plan = json.loads(out.splitlines()[-1])
+    assert plan['model_version'] == '1' and plan['iterations'] == 0 and plan['dry_run']

@@ -255,14 +255,34 @@ def _move_text(result: Any) -> str:
     if result.error_code != MoveToPose.Result.SUCCESSFUL:
         return failure_text(code_name(MoveToPose.Result, result.error_code),
                             result.error_string, MOVE_HINTS, moved=result.iterations > 0)
+    if result.iterations == 0:                  # a dry run: the plan, nothing moved
+        return _plan_text(result)
     reached = (f'reached in {result.iterations} move(s): ' + _measured_text(
         result.measured_pose, result.position_error, result.angle_error) if result.measured
         else f'moved in {result.iterations} move(s), not measured')
+    reached += f' ({_model_text(result.model_version)})'
     learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
                f'std {mm(result.prediction_std):.3f} mm'
                if result.data_distance or result.prediction_std else '')
     notes = f'; {human_units(result.error_string)}' if result.error_string else ''
     return reached + learned + notes
+
+
+def _model_text(version: str) -> str:
+    return f'model v{version}' if version else 'rigid plan, no model'
+
+
+def _plan_text(result: Any) -> str:
+    """A dry run's plan: what would be commanded, and from which model."""
+    q, d, c = result.joint_positions, result.predicted_deflection, result.commanded_pose
+    learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
+               f'std {mm(result.prediction_std):.3f} mm' if result.model_version else '')
+    notes = human_units(result.error_string.replace('dry run: nothing moved', '').strip('; '))
+    return (f'plan ({_model_text(result.model_version)}; nothing moved): command '
+            f'{pose_text((c.x, c.y, c.phi))} to the rigid model, joints {deg(q[0]):.3f} deg, '
+            f'{mm(q[1]):.2f} mm, {deg(q[2]):.3f} deg, {deg(q[3]):.3f} deg; predicted '
+            f'deflection {mm(d.x):.3f} mm, {mm(d.y):.3f} mm, {deg(d.phi):.4f} deg'
+            + learned + (f'; {notes}' if notes else ''))
 
 
 def _move_interrupted(result: Any) -> str:
@@ -294,7 +314,8 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
             position_tolerance=args.position_tolerance / 1e3,
             angle_tolerance=math.radians(args.angle_tolerance),
             max_iterations=args.max_iterations, trial=args.trial, timeout=args.timeout,
-            allow_extrapolation=args.allow_extrapolation, feedback=feedback),
+            allow_extrapolation=args.allow_extrapolation, dry_run=args.dry_run,
+            feedback=feedback),
             topics.MOVE_TO_POSE, _move_interrupted)
     out = {'ok': result.error_code == MoveToPose.Result.SUCCESSFUL,
            'error_code': result.error_code,
@@ -308,7 +329,8 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'position_error': result.position_error, 'angle_error': result.angle_error,
            'iterations': result.iterations,
            'compensation_iterations': result.compensation_iterations,
-           'data_distance': result.data_distance, 'prediction_std': result.prediction_std}
+           'data_distance': result.data_distance, 'prediction_std': result.prediction_std,
+           'model_version': result.model_version, 'dry_run': args.dry_run}
     if not out['ok']:
         if is_busy(result.error_string):      # lost the race of two goals sent together
             raise Outcome(busy_text(topics.MOVE_TO_POSE), Exit.BUSY, **out)
@@ -452,6 +474,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             ready = time.monotonic() - started
             print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
                   'flexarm move 1450 -150 -45. Ctrl-C stops everything.', flush=True)
+            print(_starting_model(domain), flush=True)
             while True:
                 time.sleep(0.5)
                 graph.check()
@@ -461,6 +484,34 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             codes = graph.stop()
             print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
     return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
+
+
+def _starting_model(domain: int, listen: float = 3.0) -> str:
+    """Which model the compensator of a just-started graph runs (it loads the learner's
+    current one within a moment of start-up)."""
+    import time
+
+    import rclpy
+    from rclpy.context import Context
+
+    from flexarm_control.client import FlexarmClient
+    from flexarm_control.graph_status import model_line, model_summary
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain)
+    client = FlexarmClient('flexarm_up_model', context=context)
+    try:
+        end = time.monotonic() + listen
+        while client.active_model is None and time.monotonic() < end:
+            client.spin_once(0.05)
+        summary = model_summary(client.active_model)
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)
+    if summary is None:
+        return ('model driving the arm: none yet (PREDICTIVE goals are refused until '
+                '`flexarm train`; CLOSED_LOOP starts from the rigid plan)')
+    return model_line('model driving the arm', summary)
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
@@ -551,6 +602,79 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
         raise Outcome(f'{args.path} is damaged: {exc}', Exit.FAILED) from None
     print(f'trials: {csv_path}\nplot:   {png_path}')
     return {'ok': True, 'csv': str(csv_path), 'png': str(png_path)}
+
+
+@command
+def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
+    """What runs in the domain and which model drives the arm (also without a graph)."""
+    import rclpy
+
+    from flexarm_control.client import init_client
+    from flexarm_control.graph_status import query, status_text, supervisor_record
+
+    client = init_client(args.domain_id)
+    try:
+        with _elapsed('asking the graph', args):
+            status = query(client)
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown()
+    record = supervisor_record(REPO / 'runs', status['domain_id'])
+    print(status_text(status, record))
+    status['supervisor'] = record
+    if not any(status['nodes'].values()):
+        raise Outcome(f'no flexarm graph in ROS_DOMAIN_ID={status["domain_id"]}: start one '
+                      'with `flexarm up`, or pass --domain-id', Exit.NO_GRAPH, **status)
+    return {'ok': True, **status}
+
+
+@command
+def cmd_model(args: argparse.Namespace) -> dict[str, Any]:
+    """List the trained models (list) or make an earlier one current again (use VERSION)."""
+    return _model_list(args) if args.action == 'list' else _model_use(args)
+
+
+def _model_list(args: argparse.Namespace) -> dict[str, Any]:
+    from flexarm_control.graph_status import file_summary, model_line
+    from flexarm_control.model_store import list_models
+    from flexarm_control.predictors.base import read_model
+
+    directory = Path(args.models)
+    entries = list_models(directory, lambda path: read_model(path)[0])
+    if not entries:
+        print(f'no models in {directory}: collect samples and `flexarm train`')
+    rows = []
+    for entry in entries:
+        mark = '*' if entry.current else ' '
+        if entry.metadata is None:
+            print(f'{mark} v{entry.version}: unusable: {human_units(entry.problem)}')
+            rows.append({'version': str(entry.version), 'current': entry.current,
+                         'path': str(entry.path), 'problem': entry.problem})
+            continue
+        summary = file_summary(str(entry.version), entry.path, entry.metadata)
+        print(mark + ' ' + model_line(entry.path.name, summary))
+        rows.append(summary | {'current': entry.current})
+    if entries:
+        print("* = current (announced by the learner; `flexarm status` shows what the "
+              "compensator runs)")
+    return {'ok': True, 'models': rows}
+
+
+def _model_use(args: argparse.Namespace) -> dict[str, Any]:
+    from flexarm_control.graph_status import model_line, model_summary
+
+    if not args.version.isdecimal():
+        raise usage('model use needs a version number (see flexarm model list), not '
+                    f'{args.version!r}')
+    with _session(args, learner=True) as client:
+        response = client.use_model(args.version, timeout=args.wait)
+        if not response.success:
+            raise Outcome(response.message, Exit.FAILED)
+        with _elapsed(f'waiting for the compensator to load v{args.version}', args):
+            client.wait_for_model(response.model.version, timeout=args.wait)
+    summary = model_summary(response.model)
+    print(model_line('model driving the arm now', summary))
+    return {'ok': True, 'model': summary}
 
 
 @command
@@ -653,6 +777,9 @@ def _move_arguments(p: argparse.ArgumentParser) -> None:
                    help='run a PREDICTIVE goal beyond the learned data (with a warning) '
                         'instead of refusing it')
     p.add_argument('--trial', default='', help='trial name for logs and bags')
+    p.add_argument('--dry-run', action='store_true',
+                   help='only plan: print the commanded pose, joints, predicted deflection, '
+                        'distance to the learned data and model; nothing moves')
     p.add_argument('--timeout', type=_positive, default=300.0, metavar='S',
                    help='[s] for the goal; then it is cancelled')
 
@@ -727,6 +854,14 @@ def _bag_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--out', default='', help='export folder (default: the bag folder)')
 
 
+def _model_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('action', choices=['list', 'use'])
+    p.add_argument('version', nargs='?', default='', help='use: the model version to make '
+                   'current again (roll back); the compensator switches to it')
+    p.add_argument('--models', default=str(REPO / 'models'), metavar='DIR',
+                   help="list: the learner's model directory")
+
+
 def _keygen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('path', help='key file to create')
 
@@ -734,6 +869,7 @@ def _keygen_arguments(p: argparse.ArgumentParser) -> None:
 # subcommand: (its arguments, graph options: None = none, True = with --wait, False = without)
 SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | None]] = {
     'up': (_up_arguments, False),
+    'status': (lambda p: None, False),
     'move': (_move_arguments, True),
     'collect': (_collect_arguments, True),
     'train': (_train_arguments, True),
@@ -741,6 +877,7 @@ SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | N
     'benchmark': (_benchmark_arguments, False),
     'study': (_study_arguments, None),
     'bag': (_bag_arguments, None),
+    'model': (_model_arguments, True),
     'keygen': (_keygen_arguments, None),
 }
 

@@ -63,11 +63,31 @@ def model_summary(info: ModelInfo | None) -> dict[str, Any] | None:
                              info.metrics.max_error_phi],
                'warning': info.warning, 'path': info.path, 'age_s': None}
     try:
-        created = datetime.fromisoformat(read_model(info.path)[0]['created'])
-        summary['age_s'] = (datetime.now(timezone.utc) - created).total_seconds()
-    except (OSError, ValueError, KeyError, TypeError):
-        pass              # another machine's path, or an older file: no age
+        summary['age_s'] = _age(read_model(info.path)[0])
+    except (OSError, ValueError):
+        pass              # another machine's path, or a damaged file: no age
     return summary
+
+
+def file_summary(version: str, path: Path, meta: dict[str, Any]) -> dict[str, Any]:
+    """A model file's metadata in the form of :func:`model_summary`."""
+    metrics = meta.get('metrics') or {}
+    origin = meta.get('provenance') or {}
+    return {'version': version, 'kind': meta['kind'], 'dataset': origin.get('dataset', ''),
+            'payloads': origin.get('payloads', []),
+            'samples': metrics.get('samples', meta.get('samples', 0)),
+            'validation': metrics.get('validation', ''),
+            'max_error': [metrics.get(f'max_error_{a}', math.nan) for a in ('x', 'y', 'phi')],
+            'warning': '', 'path': str(path), 'age_s': _age(meta)}
+
+
+def _age(meta: dict[str, Any]) -> float | None:
+    """Seconds since a model was trained (its ``created`` stamp), None if unknown."""
+    try:
+        created = datetime.fromisoformat(meta['created'])
+    except (KeyError, TypeError, ValueError):
+        return None
+    return (datetime.now(timezone.utc) - created).total_seconds()
 
 
 def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
@@ -80,10 +100,11 @@ def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
         client.create_subscription(JointState, topics.JOINT_STATES,
                                    lambda _: heard.__setitem__('joint_states',
                                                                heard['joint_states'] + 1), 10)]
+    running = _discover(client)
+    heard['joint_states'] = 0
     end = time.monotonic() + listen
     while time.monotonic() < end:
         client.spin_once(0.05)
-    running = set(client.get_node_names())
     nodes = {name: name in running for name in graph_node_names()}
     controller = next((kind for name, kind in CONTROLLERS.items() if nodes.get(name)), None)
     status = {
@@ -105,16 +126,45 @@ def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
     return status
 
 
-def _parameter(client: Any, node: str, name: str, timeout: float = 2.0) -> Any:
-    """A parameter's value from a running node, or None if it does not answer."""
+def _discover(client: Any, settle: float = 1.0, empty: float = 3.0,
+              longest: float = 6.0) -> set[str]:
+    """The node names of the domain once discovery has settled.
+
+    A fresh participant learns of the others one by one, seconds apart under load: wait
+    until every node of the controller's graph.yaml entry is seen (then ``settle`` more
+    seconds for optional ones), or until nothing of flexarm is seen for ``empty`` seconds;
+    at most ``longest`` (a graph with a node down)."""
+    ours = set(graph_node_names())
+    graphs = {name: {s.name for s in load_graph(robot)} for name, robot in CONTROLLERS.items()}
+    start = time.monotonic()
+    complete_since = None
+    while True:
+        client.spin_once(0.05)
+        now, names = time.monotonic(), set(client.get_node_names())
+        complete = any(name in names and graph <= names for name, graph in graphs.items())
+        complete_since = (complete_since or now) if complete else None
+        if (now - start > longest or (complete and now - complete_since > settle)
+                or (not names & ours and now - start > empty)):
+            return names
+
+
+def _parameter(client: Any, node: str, name: str, timeout: float = 4.0) -> Any:
+    """A parameter's value from a running node, or None if it does not answer.
+
+    The request is repeated every second: one sent before the server has discovered this
+    client's reply channel is answered into the void (a DDS race of fresh participants)."""
     service = client.create_client(GetParameters, f'/{node}/get_parameters')
+    deadline = time.monotonic() + timeout
     try:
         if not service.wait_for_service(timeout_sec=timeout):
             return None
-        future = service.call_async(GetParameters.Request(names=[name]))
-        deadline = time.monotonic() + timeout
-        while not future.done() and time.monotonic() < deadline:
-            client.spin_once(0.05)
+        while time.monotonic() < deadline:
+            future = service.call_async(GetParameters.Request(names=[name]))
+            retry = min(deadline, time.monotonic() + 1.0)
+            while not future.done() and time.monotonic() < retry:
+                client.spin_once(0.05)
+            if future.done():
+                break
         if not future.done() or not future.result().values:
             return None
         value = future.result().values[0]
@@ -125,7 +175,7 @@ def _parameter(client: Any, node: str, name: str, timeout: float = 2.0) -> Any:
         client.destroy_client(service)
 
 
-def _model_line(label: str, model: dict[str, Any] | None) -> str:
+def model_line(label: str, model: dict[str, Any] | None) -> str:
     if model is None:
         return f'{label}: none'
     age = '' if model['age_s'] is None else f', trained {_duration(model["age_s"])} ago'
@@ -164,10 +214,10 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
         rate = status['joint_state_rate_hz']
         link = f'joint states at {rate:.0f} Hz' if rate else 'NO joint states for 1 s'
         lines.append(f'controller: {status["controller"]}, {link}')
-    lines.append(_model_line('model driving the arm (compensator)', status['active_model']))
+    lines.append(model_line('model driving the arm (compensator)', status['active_model']))
     learner, active = status['learner_model'], status['active_model']
     if learner is not None and (active is None or learner['version'] != active['version']):
-        lines.append(_model_line('model announced by the learner (NOT in use)', learner))
+        lines.append(model_line('model announced by the learner (NOT in use)', learner))
     payload = status['payload_kg']
     known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
     lines.append('payload: ' + (', '.join(known) or 'unknown'))

@@ -214,7 +214,8 @@ def test_status_model_list_use_and_dry_run(launch, domain_id, tmp_path, write_da
     out = capsys.readouterr().out
     status = json.loads(out.splitlines()[-1])
     assert status['active_model']['version'] == '2' and status['controller'] == 'sim'
-    assert status['active_model']['dataset'] == 'good' and status['payload_kg']['learner'] == 0, status
+    assert status['active_model']['dataset'] == 'good', status
+    assert status['payload_kg']['learner'] == 0, status
     assert 'model driving the arm (compensator): v2 rbf, dataset good, 20 samples' in out
 
     assert main(['model', 'list', '--models', str(models)]) == Exit.OK

@@ -348,3 +348,29 @@ def test_the_link_leaves_loopback_only_with_a_key(launch, domain_id, wait_for):
     assert controller.returncode == bridge.returncode == 1
     assert 'refusing to listen' in controller.log_path.read_text()
     assert 'refusing to connect' in bridge.log_path.read_text()
+
+
+def test_a_goal_fails_at_once_when_the_controller_dies_mid_move(moving_graph):
+    import math
+    import threading
+
+    from flexarm_msgs.action import MoveToPose
+
+    sim, _, client = moving_graph
+    phases, outcome = [], {}
+    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.move_to(
+        1.0, -0.5, math.radians(-100), mode='rigid', timeout=120,
+        feedback=lambda fb: phases.append(fb.phase))))
+    thread.start()
+    deadline = time.monotonic() + 20
+    while 'moving' not in phases and time.monotonic() < deadline:
+        time.sleep(0.05)
+    assert 'moving' in phases, 'the goal did not start moving'
+    os.kill(sim.process.pid, signal.SIGKILL)
+    killed = time.monotonic()
+    thread.join(timeout=15)
+    assert not thread.is_alive(), 'the goal still waits for a dead controller'
+    result = outcome['result']
+    assert result.error_code == MoveToPose.Result.CONTROLLER_TIMEOUT
+    assert 'stopped publishing /joint_states' in result.error_string, result.error_string
+    assert time.monotonic() - killed < 4.0

@@ -34,8 +34,9 @@ _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
 _POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them at once)
 # [s, wall] without /joint_states, once they came, after which the controller counts as gone
-# (at 100 Hz of sim time, even a simulator at a tenth of real time publishes every 0.1 s).
-JOINT_SILENCE = 2.0
+# (at 100 Hz of sim time, even a simulator at a tenth of real time publishes every 0.1 s); the
+# bridge's link to a controller is lost after the same silence (PROTOCOL.md).
+JOINT_SILENCE = 1.0
 
 
 @dataclass(frozen=True)

@@ -306,10 +306,12 @@ class CompensatorNode(Node):
             self._arm.hold()
             return Result(error_code=Result.CANCELED, error_string='canceled; arm held')
         if not arrived:
+            silent = self._arm.controller_silent
             self._arm.hold()
-            return Result(error_code=Result.CONTROLLER_TIMEOUT,
-                          error_string=f'joints did not reach the command within '
-                                       f'{travel + self._move_margin:.0f} s')
+            return Result(error_code=Result.CONTROLLER_TIMEOUT, error_string=(
+                'the controller stopped publishing /joint_states mid-move (died, or its link '
+                'was lost): the arm\'s state is unknown' if silent else
+                f'joints did not reach the command within {travel + self._move_margin:.0f} s'))
         self._feedback(handle, iteration, Feedback.PHASE_SETTLING, plan.commanded_pose,
                        planned)
         measurement = self._arm.measure(self._frames, self._measure_timeout,

@@ -3,7 +3,8 @@
 Used by ``flexarm up``, ``flexarm demo``/``benchmark`` and the node-level tests. One log file
 per node in the run folder. A graph refuses to start in a ROS domain that another graph of this
 machine holds (a lock file per domain, :data:`LOCK_DIR`: immediate and certain, where discovery
-can take seconds under load), or where a node of one of its names already runs (another flexarm graph: two simulators would publish ``/clock`` and
+can take seconds under load), or where a node of one of its names already runs (another
+flexarm graph, perhaps on another host: two simulators would publish ``/clock`` and
 ``/joint_states``, and the learner could measure against the other arm's joints), and it is
 ready only when each of its own nodes is discovered, besides the topics and servers. A node
 that dies is reported with its exit code and the last lines of its log, and restarted if

@@ -118,20 +118,20 @@ def moving_graph(launch, ready_client):
     return sim, compensator, ready_client(learner=False)
 
 
-def test_a_client_notices_its_server_die_mid_goal(moving_graph):
+def kill_mid_move(client, victim) -> tuple[dict, float]:
+    """Start a long RIGID move, SIGKILL ``victim`` (a node process) once the arm moves; the
+    goal's ``result`` or ``error``, and the seconds from the kill until it ended."""
     import math
     import threading
 
-    from flexarm_control.client import ServerLost
-
-    _, compensator, client = moving_graph
     phases, outcome = [], {}
 
     def move() -> None:
         try:
-            client.move_to(1.0, -0.5, math.radians(-100), mode='rigid', timeout=120,
-                           feedback=lambda fb: phases.append(fb.phase))
-        except Exception as exc:   # the outcome is what the test looks at
+            outcome['result'] = client.move_to(1.0, -0.5, math.radians(-100), mode='rigid',
+                                               timeout=120,
+                                               feedback=lambda fb: phases.append(fb.phase))
+        except Exception as exc:   # the outcome is what the tests look at
             outcome['error'] = exc
 
     thread = threading.Thread(target=move)
@@ -140,14 +140,21 @@ def test_a_client_notices_its_server_die_mid_goal(moving_graph):
     while 'moving' not in phases and time.monotonic() < deadline:
         time.sleep(0.05)
     assert 'moving' in phases, 'the goal did not start moving'
-    os.kill(compensator.process.pid, signal.SIGKILL)
+    os.kill(victim.process.pid, signal.SIGKILL)
     killed = time.monotonic()
     thread.join(timeout=15)
-    assert not thread.is_alive(), 'the client still waits for a dead server'
+    assert not thread.is_alive(), 'the client still waits after the kill'
+    return outcome, time.monotonic() - killed
+
+
+def test_a_client_notices_its_server_die_mid_goal(moving_graph):
+    from flexarm_control.client import ServerLost
+
+    _, compensator, client = moving_graph
+    outcome, seconds = kill_mid_move(client, compensator)
     assert isinstance(outcome.get('error'), ServerLost), outcome
     assert 'flexarm_compensator' in str(outcome['error'])
-    assert time.monotonic() - killed < 6.0
-
+    assert seconds < 6.0
 
 
 def test_a_collection_client_notices_the_learner_die_and_no_sample_is_lost(launch, tmp_path,
@@ -351,26 +358,11 @@ def test_the_link_leaves_loopback_only_with_a_key(launch, domain_id, wait_for):
 
 
 def test_a_goal_fails_at_once_when_the_controller_dies_mid_move(moving_graph):
-    import math
-    import threading
-
     from flexarm_msgs.action import MoveToPose
 
     sim, _, client = moving_graph
-    phases, outcome = [], {}
-    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.move_to(
-        1.0, -0.5, math.radians(-100), mode='rigid', timeout=120,
-        feedback=lambda fb: phases.append(fb.phase))))
-    thread.start()
-    deadline = time.monotonic() + 20
-    while 'moving' not in phases and time.monotonic() < deadline:
-        time.sleep(0.05)
-    assert 'moving' in phases, 'the goal did not start moving'
-    os.kill(sim.process.pid, signal.SIGKILL)
-    killed = time.monotonic()
-    thread.join(timeout=15)
-    assert not thread.is_alive(), 'the goal still waits for a dead controller'
+    outcome, seconds = kill_mid_move(client, sim)
     result = outcome['result']
     assert result.error_code == MoveToPose.Result.CONTROLLER_TIMEOUT
     assert 'stopped publishing /joint_states' in result.error_string, result.error_string
-    assert time.monotonic() - killed < 4.0
+    assert seconds < 4.0

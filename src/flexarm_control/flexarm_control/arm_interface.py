@@ -141,7 +141,16 @@ class ArmInterface:
         return True
 
     def wait_for_joints(self, timeout: float) -> bool:
-        return self.wait_until(lambda: self._parse_joints() is not None, timeout)
+        """Whether a joint state arrives within ``timeout`` wall seconds (the controller's
+        liveness is a wall-clock matter: at a 10x real-time factor 5 s of sim time would be
+        half a second, less than DDS matching may take on a loaded machine)."""
+        deadline = time.monotonic() + timeout
+        with self._cond:
+            while self._parse_joints() is None:
+                if time.monotonic() > deadline or not self._node.context.ok():
+                    return False
+                self._cond.wait(_POLL)
+        return True
 
     def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
              abort: Callable[[], bool] = lambda: False) -> bool:

@@ -24,6 +24,7 @@ from mcap_ros2.decoder import DecoderFactory
 from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.kinematics import wrap_angle
+from flexarm_control.outcome_text import code_names
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
@@ -31,8 +32,7 @@ if TYPE_CHECKING:
 MCAP_MAGIC = b'\x89MCAP0\r\n'
 MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_').lower()
               for name in dir(MoveToPose.Goal) if name.startswith('MODE_')}
-ERROR_NAMES = {getattr(MoveToPose.Result, name): name for name in dir(MoveToPose.Result)
-               if name.isupper() and isinstance(getattr(MoveToPose.Result, name), int)}
+ERROR_NAMES = code_names(MoveToPose.Result)
 CSV_FIELDS = (
     'trial', 'mode', 'mode_name', 'error_code', 'error_name', 'succeeded', 'reason',
     'model_version', 'iterations', 'stamp_s', 'data_distance', 'prediction_std_mm',

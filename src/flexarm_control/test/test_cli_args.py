@@ -128,3 +128,25 @@ def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
             _interrupt(signal.SIGUSR1, sys._getframe())
     finally:
         signal.signal(signal.SIGUSR1, previous)
+
+
+def test_status_without_a_graph_says_so_and_exits_3(domain_id, capsys):
+    import json
+
+    assert main(['status', '--json', '--domain-id', str(domain_id)]) == Exit.NO_GRAPH
+    captured = capsys.readouterr()
+    assert 'nodes up: none: no flexarm graph in this domain' in captured.out
+    assert 'model driving the arm (compensator): none' in captured.out
+    status = json.loads(captured.out.splitlines()[-1])
+    assert status['domain_id'] == domain_id and not any(status['nodes'].values())
+    assert f'no flexarm graph in ROS_DOMAIN_ID={domain_id}' in captured.err
+
+
+def test_model_list_marks_the_current_model_and_says_why_one_is_unusable(tmp_path, capsys):
+    from flexarm_control.model_store import write_current
+
+    (tmp_path / 'b-rbf-v1.model').write_bytes(b'not a model')
+    write_current(tmp_path, 1, 'rbf', str(tmp_path / 'b-rbf-v1.model'), '')
+    assert main(['model', 'list', '--models', str(tmp_path)]) == Exit.OK
+    out = capsys.readouterr().out
+    assert '* v1: unusable:' in out and 'not a model file' in out

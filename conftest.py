@@ -2,7 +2,7 @@
 
 Each test that starts nodes gets its own ROS_DOMAIN_ID (reserved through
 ros-jazzy-domain-coordinator, so parallel test runs on one machine do not talk to each other),
-starts node processes exactly as ``flexarm up`` does (:mod:`flexarm_control.launcher`), and
+starts node processes exactly as ``flexarm up`` does (:mod:`flexarm_bringup.launcher`), and
 kills them on teardown. Every wait in a test is bounded.
 """
 from __future__ import annotations
@@ -33,8 +33,7 @@ def launch(domain_id: int, tmp_path: Path) -> Iterator[Callable[..., Any]]:
     ``robot`` picks the controller entry of graph.yaml (default ``sim``). All nodes started
     by the test are stopped (SIGINT, then SIGKILL) when it ends.
     """
-    from flexarm_control.launcher import (NodeProcess, load_graph, load_optional, ros_env,
-                                          stop_all)
+    from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
 
     started: list[NodeProcess] = []
 

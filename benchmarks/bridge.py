@@ -21,16 +21,16 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flexarm_control import controller_protocol as proto
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bringup.experiment import reserved_domain
+from flexarm_bringup.launcher import NodeProcess, load_graph, ros_env, stop_all
 from flexarm_control import topics
-from flexarm_control.experiment import reserved_domain
-from flexarm_control.launcher import NodeProcess, load_graph, ros_env, stop_all
-from flexarm_control.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 
 STEP = 0.01          # [rad] joint4
 SETTLE = 0.4         # [s] between steps (a 0.01 rad joint4 step takes 0.24 s)

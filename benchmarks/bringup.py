@@ -14,8 +14,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from flexarm_control.experiment import reserved_domain
-from flexarm_control.supervisor import Graph
+from flexarm_bringup.experiment import reserved_domain
+from flexarm_bringup.supervisor import Graph
 
 
 def main() -> None:

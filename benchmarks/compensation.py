@@ -64,11 +64,12 @@ def main() -> None:
     rows = []
     for t in TABLE_10:
         target, model = t.pose, models[t.region]
-        t_pred, plan = per_goal(lambda: compensator.predictive(target, model.predict))
+        t_pred, plan = per_goal(lambda target=target, model=model:
+                                  compensator.predictive(target, model.predict))
         err = plant.pose(plan.joints) - target
         extension = inverse(geometry, target)[1]
 
-        def numerical() -> np.ndarray:
+        def numerical(target: np.ndarray = target, extension: float = extension) -> np.ndarray:
             q0 = inverse(geometry, target)[[0, 2, 3]]
             fit = least_squares(lambda q: plant.pose(np.array([q[0], extension, q[1], q[2]]))
                                 - target, q0, xtol=1e-12, ftol=1e-12)

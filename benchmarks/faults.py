@@ -46,11 +46,11 @@ from typing import IO
 
 from domain_coordinator import domain_id as reserve_domain
 
-from flexarm_control import controller_protocol as proto
+from flexarm_bridge import controller_protocol as proto
 from flexarm_control.dataset import load_dataset
-from flexarm_control.params import CONFIG_DIR, load_config
+from flexarm_control.params import load_config
+from flexarm_control.paths import REPO, RUNS_DIR
 
-REPO = CONFIG_DIR.parent
 FLEXARM = str(Path(sys.executable).with_name('flexarm'))
 MARKER = 'FLEXARM_FAULT_RUN'
 SHM = Path('/dev/shm')
@@ -470,7 +470,7 @@ def lost_samples(path: Path, claimed: int) -> tuple[int, str]:
 
 def collection_log(graph: Graph, path: Path) -> str:
     """The learner's log since its last collection into ``path`` began."""
-    log = (REPO / 'runs' / f'faults-{graph.marker}' / 'flexarm_learner.log').read_text(
+    log = (RUNS_DIR / f'faults-{graph.marker}' / 'flexarm_learner.log').read_text(
         errors='replace')
     return log[log.rfind(f'into {path}'):]
 

@@ -17,6 +17,7 @@ from flexarm_control.paper import TABLE_10
 from flexarm_control.params import load_config
 from flexarm_sim.plant import Plant
 
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--json', action='store_true', help='print a JSON line last')

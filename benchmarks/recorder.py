@@ -26,9 +26,9 @@ from rclpy.context import Context
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image, JointState
 
+from flexarm_bringup.bag_tools import bag_info, read_messages
+from flexarm_bringup.launcher import NodeProcess, load_optional, ros_env, stop_all
 from flexarm_control import topics
-from flexarm_control.bag_tools import bag_info, read_messages
-from flexarm_control.launcher import NodeProcess, load_optional, ros_env, stop_all
 
 WIDTH, HEIGHT = 640, 480
 

@@ -57,10 +57,12 @@ def main() -> None:
         start = time.perf_counter()
         model = make_predictor(kind).fit(joints, deflections)   # first fit: includes warm-up
         first = time.perf_counter() - start
-        fit = seconds(lambda: make_predictor(kind).fit(joints, deflections), args.repeats)
-        cv = seconds(lambda: validate(kind, None, joints, deflections, folds=5), 1)
-        single = seconds(lambda: [model.predict(q) for q in queries[:200]], args.repeats) / 200
-        batch = seconds(lambda: model.predict(queries), args.repeats)
+        fit = seconds(lambda kind=kind: make_predictor(kind).fit(joints, deflections),
+                      args.repeats)
+        cv = seconds(lambda kind=kind: validate(kind, None, joints, deflections, folds=5), 1)
+        single = seconds(lambda model=model: [model.predict(q) for q in queries[:200]],
+                         args.repeats) / 200
+        batch = seconds(lambda model=model: model.predict(queries), args.repeats)
         errors = np.abs(model.predict(queries) - sag(queries))
         results[kind] = {
             'fit_s': fit, 'first_fit_s': first, 'cross_validation_5fold_s': cv,

@@ -3,7 +3,8 @@
 #   1. a Python 3.11 venv,
 #   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
 #   3. the flexarm_msgs interfaces (ament_cmake + rosidl, built into the venv prefix),
-#   4. the Python packages flexarm_control, flexarm_vision, flexarm_sim (editable).
+#   4. the Python packages flexarm_control, flexarm_bridge, flexarm_vision, flexarm_sim,
+#      flexarm_bringup (editable).
 # Each step is skipped when its inputs did not change since it last succeeded, so a re-run
 # takes about a second. Usage: scripts/setup.sh [--force]
 set -euo pipefail
@@ -63,13 +64,16 @@ install_msgs() {
   pip install --no-build-isolation --force-reinstall --no-deps "$root/src/flexarm_msgs"
 }
 
+# The Python packages, lowest layer first (each imports only those before it).
+packages=(flexarm_control flexarm_bridge flexarm_vision flexarm_sim flexarm_bringup)
+
 install_packages() {
-  log "installing flexarm_control, flexarm_vision, flexarm_sim (editable)"
-  pip install --no-build-isolation --no-deps \
-    -e "$root/src/flexarm_control" -e "$root/src/flexarm_vision" -e "$root/src/flexarm_sim"
+  log "installing ${packages[*]} (editable)"
+  local pkg args=()
+  for pkg in "${packages[@]}"; do args+=(-e "$root/src/$pkg"); done
+  pip install --no-build-isolation --no-deps "${args[@]}"
   # Editable installs skip data-files: register the packages in the ament index by hand.
-  local pkg
-  for pkg in flexarm_control flexarm_vision flexarm_sim; do
+  for pkg in "${packages[@]}"; do
     install -D -m 644 "$root/src/$pkg/resource/$pkg" \
       "$venv/share/ament_index/resource_index/packages/$pkg"
     install -D -m 644 "$root/src/$pkg/package.xml" "$venv/share/$pkg/package.xml"
@@ -81,5 +85,5 @@ step requirements "$(digest requirements.txt)" install_requirements
 msgs_files=$(cd "$root" && find src/flexarm_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
 step msgs "$(digest requirements.txt $msgs_files)" install_msgs
-step packages "$(digest src/flexarm_{control,vision,sim}/{pyproject.toml,package.xml})" \
+step packages "$(digest src/flexarm_{control,bridge,vision,sim,bringup}/{pyproject.toml,package.xml})" \
   install_packages

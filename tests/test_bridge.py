@@ -1,6 +1,6 @@
 """Node-level: the bridge + fake controller in place of the simulator node.
 
-A TCP relay (:class:`~flexarm_control.link_proxy.LinkProxy`) sits between the bridge and the
+A TCP relay (:class:`~link_proxy.LinkProxy`) sits between the bridge and the
 fake controller, so the link can be cut and garbage injected.
 """
 import math
@@ -12,16 +12,16 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
+from link_proxy import TO_CONTROLLER, LinkProxy
 from rclpy.context import Context
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import make_key
+from flexarm_bringup.supervisor import Graph
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
-from flexarm_control import controller_protocol as proto
-from flexarm_control.link_auth import make_key
-from flexarm_control.link_proxy import TO_CONTROLLER, LinkProxy
-from flexarm_control.supervisor import Graph
 from flexarm_msgs.action import MoveToPose
 
 pytestmark = pytest.mark.node

@@ -18,10 +18,10 @@ import numpy as np
 import pytest
 from sensor_msgs.msg import JointState
 
+from flexarm_bringup.cli import main
+from flexarm_bringup.outcome_text import Exit
 from flexarm_control import topics
-from flexarm_control.cli import main
 from flexarm_control.kinematics import ArmGeometry, forward
-from flexarm_control.outcome_text import Exit
 from flexarm_control.params import load_config
 
 pytestmark = pytest.mark.node
@@ -35,7 +35,7 @@ class Cli:
 
     def __init__(self, *args: str, domain_id: int) -> None:
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'flexarm_control.cli', *args, '--domain-id', str(domain_id)],
+            [sys.executable, '-m', 'flexarm_bringup.cli', *args, '--domain-id', str(domain_id)],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, 'PYTHONUNBUFFERED': '1'})
         self.out: list[str] = []

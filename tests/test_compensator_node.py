@@ -26,9 +26,9 @@ from flexarm_control.kinematics import ArmGeometry, forward, inverse
 from flexarm_control.params import config_path, load_config
 from flexarm_control.predictors import make_predictor
 from flexarm_control.sampling import regions_from_dict, sample_poses
-from flexarm_sim.plant import Plant
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo
+from flexarm_sim.plant import Plant
 
 pytestmark = pytest.mark.node
 Result = MoveToPose.Result

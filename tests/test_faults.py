@@ -73,7 +73,7 @@ def test_a_model_the_compensator_cannot_run_never_becomes_current(learner):
 
 
 def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_path):
-    from flexarm_control.supervisor import Graph
+    from flexarm_bringup.supervisor import Graph
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
@@ -91,7 +91,7 @@ def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_p
 
 def test_a_graph_refuses_at_once_a_domain_another_graph_of_this_machine_holds(domain_id,
                                                                               tmp_path):
-    from flexarm_control.supervisor import Graph, _lock_domain
+    from flexarm_bringup.supervisor import Graph, _lock_domain
 
     held = _lock_domain(domain_id)                  # as a running `flexarm up` holds it
     graph = Graph(domain_id, tmp_path / 'run')
@@ -195,7 +195,7 @@ def test_a_collection_client_notices_the_learner_die_and_no_sample_is_lost(launc
     assert len(dataset.samples) >= done[-1]        # every sample reported is on disk
 
 def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait_for):
-    from flexarm_control import controller_protocol as proto
+    from flexarm_bridge import controller_protocol as proto
 
     port = 47000 + 2 * domain_id
     launch('flexarm_fake_controller', robot='bridge', port=port)
@@ -260,7 +260,7 @@ class RawPC:
     """A PC speaking the controller protocol by hand: with the site key or without."""
 
     def __init__(self, port: int, auth=None) -> None:
-        from flexarm_control import controller_protocol as proto
+        from flexarm_bridge import controller_protocol as proto
         deadline = time.monotonic() + 20
         while True:
             try:
@@ -273,7 +273,7 @@ class RawPC:
         self.frames, self.errors, self.seq, self.closed = [], [], 0, False
 
     def send(self, frame_type: int, tamper: bool = False, **fields) -> int:
-        from flexarm_control import controller_protocol as proto
+        from flexarm_bridge import controller_protocol as proto
         self.seq += 1
         key = None if self.auth is None else self.auth.sending_key(frame_type in proto.HANDSHAKE)
         data = bytearray(proto.encode(frame_type, self.seq, key, **fields))
@@ -284,7 +284,7 @@ class RawPC:
 
     def listen(self, seconds: float) -> None:
         """Collect frames for ``seconds`` (sending HEARTBEAT every 0.2 s once authenticated)."""
-        from flexarm_control import controller_protocol as proto
+        from flexarm_bridge import controller_protocol as proto
         end, beat = time.monotonic() + seconds, 0.0
         while time.monotonic() < end and not self.closed:
             if self.auth is not None and self.auth.established and time.monotonic() > beat:
@@ -307,8 +307,8 @@ class RawPC:
 
 
 def test_only_a_pc_with_the_site_key_commands_the_arm(launch, domain_id, tmp_path):
-    from flexarm_control import controller_protocol as proto
-    from flexarm_control.link_auth import PC, LinkAuth, load_key, make_key
+    from flexarm_bridge import controller_protocol as proto
+    from flexarm_bridge.link_auth import PC, LinkAuth, load_key, make_key
 
     port = 47000 + 2 * domain_id
     key_file = make_key(tmp_path / 'site.key')

@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.launcher import _lock_is_stale, _mapped_files
-from flexarm_control.supervisor import Graph
+from flexarm_bringup.launcher import _lock_is_stale, _mapped_files
+from flexarm_bringup.supervisor import Graph
 
 pytestmark = pytest.mark.node
 

@@ -37,12 +37,12 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
+from unique_identifier_msgs.msg import UUID
 
 from flexarm_control import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import ModelInfo, PlanarPose
 from flexarm_msgs.srv import Train, UseModel
-from unique_identifier_msgs.msg import UUID
 
 MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
          'predictive': MoveToPose.Goal.MODE_PREDICTIVE,

@@ -34,8 +34,15 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.kinematics import (ArmGeometry, UnreachableError, elbow_bend, forward,
-                                        inverse, limit_violation, wrap_angle)
+from flexarm_control.kinematics import (
+    ArmGeometry,
+    UnreachableError,
+    elbow_bend,
+    forward,
+    inverse,
+    limit_violation,
+    wrap_angle,
+)
 
 METHODS = ('newton', 'paper')
 FREE = [0, 2, 3]          # joints the Newton solver moves (θ2 is kept)

@@ -35,7 +35,7 @@ import math
 import os
 import zlib
 from dataclasses import dataclass, field
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import IO, Any
 
@@ -149,7 +149,7 @@ class DatasetWriter:
         if _is_cut_header(first):
             self._file.truncate(0)   # new file, or a header cut short at its creation
             header = {'format': FORMAT, 'version': VERSION,
-                      'created': datetime.now(timezone.utc).isoformat(), 'schema': SCHEMA}
+                      'created': datetime.now(UTC).isoformat(), 'schema': SCHEMA}
             self._write(json.dumps(header).encode() + b'\n')
             _fsync_directory(self.path.parent)
             return

@@ -52,21 +52,26 @@ from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
-from flexarm_control.model_store import (DamagedRecord, arm_fingerprint, find_model,
-                                         fit_warning, next_version, provenance, read_current,
-                                         write_current)
+from flexarm_control.model_store import (
+    DamagedRecord,
+    arm_fingerprint,
+    find_model,
+    fit_warning,
+    next_version,
+    provenance,
+    read_current,
+    write_current,
+)
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.params import CONFIG_DIR
+from flexarm_control.paths import REPO
 from flexarm_control.predictors import KINDS, load_predictor, make_predictor
-from flexarm_control.sampling import (STRATEGIES, regions_from_dict, sample_poses,
-                                      travel_order)
+from flexarm_control.sampling import STRATEGIES, regions_from_dict, sample_poses, travel_order
 from flexarm_control.training import Metrics, Screening, TrainingWorker, train
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
 from flexarm_msgs.srv import Train, UseModel
 
-REPO = CONFIG_DIR.parent
 EXECUTOR_THREADS = 4
 Goal = CollectSamples.Goal
 Result = CollectSamples.Result

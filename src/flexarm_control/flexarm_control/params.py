@@ -11,7 +11,7 @@ from typing import Any
 
 import yaml
 
-CONFIG_DIR = Path(__file__).resolve().parents[3] / 'config'
+from flexarm_control.paths import CONFIG_DIR
 
 
 def config_path(name: str) -> Path:

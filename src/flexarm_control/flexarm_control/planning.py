@@ -10,9 +10,9 @@ goal runs, and when the model is not trusted.
   (:meth:`~flexarm_control.predictors.Predictor.position_std`, the GP) — unless the goal allows
   extrapolation, which runs it with a warning. Both are needed: a target 100 mm and 10° outside
   region B lies only ~1.3 spacings from the region's samples (targets inside reached 2.4), yet
-  the GP misses it by 1 mm there, and its std says so (0.3 mm, against at most 0.25 mm inside). A plan the
-  solver cannot find is refused as ``OUTSIDE_LEARNED_DATA`` when the target itself lies beyond
-  the data (the likely cause), else ``UNREACHABLE``.
+  the GP misses it by 1 mm there, and its std says so (0.3 mm, against at most 0.25 mm inside).
+  A plan the solver cannot find is refused as ``OUTSIDE_LEARNED_DATA`` when the target itself
+  lies beyond the data (the likely cause), else ``UNREACHABLE``.
 * CLOSED_LOOP: the PREDICTIVE plan when there is one to trust; without a model, when the
   prediction cannot be planned or lies beyond the learned data, it starts from the rigid
   plan — it measures the tip and corrects, so it needs no model to converge, only more moves.

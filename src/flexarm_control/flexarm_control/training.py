@@ -80,6 +80,9 @@ class Screening:
         return s
 
 
+DEFAULT_SCREENING = Screening()
+
+
 @dataclass(frozen=True)
 class Metrics:
     """Validation errors and what training decided, field for field as
@@ -214,7 +217,7 @@ def outlier_scores(residuals: np.ndarray, scale: np.ndarray, screening: Screenin
 def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
                deflections: np.ndarray, payload: np.ndarray | None = None, folds: int = 5,
                seed: int = 0, geometry: ArmGeometry | None = None,
-               screening: Screening = Screening()) -> tuple[Predictor, Metrics]:
+               screening: Screening = DEFAULT_SCREENING) -> tuple[Predictor, Metrics]:
     """Steps 1-3 of the module docstring on arrays; the fitted predictor and its metrics.
 
     Screening excludes the worst outlier and validates again until none is left; then the
@@ -287,7 +290,7 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
 
 def train(kind: str, settings: Mapping[str, Any] | None, dataset: Dataset, folds: int = 5,
           seed: int = 0, geometry: ArmGeometry | None = None,
-          screening: Screening = Screening()) -> tuple[Predictor, Metrics]:
+          screening: Screening = DEFAULT_SCREENING) -> tuple[Predictor, Metrics]:
     """:func:`fit_robust` on a dataset; its hash and the metrics go into the metadata."""
     joints, deflections, payload = dataset.arrays()
     predictor, metrics = fit_robust(kind, settings, joints, deflections, payload, folds, seed,

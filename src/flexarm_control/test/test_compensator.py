@@ -6,8 +6,13 @@ import numpy as np
 import pytest
 
 from flexarm_control.compensator import CompensationError, Compensator, deflection_slope
-from flexarm_control.kinematics import ArmGeometry, UnreachableError, forward, inverse, \
-    limit_violation
+from flexarm_control.kinematics import (
+    ArmGeometry,
+    UnreachableError,
+    forward,
+    inverse,
+    limit_violation,
+)
 from flexarm_control.params import load_config
 from flexarm_sim.plant import Plant
 
@@ -68,7 +73,9 @@ def test_rigid_plan_is_plain_inverse_kinematics(setup):
 def test_closed_loop_correction_removes_a_model_error(setup):
     _, plant, compensator = setup
     target = pose(TARGETS[3])
-    biased = lambda q: plant.deflection(q) * 0.8            # a predictor 20 % short
+    def biased(q: np.ndarray) -> np.ndarray:               # a predictor 20 % short
+        return plant.deflection(q) * 0.8
+
     plan = compensator.predictive(target, biased)
     errors = []
     for _ in range(6):

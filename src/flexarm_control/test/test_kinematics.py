@@ -4,9 +4,17 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import (ArmGeometry, UnreachableError, elbow_bend, forward,
-                                        inverse, limit_violation, pose_error, reach_margins,
-                                        wrap_angle)
+from flexarm_control.kinematics import (
+    ArmGeometry,
+    UnreachableError,
+    elbow_bend,
+    forward,
+    inverse,
+    limit_violation,
+    pose_error,
+    reach_margins,
+    wrap_angle,
+)
 from flexarm_control.params import load_config
 
 

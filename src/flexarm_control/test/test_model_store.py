@@ -3,9 +3,18 @@ import json
 
 import pytest
 
-from flexarm_control.model_store import (CURRENT, DamagedRecord, arm_fingerprint, find_model,
-                                         fit_warning, list_models, next_version, provenance,
-                                         read_current, write_current)
+from flexarm_control.model_store import (
+    CURRENT,
+    DamagedRecord,
+    arm_fingerprint,
+    find_model,
+    fit_warning,
+    list_models,
+    next_version,
+    provenance,
+    read_current,
+    write_current,
+)
 
 
 def test_written_record_reads_back_and_versions_grow(tmp_path):

@@ -7,8 +7,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.predictors import KINDS, Predictor, load_predictor, make_predictor
-from flexarm_control.predictors import base
+from flexarm_control.predictors import KINDS, Predictor, base, load_predictor, make_predictor
 
 LOWER = np.array([-0.5, 0.3, -1.5, -1.0])
 UPPER = np.array([0.5, 0.8, 0.5, 1.0])

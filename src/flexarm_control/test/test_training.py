@@ -12,8 +12,15 @@ import pytest
 from flexarm_control import training
 from flexarm_control.dataset import Dataset, Sample
 from flexarm_control.predictors import load_predictor
-from flexarm_control.training import (MIN_SAMPLES, SAME_POSE, Metrics, TrainingWorker,
-                                      pose_groups, train, validate)
+from flexarm_control.training import (
+    MIN_SAMPLES,
+    SAME_POSE,
+    Metrics,
+    TrainingWorker,
+    pose_groups,
+    train,
+    validate,
+)
 
 
 def plant_like(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -19,9 +19,9 @@ import time
 
 from builtin_interfaces.msg import Time as TimeMsg
 
-from flexarm_control import controller_protocol as proto
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import CONTROLLER, LinkAuth, site_key_for
 from flexarm_control.kinematics import JOINT_NAMES
-from flexarm_control.link_auth import CONTROLLER, LinkAuth, site_key_for
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare
 from flexarm_sim.dynamics import ArmState

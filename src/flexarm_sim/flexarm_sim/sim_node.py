@@ -8,8 +8,8 @@ pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for eva
 Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
 dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), counted in integer
 ticks so that stamps never drift or step back (:func:`tick_time`); the wall timer runs
-``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it never skips steps;
-``benchmarks/sim_node.py`` measures the achieved rate.
+``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it
+never skips steps; ``benchmarks/sim_node.py`` measures the achieved rate.
 """
 from __future__ import annotations
 

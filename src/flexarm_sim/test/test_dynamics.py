@@ -70,7 +70,7 @@ def test_a_command_landing_mid_step_never_teleports_a_joint(config):
     while injected:
         arm, lines, injected = make(config), 0, False
 
-        def tracer(frame, event, arg):
+        def tracer(frame, event, arg, k=k, arm=arm):
             nonlocal lines, injected
             if frame.f_code.co_filename != dynamics.__file__:
                 return None

@@ -82,9 +82,9 @@ def test_backlash_side_flips_with_the_moment_sign(geometry):
 def test_positive_and_negative_compliances_differ(geometry):
     d = load_config('sim.yaml')['plant']
     plant = Plant.from_dict(d, geometry)
-    j1 = plant.joint_compliance[0]
-    assert j1(np.array(-1.0)) == pytest.approx(-d['compliance_scale'] * d['compliance']['joint1'][0])
-    assert j1(np.array(1.0)) == pytest.approx(d['compliance_scale'] * d['compliance']['joint1'][1])
+    j1, scale = plant.joint_compliance[0], d['compliance_scale']
+    assert j1(np.array(-1.0)) == pytest.approx(-scale * d['compliance']['joint1'][0])
+    assert j1(np.array(1.0)) == pytest.approx(scale * d['compliance']['joint1'][1])
 
 
 def test_plant_is_deterministic_and_vectorised(plant, geometry):

@@ -5,11 +5,11 @@ as a fifth input when its ``payload_input`` setting is true, to the tip deflecti
 (dx m, dy m, dφ rad) = measured − rigid pose. The model sees the joints as the link angles
 gravity acts on (:func:`model_inputs`): θ1, θ2, θ1+θ3, θ1+θ3+θ4 — each link sags by its
 absolute orientation, so these make the deflection a simpler function (a Gaussian process on
-them missed region-A targets 5-10× less than on the raw joints, 40 samples, 5 seeds). Inputs and outputs are
-z-scored with the training set's mean and standard deviation; an input that is constant in
-the training set (e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as nothing can be
-learned about it. The kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever see the
-normalised space.
+them missed region-A targets 5-10× less than on the raw joints, 40 samples, 5 seeds). Inputs
+and outputs are z-scored with the training set's mean and standard deviation; an input that
+is constant in the training set (e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as
+nothing can be learned about it. The kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever
+see the normalised space.
 
 Learned-data support: the model keeps its normalised training inputs, and
 :meth:`Predictor.data_distance` says how far a query lies from them — the distance to the
@@ -17,8 +17,9 @@ nearest training sample in the normalised input space, in units of the training 
 spacing (the median distance from a sample to its nearest neighbour). For targets inside the
 sampled region it stayed below 2.5 (robustness benchmark); outside it grows with the distance.
 Near a region's edge it says little (a target 100 mm outside region B is 1.3 spacings from
-B's samples): the GP's :meth:`Predictor.position_std` is the finer measure there. An input that was constant in training counts in units of
-``CONSTANT_INPUT_SCALE`` (1 mm, 1 mrad or 1 g): any real change of it is far from the data.
+B's samples): the GP's :meth:`Predictor.position_std` is the finer measure there. An input
+that was constant in training counts in units of ``CONSTANT_INPUT_SCALE`` (1 mm, 1 mrad or
+1 g): any real change of it is far from the data.
 
 Model file: one NumPy ``.npz`` archive, loaded with ``allow_pickle=False`` (no pickle,
 nothing executable in it). Entry ``metadata`` is a JSON string::
@@ -44,7 +45,7 @@ import json
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any, ClassVar
 
@@ -195,7 +196,7 @@ class Predictor(ABC):
         support = normalisation.inputs(x)
         self._fit_normalised(support, normalisation.outputs(y))
         self._normalisation, self._support = normalisation, support
-        now = datetime.now(timezone.utc)
+        now = datetime.now(UTC)
         self.metadata.update(created=now.isoformat(), version=now.strftime('%Y%m%dT%H%M%S.%fZ'),
                              samples=len(x), normalisation=normalisation.as_dict(),
                              support_spacing=_spacing(support))

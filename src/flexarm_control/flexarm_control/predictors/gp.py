@@ -27,7 +27,6 @@ from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, Matern
 
 from flexarm_control.predictors.base import OUTPUTS, Predictor
 
-
 KERNELS = ('rbf', 'matern52', 'matern32', 'rbf+matern32')
 
 

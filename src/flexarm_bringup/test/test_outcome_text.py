@@ -3,9 +3,18 @@ import math
 
 import pytest
 
-from flexarm_control.outcome_text import (COLLECT_HINTS, EXIT_MEANINGS, MOVE_HINTS, Exit,
-                                          code_name, code_names, failure_text, human_units,
-                                          is_busy, pose_text)
+from flexarm_bringup.outcome_text import (
+    COLLECT_HINTS,
+    EXIT_MEANINGS,
+    MOVE_HINTS,
+    Exit,
+    code_name,
+    code_names,
+    failure_text,
+    human_units,
+    is_busy,
+    pose_text,
+)
 from flexarm_msgs.action import CollectSamples, MoveToPose
 
 

@@ -9,7 +9,7 @@ import threading
 import time
 from collections.abc import Callable
 
-from flexarm_control import controller_protocol as proto
+from flexarm_bridge import controller_protocol as proto
 
 TO_CONTROLLER, TO_PC = 'to_controller', 'to_pc'
 FrameObserver = Callable[[str, float, proto.Frame], None]

@@ -12,7 +12,7 @@ import json
 import math
 import os
 import time
-from datetime import datetime, timezone
+from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
@@ -21,10 +21,10 @@ from rcl_interfaces.srv import GetParameters
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 
+from flexarm_bringup.launcher import load_graph, load_optional
+from flexarm_bringup.supervisor import RECORD
 from flexarm_control import topics
-from flexarm_control.launcher import load_graph, load_optional
 from flexarm_control.predictors.base import read_model
-from flexarm_control.supervisor import RECORD
 from flexarm_msgs.msg import ModelInfo
 
 CONTROLLERS = {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}
@@ -87,7 +87,7 @@ def _age(meta: dict[str, Any]) -> float | None:
         created = datetime.fromisoformat(meta['created'])
     except (KeyError, TypeError, ValueError):
         return None
-    return (datetime.now(timezone.utc) - created).total_seconds()
+    return (datetime.now(UTC) - created).total_seconds()
 
 
 def query(client: Any, listen: float = 1.0) -> dict[str, Any]:

@@ -9,7 +9,7 @@ import time
 import pytest
 import yaml
 
-from flexarm_control.launcher import NodeSpec, load_graph, node_command, ros_env, write_overrides
+from flexarm_bringup.launcher import NodeSpec, load_graph, node_command, ros_env, write_overrides
 from flexarm_control.params import config_path
 
 
@@ -77,7 +77,7 @@ def _supervisor(tmp_path, body: str) -> subprocess.Popen:
     script = textwrap.dedent(f'''
         import time
         from pathlib import Path
-        from flexarm_control.launcher import NodeProcess, NodeSpec, ros_env, stop_all
+        from flexarm_bringup.launcher import NodeProcess, NodeSpec, ros_env, stop_all
         env = ros_env(0, base={{'PYTHONPATH': {str(tmp_path)!r}}})
         node = NodeProcess(NodeSpec(name='sleeper', module='sleeper'), env,
                            Path({str(tmp_path)!r}) / 'sleeper.log')
@@ -135,7 +135,7 @@ def test_a_second_interrupt_does_not_cut_the_shutdown_short(tmp_path) -> None:
 def test_stale_shared_memory_ports_are_removed_and_mapped_ones_kept(tmp_path):
     import mmap
 
-    from flexarm_control.launcher import remove_stale_shm
+    from flexarm_bringup.launcher import remove_stale_shm
 
     for port in ('fastrtps_port1', 'fastrtps_port2'):
         (tmp_path / port).write_bytes(b'\0' * 4096)

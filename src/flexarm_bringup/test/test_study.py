@@ -5,9 +5,15 @@ import math
 
 import pytest
 
+from flexarm_bringup.study import (
+    PAPER_HIDDEN,
+    configurations,
+    main,
+    run_study,
+    study_settings,
+    write_study,
+)
 from flexarm_control.paper import TABLE_7, TABLE_8
-from flexarm_control.study import (
-    PAPER_HIDDEN, configurations, main, run_study, study_settings, write_study)
 
 
 def test_grid_holds_the_paper_tables_then_the_extended_grid_without_repeats():

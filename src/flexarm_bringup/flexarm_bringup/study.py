@@ -10,7 +10,7 @@ tables give the mean of the per-seed maximum errors and the worst of them, so a 
 does not decide. Table 7's "fitting precision" is read as a normalised error: RMS error /
 range of the true deflection, averaged over x, y, φ. Pure core (no rclpy)::
 
-    python -m flexarm_control.study [--region paper] [--seeds 3] [--quick] [--json]
+    python -m flexarm_bringup.study [--region paper] [--seeds 3] [--quick] [--json]
 """
 from __future__ import annotations
 
@@ -32,7 +32,8 @@ import numpy as np
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.paper import TABLE_7, TABLE_8
-from flexarm_control.params import CONFIG_DIR, load_config
+from flexarm_control.params import load_config
+from flexarm_control.paths import RESULTS_DIR
 from flexarm_control.predictors import KINDS, make_predictor
 from flexarm_control.sampling import regions_from_dict, sample_poses
 
@@ -296,7 +297,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--predictors', type=json.loads, default={},
                         help='JSON {kind: settings} over the study\'s predictor settings, '
                              'e.g. \'{"mlp": {"max_iterations": 300, "weight_decay": 1e-5}}\'')
-    parser.add_argument('--out', default=str(CONFIG_DIR.parent / 'results' / 'study'),
+    parser.add_argument('--out', default=str(RESULTS_DIR / 'study'),
                         help='results go to OUT/REGION/')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args(argv)

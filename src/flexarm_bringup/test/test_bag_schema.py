@@ -3,8 +3,13 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.bag_schema import (SEPARATOR, field_dependencies, find_msg_file,
-                                        message_definition, split_type_name)
+from flexarm_bringup.bag_schema import (
+    SEPARATOR,
+    field_dependencies,
+    find_msg_file,
+    message_definition,
+    split_type_name,
+)
 
 
 def _sections(text: str) -> dict[str, str]:

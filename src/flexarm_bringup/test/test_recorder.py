@@ -15,8 +15,6 @@ from typing import Any
 import pytest
 import yaml
 from builtin_interfaces.msg import Time
-from flexarm_msgs.action import MoveToPose
-from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Message
@@ -25,10 +23,19 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from flexarm_control import bag_tools, topics
-from flexarm_control.bag_tools import (CSV_FIELDS, ERROR_NAMES, bag_info, export_trials,
-                                       read_messages, trials_figure)
-from flexarm_control.bag_writer import BagWriter
+from flexarm_bringup import bag_tools
+from flexarm_bringup.bag_tools import (
+    CSV_FIELDS,
+    ERROR_NAMES,
+    bag_info,
+    export_trials,
+    read_messages,
+    trials_figure,
+)
+from flexarm_bringup.bag_writer import BagWriter
+from flexarm_control import topics
+from flexarm_msgs.action import MoveToPose
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
 
 QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
        'durability': 'transient_local', 'deadline': {'sec': 0, 'nsec': 0},

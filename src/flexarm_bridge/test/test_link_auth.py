@@ -4,9 +4,17 @@ import stat
 
 import pytest
 
-from flexarm_control import controller_protocol as proto
-from flexarm_control.link_auth import (CONTROLLER, KEY_BYTES, PC, LinkAuth, is_loopback,
-                                       load_key, make_key, site_key_for)
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import (
+    CONTROLLER,
+    KEY_BYTES,
+    PC,
+    LinkAuth,
+    is_loopback,
+    load_key,
+    make_key,
+    site_key_for,
+)
 
 SITE_KEY = bytes(range(KEY_BYTES))
 NAMES = ['joint1', 'joint2', 'joint3', 'joint4']
@@ -122,7 +130,7 @@ def test_a_link_off_loopback_needs_a_key(tmp_path):
 
 
 def test_keygen_writes_a_key_and_never_overwrites_one(tmp_path, capsys):
-    from flexarm_control.cli import main
+    from flexarm_bringup.cli import main
     path = tmp_path / 'site.key'
     assert main(['keygen', str(path)]) == 0
     key = load_key(path)

@@ -18,13 +18,13 @@ from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
-from flexarm_msgs.action import MoveToPose
 from mcap_ros2.decoder import DecoderFactory
 
+from flexarm_bringup.outcome_text import code_names
 from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.kinematics import wrap_angle
-from flexarm_control.outcome_text import code_names
+from flexarm_msgs.action import MoveToPose
 
 if TYPE_CHECKING:
     from matplotlib.figure import Figure

@@ -1,11 +1,11 @@
 """Wire protocol between the PC (``flexarm_bridge``) and a robot controller (pure codec).
 
-Specification for implementers: src/flexarm_control/PROTOCOL.md. Frames are little-endian::
+Specification for implementers: src/flexarm_bridge/PROTOCOL.md. Frames are little-endian::
 
     magic 0xFA 0x57 | version u8 | type u8 | seq u32 | length u16 | payload | trailer
 
 Version 1 frames end with a CRC-32 (zlib) of everything before it; version 2 frames, the
-authenticated link (:mod:`flexarm_control.link_auth`), with a 16-byte HMAC-SHA256 tag instead.
+authenticated link (:mod:`flexarm_bridge.link_auth`), with a 16-byte HMAC-SHA256 tag instead.
 :class:`Decoder` is incremental and never raises: garbage, a bad CRC or tag, an unknown type, a
 wrong payload size, non-finite values, a replayed frame or a frame of the other version come
 back as errors, and it resynchronises on the next magic.
@@ -17,7 +17,7 @@ import struct
 import zlib
 from dataclasses import dataclass, field
 
-from flexarm_control.link_auth import NONCE_SIZE, TAG_SIZE, LinkAuth, tag
+from flexarm_bridge.link_auth import NONCE_SIZE, TAG_SIZE, LinkAuth, tag
 
 MAGIC = b'\xfaW'
 VERSION = 1               # plain frames, CRC-32: loopback links without a key

@@ -32,16 +32,16 @@ import rclpy
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import (DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy)
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.signals import SignalHandlerOptions
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
+from flexarm_bringup.bag_writer import DEFAULT_CHUNK_SIZE, BagWriter, duration_yaml
 from flexarm_control import topics
-from flexarm_control.bag_writer import DEFAULT_CHUNK_SIZE, BagWriter, duration_yaml
 from flexarm_control.node_params import declare
-from flexarm_control.params import CONFIG_DIR
+from flexarm_control.paths import BAGS_DIR
 
-DEFAULT_BAG_DIRECTORY = CONFIG_DIR.parent / 'bags'
+DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded
 DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.CLOCK, topics.CAMERA_INFO,
                   topics.TIP_POSE, topics.TIP_POSE_TRUTH, topics.SAMPLES, topics.MODEL,

@@ -25,9 +25,9 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
+from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
 from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
-from flexarm_control.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
 
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts

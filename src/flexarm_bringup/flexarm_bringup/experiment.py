@@ -7,7 +7,8 @@ RIGID, PREDICTIVE and CLOSED_LOOP modes, judged against the simulator's ground t
 
 Decision: one predictor per working region, as the paper's benchmark uses two separate
 working spaces (A, B) — 40 samples over both at once fit 4-7x worse (offline on the plant:
-max error 1.7 mm over A+B against 0.26 mm in A alone and 0.45 mm in B alone). The compensator holds one model at a time, so the regions run in turn.
+max error 1.7 mm over A+B against 0.26 mm in A alone and 0.45 mm in B alone). The
+compensator holds one model at a time, so the regions run in turn.
 """
 from __future__ import annotations
 
@@ -23,14 +24,13 @@ from pathlib import Path
 
 import numpy as np
 
-from flexarm_control.paper import TABLE_9, TABLE_10
-from flexarm_control.params import CONFIG_DIR, load_config
-from flexarm_control.sampling import random_targets, regions_from_dict
+from flexarm_bringup.supervisor import Graph
+from flexarm_bringup.trials import MODES, Trial, TruthMonitor, run_trials, summarise
 from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.supervisor import Graph
-from flexarm_control.trials import MODES, Trial, TruthMonitor, run_trials, summarise
-
-REPO = CONFIG_DIR.parent
+from flexarm_control.paper import TABLE_9, TABLE_10
+from flexarm_control.params import load_config
+from flexarm_control.paths import BAGS_DIR, RESULTS_DIR, RUNS_DIR
+from flexarm_control.sampling import random_targets, regions_from_dict
 
 
 @dataclass
@@ -78,8 +78,8 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
     """Run it; returns the summary and writes results/<name>/ (JSON, CSV, PNG)."""
     from tqdm import tqdm
 
-    run_dir = REPO / 'runs' / settings.name
-    out_dir = REPO / 'results' / settings.name
+    run_dir = RUNS_DIR / settings.name
+    out_dir = RESULTS_DIR / settings.name
     config = load_config('arm.yaml')
     geometry = ArmGeometry.from_dict(config['arm'])
     regions = regions_from_dict(load_config('learner.yaml', node_name='flexarm_learner')[
@@ -109,7 +109,7 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
                        disable=not progress)
             collected = client.collect(
                 settings.samples, region=region, dataset=region, seed=settings.seed,
-                feedback=lambda fb: (bar.update(fb.k - bar.n), bar.set_postfix(
+                feedback=lambda fb, bar=bar: (bar.update(fb.k - bar.n), bar.set_postfix(
                     skipped=fb.skipped)))
             bar.close()
             if collected.error_code != 0:
@@ -135,12 +135,12 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
             bar = tqdm(total=len(targets) * len(settings.modes), desc=f'targets {region}',
                        unit='goal', disable=not progress)
             trials += run_trials(client, truth, targets, settings.modes, settings.name,
-                                 on_trial=lambda t: bar.update(1))
+                                 on_trial=lambda t, bar=bar: bar.update(1))
             bar.close()
     summary = {'name': settings.name, 'seconds': time.monotonic() - started,
                'learning': learning, 'summary': summarise(trials),
                'trials': [t.as_dict() for t in trials],
-               'bag': str(REPO / 'bags' / settings.name) if settings.record else None,
+               'bag': str(BAGS_DIR / settings.name) if settings.record else None,
                'nodes_died': watchdog.dead}
     write_results(summary, trials, out_dir)
     summary['results'] = str(out_dir)
@@ -189,7 +189,8 @@ def _client(domain_id: int):
 def table_text(summary: dict) -> str:
     """Markdown tables: Table 10 (and 9) per target next to the paper, then summaries."""
     by_key = {(t['name'], t['mode']): t for t in summary['trials']}
-    lines = ['| target | paper rigid | ours rigid | paper NN | ours predictive | ours closed loop |',
+    lines = ['| target | paper rigid | ours rigid | paper NN | ours predictive '
+             '| ours closed loop |',
              '|---|---|---|---|---|---|']
 
     def ours(name: str, mode: str) -> str:

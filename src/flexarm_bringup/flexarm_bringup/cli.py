@@ -11,7 +11,7 @@ in the same ROS_DOMAIN_ID. DDS discovery stays on this machine
 (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the environment sets another range or
 ``flexarm up --discovery subnet`` widens it on purpose.
 
-Exit codes (:class:`flexarm_control.outcome_text.Exit`):
+Exit codes (:class:`flexarm_bringup.outcome_text.Exit`):
 
     0    success
     1    the server refused the goal or it failed (its result code by name, and a hint)
@@ -39,13 +39,22 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from flexarm_bringup.outcome_text import (
+    COLLECT_HINTS,
+    EXIT_MEANINGS,
+    MOVE_HINTS,
+    TRAIN_HINT,
+    Exit,
+    busy_text,
+    code_name,
+    failure_text,
+    human_units,
+    is_busy,
+    pose_text,
+)
 from flexarm_control import topics
-from flexarm_control.outcome_text import (COLLECT_HINTS, EXIT_MEANINGS, MOVE_HINTS, TRAIN_HINT,
-                                          Exit, busy_text, code_name, failure_text,
-                                          human_units, is_busy, pose_text)
-from flexarm_control.params import CONFIG_DIR
+from flexarm_control.paths import MODELS_DIR, RESULTS_DIR, RUNS_DIR
 
-REPO = CONFIG_DIR.parent
 COMMANDS: dict[str, Callable[[argparse.Namespace], dict[str, Any]]] = {}
 UINT32_MAX = 2 ** 32 - 1
 MAX_DOMAIN_ID = 232       # the largest ROS_DOMAIN_ID whose DDS ports exist
@@ -174,7 +183,7 @@ def _check_strategy(strategy: str) -> None:
 
 
 def _check_bag(path: str) -> None:
-    from flexarm_control.bag_tools import MCAP_MAGIC, mcap_path
+    from flexarm_bringup.bag_tools import MCAP_MAGIC, mcap_path
 
     try:
         file = mcap_path(path)
@@ -443,8 +452,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     """Start the graph (one process per node), wait until ready, supervise until Ctrl-C."""
     import time
 
-    from flexarm_control.experiment import reserved_domain
-    from flexarm_control.supervisor import Graph
+    from flexarm_bringup.experiment import reserved_domain
+    from flexarm_bringup.supervisor import Graph
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
@@ -462,7 +471,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
         print(f'DDS discovery widened to {discovery}: any host there that joins the ROS '
               'domain can command this arm (these DDS wheels have no security)', flush=True)
     with reserved_domain(args.domain_id) as domain:
-        graph = Graph(domain, REPO / 'runs' / name, robot=args.robot, parameters=params,
+        graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
                       optional=('flexarm_recorder',) if args.record else (),
                       discovery=discovery)
         started, ready = time.monotonic(), None
@@ -494,8 +503,8 @@ def _starting_model(domain: int, listen: float = 3.0) -> str:
     import rclpy
     from rclpy.context import Context
 
+    from flexarm_bringup.graph_status import model_line, model_summary
     from flexarm_control.client import FlexarmClient
-    from flexarm_control.graph_status import model_line, model_summary
 
     context = Context()
     rclpy.init(context=context, domain_id=domain)
@@ -532,8 +541,12 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
     import time
 
-    from flexarm_control.experiment import (ExperimentSettings, reserved_domain,
-                                            run_experiment, table_text)
+    from flexarm_bringup.experiment import (
+        ExperimentSettings,
+        reserved_domain,
+        run_experiment,
+        table_text,
+    )
 
     _check_kind(args.kind)
     settings = ExperimentSettings(
@@ -570,7 +583,7 @@ def cmd_benchmark(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
     """Tables 7 and 8 sensitivity study on the simulator (offline, no graph needed)."""
     _check_region(args.region)
-    from flexarm_control.study import QUICK, run_study, table_text, write_study
+    from flexarm_bringup.study import QUICK, run_study, table_text, write_study
 
     overrides = {'region': args.region, 'seeds': args.seeds} | (QUICK if args.quick else {})
     with _steps('study', args) as progress:
@@ -589,7 +602,7 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
     _check_bag(args.path)
     from mcap.exceptions import McapError
 
-    from flexarm_control.bag_tools import bag_info, export_trials, format_bag_info
+    from flexarm_bringup.bag_tools import bag_info, export_trials, format_bag_info
 
     try:
         if args.action == 'info':
@@ -609,8 +622,8 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
     """What runs in the domain and which model drives the arm (also without a graph)."""
     import rclpy
 
+    from flexarm_bringup.graph_status import query, status_text, supervisor_record
     from flexarm_control.client import init_client
-    from flexarm_control.graph_status import query, status_text, supervisor_record
 
     client = init_client(args.domain_id)
     try:
@@ -619,7 +632,7 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
-    record = supervisor_record(REPO / 'runs', status['domain_id'])
+    record = supervisor_record(RUNS_DIR, status['domain_id'])
     print(status_text(status, record))
     status['supervisor'] = record
     if not any(status['nodes'].values()):
@@ -635,7 +648,7 @@ def cmd_model(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _model_list(args: argparse.Namespace) -> dict[str, Any]:
-    from flexarm_control.graph_status import file_summary, model_line
+    from flexarm_bringup.graph_status import file_summary, model_line
     from flexarm_control.model_store import list_models
     from flexarm_control.predictors.base import read_model
 
@@ -661,7 +674,7 @@ def _model_list(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _model_use(args: argparse.Namespace) -> dict[str, Any]:
-    from flexarm_control.graph_status import model_line, model_summary
+    from flexarm_bringup.graph_status import model_line, model_summary
 
     if not args.version.isdecimal():
         raise usage('model use needs a version number (see flexarm model list), not '
@@ -680,7 +693,7 @@ def _model_use(args: argparse.Namespace) -> dict[str, Any]:
 @command
 def cmd_keygen(args: argparse.Namespace) -> dict[str, Any]:
     """Write a new site key for the controller link (give it to the PC and the controller)."""
-    from flexarm_control.link_auth import make_key
+    from flexarm_bridge.link_auth import make_key
 
     if os.path.exists(args.path):
         raise ValueError(f'{args.path} exists; a new key would lock out whoever uses it')
@@ -844,7 +857,7 @@ def _study_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--seeds', type=_positive_int, default=3,
                    help='repetitions of every configuration')
     p.add_argument('--quick', action='store_true', help='small grid, for a smoke run')
-    p.add_argument('--out', default=str(REPO / 'results' / 'study'),
+    p.add_argument('--out', default=str(RESULTS_DIR / 'study'),
                    help='results go to OUT/REGION/')
 
 
@@ -858,7 +871,7 @@ def _model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('action', choices=['list', 'use'])
     p.add_argument('version', nargs='?', default='', help='use: the model version to make '
                    'current again (roll back); the compensator switches to it')
-    p.add_argument('--models', default=str(REPO / 'models'), metavar='DIR',
+    p.add_argument('--models', default=str(MODELS_DIR), metavar='DIR',
                    help="list: the learner's model directory")
 
 

@@ -2,7 +2,7 @@
 import json
 import os
 
-from flexarm_control.graph_status import graph_node_names, status_text, supervisor_record
+from flexarm_bringup.graph_status import graph_node_names, status_text, supervisor_record
 
 MODEL = {'version': '4', 'kind': 'gp', 'dataset': 'B', 'payloads': [0.0], 'samples': 40,
          'validation': '5-fold cross-validation', 'max_error': [1e-4, 2e-4, 1e-5],

@@ -13,8 +13,8 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.cli import main
-from flexarm_control.outcome_text import Exit
+from flexarm_bringup.cli import main
+from flexarm_bringup.outcome_text import Exit
 
 README = str(Path(__file__).resolve().parents[3] / 'README.md')
 A1 = ['1450', '-150', '-45']
@@ -112,7 +112,7 @@ def test_quiet_and_json_show_no_progress(flag, domain_id, capsys):
 def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
     """rclpy's C++ layer turns an exception raised in a generated message module into a
     RuntimeError (the goal would not be cancelled): there the signal is sent again later."""
-    from flexarm_control.cli import _interrupt
+    from flexarm_bringup.cli import _interrupt
 
     delivered = []
     previous = signal.signal(signal.SIGUSR1, lambda signum, frame: delivered.append(signum))

@@ -8,8 +8,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control import controller_protocol as proto
-from flexarm_control.link_auth import CONTROLLER, LinkAuth
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import CONTROLLER, LinkAuth
 
 STATE = dict(time=12.5, positions=[0.1, 0.6, -0.5, -0.4], velocities=[0.0, 0.01, 0.0, -0.2],
              status=proto.STATUS_MOVING)

@@ -12,7 +12,7 @@ import os
 import re
 import sys
 from collections.abc import Iterable
-from functools import lru_cache
+from functools import cache
 from pathlib import Path
 
 SEPARATOR = '=' * 80
@@ -69,7 +69,7 @@ def field_dependencies(msg_text: str, package: str) -> list[str]:
     return sorted(deps)
 
 
-@lru_cache(maxsize=None)
+@cache
 def _msg_text(type_name: str) -> str:
     return find_msg_file(type_name).read_text(encoding='utf-8')
 

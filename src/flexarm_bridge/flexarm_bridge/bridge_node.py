@@ -1,5 +1,5 @@
 """Bridge to a real robot controller: the ros2_control topic contract over the flexarm wire
-protocol (src/flexarm_control/PROTOCOL.md).
+protocol (src/flexarm_bridge/PROTOCOL.md).
 
 Publishes ``/joint_states`` from the controller's JOINT_STATE frames and forwards
 ``/forward_position_controller/commands`` as JOINT_COMMAND frames — with the same checks as
@@ -32,10 +32,10 @@ from rclpy.node import Node
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flexarm_control import controller_protocol as proto
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import PC, LinkAuth, site_key_for
 from flexarm_control import topics
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
-from flexarm_control.link_auth import PC, LinkAuth, site_key_for
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 

@@ -2,19 +2,20 @@
 
 Scalar node settings are declared one by one with a default and a description. Physical
 parameter trees (``arm.*``, ``plant.*``, ``camera.*`` ...) come from the ``config/*.yaml``
-files: every name under a prefix that the params files set is declared read-only, with a
-description pointing at its file, and handed to the core as a nested dict. The names come from
-the node's parameter overrides (``Node._parameter_overrides``), the only place rclpy keeps them
-before they are declared.
+files: the shipped file is the tree's schema (which names exist), the params files the node
+was given supply the values. Every name is declared read-only with a description pointing at
+its file and handed to the core as a nested dict; a name the node was not given is an error
+naming the file to pass. (rclpy has no public list of the overrides a node was given.)
 """
 from __future__ import annotations
 
+from pathlib import Path
 from typing import Any
 
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from flexarm_control.params import unflatten
+from flexarm_control.params import config_path, flatten, load_node_params, unflatten
 
 
 def declare(node: Node, name: str, default: Any, description: str,
@@ -25,17 +26,22 @@ def declare(node: Node, name: str, default: Any, description: str,
 
 
 def declare_tree(node: Node, prefix: str, source: str) -> dict[str, Any]:
-    """Declare every parameter ``prefix.*`` given to the node; return them as a nested dict.
+    """Declare every parameter ``prefix.*`` of the shipped ``source`` (``config/<file>``);
+    return the values the node was given as a nested dict.
 
-    Raises ``ValueError`` naming ``source`` when the params files define none of them.
+    Raises ``ValueError`` naming ``source`` when the node was not given one of them.
     """
-    names = sorted(n for n in node._parameter_overrides if n.startswith(prefix + '.'))
-    if not names:
-        raise ValueError(f'no "{prefix}.*" parameters given; pass --params-file {source}')
-    flat = {}
-    for name in names:
+    schema = load_node_params(config_path(Path(source).name), node.get_name()).get(prefix)
+    if not isinstance(schema, dict) or not schema:
+        raise ValueError(f'{source} defines no "{prefix}.*" parameters')
+    flat, missing = {}, []
+    for name in flatten(schema):
         descriptor = ParameterDescriptor(description=f'see {source}', read_only=True,
                                          dynamic_typing=True)
-        value = node.declare_parameter(name, None, descriptor).value
-        flat[name[len(prefix) + 1:]] = value
+        flat[name] = node.declare_parameter(f'{prefix}.{name}', None, descriptor).value
+        if flat[name] is None:
+            missing.append(f'{prefix}.{name}')
+    if missing:
+        raise ValueError(f'{len(missing)} "{prefix}.*" parameter(s) not given (e.g. '
+                         f'{missing[0]}); pass --params-file {source}')
     return unflatten(flat)

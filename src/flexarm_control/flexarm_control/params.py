@@ -38,6 +38,18 @@ def load_config(*names: str, node_name: str = '/**') -> dict[str, Any]:
     return merged
 
 
+def flatten(tree: Mapping[str, Any], prefix: str = '') -> dict[str, Any]:
+    """Nested dict -> ROS dotted parameter names (the inverse of :func:`unflatten`)."""
+    flat: dict[str, Any] = {}
+    for key, value in tree.items():
+        name = f'{prefix}{key}'
+        if isinstance(value, Mapping):
+            flat.update(flatten(value, name + '.'))
+        else:
+            flat[name] = value
+    return flat
+
+
 def unflatten(flat: Mapping[str, Any]) -> dict[str, Any]:
     """ROS dotted parameter names -> nested dict (``{'a.b': 1}`` -> ``{'a': {'b': 1}}``)."""
     tree: dict[str, Any] = {}

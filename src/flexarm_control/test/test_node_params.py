@@ -1,0 +1,47 @@
+"""Parameter trees declared from the params files a node was given."""
+from __future__ import annotations
+
+import pytest
+import rclpy
+from rclpy.context import Context
+
+from flexarm_control.node_params import declare_tree
+from flexarm_control.params import config_path, flatten, load_config, unflatten
+
+
+@pytest.fixture
+def context(request):
+    context = Context()
+    rclpy.init(context=context, args=['--ros-args', *request.param])
+    yield context
+    rclpy.shutdown(context=context)
+
+
+@pytest.mark.parametrize('context', [['--params-file', str(config_path('arm.yaml')),
+                                      '-p', 'arm.link3:=0.5']], indirect=True)
+def test_a_tree_has_the_shipped_names_and_the_given_values(context):
+    node = rclpy.create_node('flexarm_test', context=context)
+    try:
+        tree = declare_tree(node, 'arm', 'config/arm.yaml')
+        expected = load_config('arm.yaml')['arm']
+        expected['link3'] = 0.5
+        assert tree == expected
+        assert node.describe_parameter('arm.link3').read_only
+    finally:
+        node.destroy_node()
+
+
+@pytest.mark.parametrize('context', [[]], indirect=True)
+def test_a_tree_not_given_names_the_file_to_pass(context):
+    node = rclpy.create_node('flexarm_test', context=context)
+    try:
+        with pytest.raises(ValueError, match='pass --params-file config/arm.yaml'):
+            declare_tree(node, 'arm', 'config/arm.yaml')
+    finally:
+        node.destroy_node()
+
+
+def test_flatten_inverts_unflatten():
+    tree = load_config('sim.yaml')['plant']
+    assert unflatten(flatten(tree)) == tree
+    assert flatten({'a': {'b': [1, 2], 'c': {'d': 'x'}}}) == {'a.b': [1, 2], 'a.c.d': 'x'}

@@ -9,7 +9,9 @@ tip-frame -y (image rows grow downwards, plate y grows upwards), so the view is 
 Pixel centres are at integer coordinates; (cx, cy) is the principal point.
 
 Per-point mapping, with ``q = R(phi)^T (p - c)`` the plate point in the camera's metric frame:
-``(xn, yn) = (q_x, -q_y) / standoff``, radial distortion ``xd = xn (1 + k1 r^2 + k2 r^4)``,
+``(xn, yn) = (q_x, -q_y) / standoff``, then the ROS/OpenCV plumb_bob distortion (radial k1, k2,
+k3 and tangential p1, p2): ``xd = xn R + 2 p1 xn yn + p2 (r^2 + 2 xn^2)``,
+``yd = yn R + p1 (r^2 + 2 yn^2) + 2 p2 xn yn`` with ``R = 1 + k1 r^2 + k2 r^4 + k3 r^6``, and
 ``u = cx + fx xd``, ``v = cy + fy yd``.
 """
 from __future__ import annotations
@@ -37,6 +39,19 @@ class Intrinsics:
     cy: float
     distortion: tuple[float, ...]
 
+    @classmethod
+    def from_k_d(cls, width: int, height: int, k: Sequence[float],
+                 d: Sequence[float]) -> Intrinsics:
+        """From a CameraInfo's 3x3 ``K`` (row-major) and plumb_bob ``D`` (up to 5 values)."""
+        if len(k) != 9 or len(d) > 5:
+            raise ValueError(f'expected a 3x3 K and at most 5 plumb_bob D values, got '
+                             f'{len(k)} and {len(d)}')
+        if k[1] != 0.0:
+            raise ValueError(f'a skewed camera (K[0][1] = {k[1]:g}) is not supported')
+        distortion = tuple(float(v) for v in d) + (0.0,) * (5 - len(d))
+        return cls(int(width), int(height), float(k[0]), float(k[4]), float(k[2]),
+                   float(k[5]), distortion)
+
     @property
     def k1(self) -> float:
         return self.distortion[0]
@@ -44,6 +59,15 @@ class Intrinsics:
     @property
     def k2(self) -> float:
         return self.distortion[1]
+
+    @property
+    def k3(self) -> float:
+        return self.distortion[4]
+
+    @property
+    def tangential(self) -> tuple[float, float]:
+        """(p1, p2)."""
+        return self.distortion[2], self.distortion[3]
 
 
 def rotation(phi: float) -> np.ndarray:
@@ -71,8 +95,12 @@ class CameraModel:
         intrinsics = Intrinsics(
             width=int(d['width']), height=int(d['height']), fx=float(d['fx']),
             fy=float(d['fy']), cx=float(d['cx']), cy=float(d['cy']),
-            distortion=(float(d.get('k1', 0.0)), float(d.get('k2', 0.0)), 0.0, 0.0, 0.0))
+            distortion=tuple(float(d.get(name, 0.0)) for name in ('k1', 'k2', 'p1', 'p2', 'k3')))
         return cls(intrinsics, float(d['standoff']), d['offset'])
+
+    def with_intrinsics(self, intrinsics: Intrinsics) -> CameraModel:
+        """The same mounting with other intrinsics (e.g. from the camera's CameraInfo)."""
+        return CameraModel(intrinsics, self.standoff, self.offset)
 
     @property
     def scale(self) -> float:
@@ -94,28 +122,45 @@ class CameraModel:
         i = self.intrinsics
         xn = q[:, 0] / self.standoff
         yn = -q[:, 1] / self.standoff
+        shift_x, shift_y = self._tangential(xn, yn)
         factor = self._radial(xn * xn + yn * yn)
-        return np.column_stack([i.cx + i.fx * xn * factor, i.cy + i.fy * yn * factor])
+        return np.column_stack([i.cx + i.fx * (xn * factor + shift_x),
+                                i.cy + i.fy * (yn * factor + shift_y)])
 
     def pixels_to_metric(self, pixels: np.ndarray) -> np.ndarray:
-        """Pixels (N, 2) -> camera metric points (N, 2) [m], undistorted (fixed point)."""
+        """Pixels (N, 2) -> camera metric points (N, 2) [m], undistorted (fixed point, as
+        OpenCV's undistortPoints)."""
         i = self.intrinsics
         xd = (pixels[:, 0] - i.cx) / i.fx
         yd = (pixels[:, 1] - i.cy) / i.fy
         xn, yn = xd, yd
-        if i.k1 or i.k2:
+        if any(i.distortion):
             for _ in range(UNDISTORT_ITERATIONS):
+                shift_x, shift_y = self._tangential(xn, yn)
                 factor = self._radial(xn * xn + yn * yn)
-                xn, yn = xd / factor, yd / factor
+                xn, yn = (xd - shift_x) / factor, (yd - shift_y) / factor
         return np.column_stack([xn * self.standoff, -yn * self.standoff])
 
     def magnification(self, metric: np.ndarray) -> np.ndarray:
-        """Area-equivalent local lens magnification at camera metric points (N, 2) (1 = none)."""
-        k1, k2 = self.intrinsics.k1, self.intrinsics.k2
-        r2 = np.sum(metric * metric, axis=1) / self.standoff ** 2
-        tangential = self._radial(r2)
-        radial = tangential + 2.0 * r2 * (k1 + 2.0 * k2 * r2)
-        return np.sqrt(tangential * radial)
+        """Area-equivalent local lens magnification at camera metric points (N, 2) (1 = none):
+        the square root of the distortion's Jacobian determinant."""
+        i = self.intrinsics
+        p1, p2 = i.tangential
+        x, y = metric[:, 0] / self.standoff, -metric[:, 1] / self.standoff
+        r2 = x * x + y * y
+        radial = self._radial(r2)
+        slope = i.k1 + 2.0 * i.k2 * r2 + 3.0 * i.k3 * r2 * r2      # d radial / d r^2
+        cross = 2.0 * x * y * slope + 2.0 * p1 * x + 2.0 * p2 * y
+        dxx = radial + 2.0 * x * x * slope + 2.0 * p1 * y + 6.0 * p2 * x
+        dyy = radial + 2.0 * y * y * slope + 6.0 * p1 * y + 2.0 * p2 * x
+        return np.sqrt(dxx * dyy - cross * cross)
 
     def _radial(self, r2: np.ndarray) -> np.ndarray:
-        return 1.0 + self.intrinsics.k1 * r2 + self.intrinsics.k2 * r2 * r2
+        i = self.intrinsics
+        return 1.0 + r2 * (i.k1 + r2 * (i.k2 + r2 * i.k3))
+
+    def _tangential(self, xn: np.ndarray, yn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        p1, p2 = self.intrinsics.tangential
+        r2 = xn * xn + yn * yn
+        return (2.0 * p1 * xn * yn + p2 * (r2 + 2.0 * xn * xn),
+                p1 * (r2 + 2.0 * yn * yn) + 2.0 * p2 * xn * yn)

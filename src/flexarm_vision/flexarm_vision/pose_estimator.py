@@ -85,6 +85,10 @@ class TipPoseEstimator:
         return cls(PlateLayout.from_dict(d['plate']), CameraModel.from_dict(d['camera']),
                    FitSettings.from_dict(d['vision']), DetectorSettings.from_dict(d['vision']))
 
+    def with_camera(self, camera: CameraModel) -> TipPoseEstimator:
+        """The same plate and settings seen through another camera model."""
+        return TipPoseEstimator(self.plate, camera, self.fit, self.detector.settings)
+
     def estimate(self, image: Any) -> Estimate:
         """Tip pose from a mono8 image of the configured size; invalid with a reason if not."""
         i = self.camera.intrinsics

@@ -1,11 +1,17 @@
 """Vision node: tip camera images -> absolute tip pose on ``/tip_pose``.
 
-Subscribes ``/camera/image_raw`` (mono8), ``/camera/camera_info`` (checked against the
-configured intrinsics) and ``/joint_states`` (joint stillness); publishes one
-``flexarm_msgs/TipPose`` per image, stamped with the image's capture time. The pose comes from
-:class:`TipPoseEstimator`; whether the arm was at rest from :class:`SettleDetector`.
-An invalid measurement carries NaN coordinates and the reason in ``status``; every image is
-invalid while the last camera_info disagrees with config/camera.yaml.
+Subscribes ``/camera/image_raw`` (mono8, mono16, rgb8, bgr8, rgba8, bgra8 or Bayer 8-bit:
+:mod:`.image_encoding`), ``/camera/camera_info`` and ``/joint_states`` (joint stillness);
+publishes one ``flexarm_msgs/TipPose`` per image, stamped with the image's capture time. The
+pose comes from :class:`TipPoseEstimator`; whether the arm was at rest from
+:class:`SettleDetector`. An invalid measurement carries NaN coordinates and the reason in
+``status``.
+
+Intrinsics: the camera's calibration as its driver publishes it wins. config/camera.yaml gives
+the mounting (standoff, offset) and the intrinsics used until the first camera_info; a
+camera_info with other values (K, plumb_bob D up to k3, size) replaces them, with one log line
+per change. A camera_info the model cannot use (another distortion model, skew) makes every
+image invalid, with the reason, until a usable one comes.
 """
 from __future__ import annotations
 
@@ -22,37 +28,32 @@ from flexarm_control.node_main import run
 from flexarm_control.node_params import declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_model import Intrinsics
+from flexarm_vision.image_encoding import to_mono8, unpack
 from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
 from flexarm_vision.settling import SettleDetector, SettleSettings
 
 BASE_FRAME = 'base_link'
-INFO_TOLERANCE = 1e-6     # relative mismatch of camera_info values that is reported
+DISTORTION_MODELS = ('plumb_bob', '')   # '' with an empty D: an ideal lens
 STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
 
 
 def image_to_array(msg: Image) -> tuple[np.ndarray | None, str]:
-    """mono8 Image -> (height, width) uint8 array, or None and the reason."""
-    if msg.encoding != 'mono8':
-        return None, f'unsupported image encoding {msg.encoding!r} (expected mono8)'
-    if msg.step < msg.width or len(msg.data) < msg.step * msg.height:
-        return None, (f'image data of {len(msg.data)} bytes does not hold {msg.height} rows '
-                      f'of step {msg.step} >= width {msg.width}')
-    rows = np.frombuffer(msg.data, np.uint8, count=msg.step * msg.height)
-    return rows.reshape(msg.height, msg.step)[:, :msg.width], ''
+    """Image -> (height, width) uint8 grey array, or None and the reason."""
+    pixels, reason = unpack(bytes(msg.data), msg.encoding, msg.width, msg.height, msg.step,
+                            bool(msg.is_bigendian))
+    return (None, reason) if pixels is None else (to_mono8(pixels, msg.encoding), '')
 
 
-def info_mismatch(info: CameraInfo, intrinsics: Intrinsics) -> str:
-    """Why ``info`` disagrees with the configured intrinsics ('' if it agrees)."""
-    expected = {'width': intrinsics.width, 'height': intrinsics.height, 'fx': intrinsics.fx,
-                'fy': intrinsics.fy, 'cx': intrinsics.cx, 'cy': intrinsics.cy}
-    got = {'width': info.width, 'height': info.height, 'fx': info.k[0], 'fy': info.k[4],
-           'cx': info.k[2], 'cy': info.k[5]}
-    distortion = list(info.d) + [0.0] * (len(intrinsics.distortion) - len(info.d))
-    for i, (a, b) in enumerate(zip(distortion, intrinsics.distortion)):
-        got[f'd[{i}]'], expected[f'd[{i}]'] = a, b
-    bad = [f'{k} {got[k]:g} != {v:g}' for k, v in expected.items()
-           if not math.isclose(got[k], v, rel_tol=INFO_TOLERANCE, abs_tol=INFO_TOLERANCE)]
-    return ', '.join(bad)
+def info_intrinsics(info: CameraInfo) -> tuple[Intrinsics | None, str]:
+    """The intrinsics a camera_info publishes, or None and why they cannot be used."""
+    if info.distortion_model not in DISTORTION_MODELS or (
+            not info.distortion_model and len(info.d)):
+        return None, (f'camera_info distortion model {info.distortion_model!r} is not '
+                      'supported (plumb_bob only)')
+    try:
+        return Intrinsics.from_k_d(info.width, info.height, list(info.k), list(info.d)), ''
+    except ValueError as exc:
+        return None, f'camera_info not usable: {exc}'
 
 
 def seconds(stamp) -> float:
@@ -74,7 +75,8 @@ class VisionNode(Node):
         self._estimator = TipPoseEstimator.from_dict(trees)
         self._settle = SettleDetector(SettleSettings.from_dict(
             declare_tree(self, 'settle', 'config/vision.yaml')))
-        self._info_problem: str | None = None
+        self._configured = self._estimator.camera.intrinsics
+        self._info_problem = ''
         self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10)
         self.create_subscription(Image, topics.CAMERA_IMAGE, self._on_image,
                                  qos_profile_sensor_data)
@@ -91,10 +93,17 @@ class VisionNode(Node):
                                f'a {self._estimator.plate.shape} hole plate')
 
     def _on_info(self, msg: CameraInfo) -> None:
-        problem = info_mismatch(msg, self._estimator.camera.intrinsics)
-        if problem and problem != self._info_problem:
-            self.get_logger().warning(f'camera_info differs from config/camera.yaml: {problem}')
+        intrinsics, problem = info_intrinsics(msg)
+        if problem != self._info_problem and problem:
+            self.get_logger().error(problem)
         self._info_problem = problem
+        if intrinsics is None or intrinsics == self._estimator.camera.intrinsics:
+            return
+        self._estimator = self._estimator.with_camera(
+            self._estimator.camera.with_intrinsics(intrinsics))
+        source = ('as config/camera.yaml' if intrinsics == self._configured
+                  else f'instead of config/camera.yaml\'s {self._configured}')
+        self.get_logger().info(f'intrinsics from camera_info: {intrinsics}, {source}')
 
     def _on_joints(self, raw: bytes) -> None:
         content = without_stamp(raw)
@@ -108,8 +117,7 @@ class VisionNode(Node):
     def _on_image(self, msg: Image) -> None:
         image, reason = image_to_array(msg)
         if self._info_problem:
-            image = None
-            reason = f'camera_info differs from config/camera.yaml: {self._info_problem}'
+            image, reason = None, self._info_problem
         estimate = (self._estimator.estimate(image) if image is not None
                     else Estimate(None, False, 0, 0.0, reason))
         unsettled = self._settle.update_estimate(

@@ -30,12 +30,41 @@ def renderer() -> CameraRenderer:
     return CameraRenderer.from_dict(CONFIG)
 
 
-@pytest.mark.parametrize('k1, k2', [(0.0, 0.0), (-0.08, 0.02), (0.05, 0.0)])
-def test_pixel_metric_round_trip(k1: float, k2: float) -> None:
-    camera = CameraModel.from_dict(camera_config(k1=k1, k2=k2)['camera'])
+LENSES = [{}, {'k1': -0.08, 'k2': 0.02}, {'k1': 0.05},
+          {'k1': -0.04, 'k2': 0.01, 'p1': 8e-4, 'p2': -5e-4, 'k3': 0.002}]
+
+
+@pytest.mark.parametrize('lens', LENSES)
+def test_pixel_metric_round_trip(lens: dict) -> None:
+    camera = CameraModel.from_dict(camera_config(**lens)['camera'])
     pixels = np.random.default_rng(0).uniform([0, 0], [640, 480], size=(50, 2))
     metric = camera.pixels_to_metric(pixels)
     np.testing.assert_allclose(camera.metric_to_pixels(metric), pixels, atol=1e-6)
+
+
+def test_the_lens_model_is_opencvs_plumb_bob() -> None:
+    lens = LENSES[-1]
+    camera = CameraModel.from_dict(camera_config(**lens)['camera'])
+    i = camera.intrinsics
+    metric = np.random.default_rng(1).uniform(-0.02, 0.02, size=(20, 2))
+    points = np.column_stack([metric[:, 0], -metric[:, 1], np.full(20, camera.standoff)])
+    k = np.array([[i.fx, 0, i.cx], [0, i.fy, i.cy], [0, 0, 1]])
+    projected, _ = cv2.projectPoints(points, np.zeros(3), np.zeros(3), k,
+                                     np.array(i.distortion))
+    np.testing.assert_allclose(camera.metric_to_pixels(metric), projected[:, 0], atol=1e-9)
+
+
+@pytest.mark.parametrize('lens', LENSES)
+def test_magnification_is_the_area_scale_of_the_lens(lens: dict) -> None:
+    camera = CameraModel.from_dict(camera_config(**lens)['camera'])
+    ideal = CameraModel.from_dict(CONFIG['camera'])
+    metric = np.random.default_rng(2).uniform(-0.02, 0.02, size=(20, 2))
+    step = 1e-7
+    jacobian = np.stack([(camera.metric_to_pixels(metric + d) - camera.metric_to_pixels(
+        metric - d)) / (2 * step) for d in (np.array([step, 0]), np.array([0, step]))], -1)
+    area = np.abs(np.linalg.det(jacobian)) * camera.scale ** 2
+    np.testing.assert_allclose(camera.magnification(metric) ** 2, area, rtol=1e-6)
+    np.testing.assert_allclose(ideal.magnification(metric), 1.0)
 
 
 def test_optical_axis_and_tip_point() -> None:

@@ -1,5 +1,4 @@
 """Vision node as its own process: rendered images in, /tip_pose out."""
-import dataclasses
 import math
 
 import numpy as np
@@ -14,10 +13,15 @@ from flexarm_control.params import load_config
 from flexarm_msgs.msg import TipPose
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_model import Intrinsics
-from flexarm_vision.vision_node import image_to_array, info_mismatch, without_stamp
+from flexarm_vision.vision_node import image_to_array, info_intrinsics, without_stamp
 
 POSE = np.array([1.35, -0.25, -0.6])
 CAMERA = load_config('camera.yaml')
+# Another camera than config/camera.yaml's: other focal length, principal point and a full
+# plumb_bob lens (its driver publishes these in camera_info).
+OTHER = {**CAMERA, 'camera': {**CAMERA['camera'], 'fx': CAMERA['camera']['fx'] * 1.04,
+                              'fy': CAMERA['camera']['fy'] * 1.03, 'cx': 327.5, 'cy': 233.0,
+                              'k1': -0.04, 'k2': 0.01, 'p1': 8e-4, 'p2': -5e-4, 'k3': 0.002}}
 
 
 def camera_info(i: Intrinsics) -> CameraInfo:
@@ -25,14 +29,42 @@ def camera_info(i: Intrinsics) -> CameraInfo:
                       d=list(i.distortion), k=[i.fx, 0.0, i.cx, 0.0, i.fy, i.cy, 0.0, 0.0, 1.0])
 
 
-def test_camera_info_check() -> None:
-    i = CameraRenderer.from_dict(CAMERA).intrinsics
-    assert info_mismatch(camera_info(i), i) == ''
+def test_camera_info_gives_the_intrinsics_or_why_not() -> None:
+    i = CameraRenderer.from_dict(OTHER).intrinsics
+    assert i.tangential == (8e-4, -5e-4) and i.k3 == 0.002
+    assert info_intrinsics(camera_info(i)) == (i, '')
     info = camera_info(i)
-    info.k[0] += 1.0
-    info.width = 320
-    problem = info_mismatch(info, i)
-    assert 'fx' in problem and 'width' in problem
+    info.distortion_model = 'equidistant'
+    got, reason = info_intrinsics(info)
+    assert got is None and 'equidistant' in reason
+    info = camera_info(i)
+    info.k[1] = 0.5
+    got, reason = info_intrinsics(info)
+    assert got is None and 'skew' in reason
+
+
+@pytest.mark.parametrize('encoding', ['rgb8', 'bgr8', 'rgba8', 'bgra8', 'mono16',
+                                      'bayer_rggb8', 'bayer_grbg8'])
+def test_images_of_other_encodings_measure_like_mono8(encoding: str) -> None:
+    from flexarm_vision.pose_estimator import TipPoseEstimator
+    estimator = TipPoseEstimator.from_dict({**CAMERA, 'vision': load_config(
+        'vision.yaml', node_name='flexarm_vision')['vision']})
+    grey = CameraRenderer.from_dict(CAMERA).render(POSE, rng=np.random.default_rng(1))
+    if encoding == 'mono16':
+        pixels = grey.astype('<u2') * 257
+    elif encoding.startswith('bayer'):
+        pixels = grey                              # a grey scene: every filter sees the same
+    else:
+        channels = 4 if encoding.endswith('a8') else 3
+        pixels = np.repeat(grey[:, :, None], channels, axis=2)
+    data = pixels.tobytes()
+    image, reason = image_to_array(Image(height=480, width=640, encoding=encoding,
+                                         step=len(data) // 480, data=data))
+    assert reason == '' and image.shape == grey.shape and image.dtype == np.uint8
+    if not encoding.startswith('bayer'):                 # demosaicing blurs edges a little
+        assert np.max(np.abs(image.astype(int) - grey)) <= 1
+    estimate = estimator.estimate(image)
+    assert estimate.valid and np.hypot(*(estimate.pose[:2] - POSE[:2])) < 0.02e-3
 
 
 def test_image_message_conversion() -> None:
@@ -40,12 +72,16 @@ def test_image_message_conversion() -> None:
     image, reason = image_to_array(Image(height=4, width=5, encoding='mono8', step=6,
                                          data=padded.tobytes()))
     assert reason == '' and np.array_equal(image, padded[:, :5])
+    big = np.array([[0x1234, 0xFFFF]], '>u2')
+    image, reason = image_to_array(Image(height=1, width=2, encoding='mono16', step=4,
+                                         is_bigendian=1, data=big.tobytes()))
+    assert reason == '' and image.tolist() == [[0x12, 255]]
+    image, reason = image_to_array(Image(height=4, width=5, encoding='yuv422', step=10,
+                                         data=bytes(40)))
+    assert image is None and 'yuv422' in reason
     image, reason = image_to_array(Image(height=4, width=5, encoding='rgb8', step=15,
-                                         data=bytes(60)))
-    assert image is None and 'rgb8' in reason
-    image, reason = image_to_array(Image(height=4, width=5, encoding='mono8', step=5,
-                                         data=bytes(7)))
-    assert image is None and '7 bytes' in reason
+                                         data=bytes(59)))
+    assert image is None and '59 bytes' in reason
 
 
 def test_joint_states_compare_without_their_stamp() -> None:
@@ -69,7 +105,7 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
     info_pub = ros_node.create_publisher(CameraInfo, topics.CAMERA_INFO, 1)
     joints_pub = ros_node.create_publisher(JointState, topics.JOINT_STATES, 10)
     black = {'on': False}
-    intrinsics = {'published': renderer.intrinsics}
+    camera = {'renderer': renderer, 'encoding': 'mono8', 'model': 'plumb_bob'}
 
     def publish() -> None:
         stamp = ros_node.get_clock().now().to_msg()
@@ -77,10 +113,15 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
                                       name=['joint1', 'joint2', 'joint3', 'joint4'],
                                       position=[0.0] * 4, velocity=[0.0] * 4))
         pixels = (np.zeros((480, 640), np.uint8) if black['on']
-                  else renderer.render(POSE, rng=rng))
+                  else camera['renderer'].render(POSE, rng=rng))
+        if camera['encoding'] == 'rgb8':
+            pixels = np.repeat(pixels[:, :, None], 3, axis=2)
+        info = camera_info(camera['renderer'].intrinsics)
+        info.distortion_model = camera['model']
+        info_pub.publish(info)
         image_pub.publish(Image(header=Header(stamp=stamp), height=480, width=640,
-                                encoding='mono8', step=640, data=pixels.tobytes()))
-        info_pub.publish(camera_info(intrinsics['published']))
+                                encoding=camera['encoding'], step=pixels.nbytes // 480,
+                                data=pixels.tobytes()))
 
     ros_node.create_timer(0.1, publish)
     launch('flexarm_vision', use_sim_time=False)
@@ -103,17 +144,24 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
     msg = wait_for(invalid, 10.0, 'an invalid /tip_pose for a black image')
     assert 'too dark' in msg.status and not msg.settled and math.isnan(msg.pose.x)
 
-    intrinsics['published'] = dataclasses.replace(renderer.intrinsics,
-                                                  fx=renderer.intrinsics.fx + 5.0)
+    # Another camera, rgb8, with its own calibration in camera_info: measured through it.
+    camera['renderer'], camera['encoding'] = CameraRenderer.from_dict(OTHER), 'rgb8'
     black['on'] = False
+    count = len(received)
+    msg = wait_for(lambda: next((m for m in received[count + 3:] if m.valid and m.settled),
+                                None), 30.0, 'a valid /tip_pose through the other camera')
+    assert math.hypot(msg.pose.x - POSE[0], msg.pose.y - POSE[1]) < 0.05e-3
+    assert abs(math.degrees(msg.pose.phi - POSE[2])) < 0.01
+
+    camera['model'] = 'equidistant'
     count = len(received)
 
     def info_refused() -> TipPose | None:
         return next((m for m in received[count:] if 'camera_info' in m.status), None)
 
-    msg = wait_for(info_refused, 10.0, 'an invalid /tip_pose for a mismatched camera_info')
-    assert not msg.valid and 'fx' in msg.status and math.isnan(msg.pose.x)
-    intrinsics['published'] = renderer.intrinsics
+    msg = wait_for(info_refused, 10.0, 'an invalid /tip_pose for an unusable camera_info')
+    assert not msg.valid and 'equidistant' in msg.status and math.isnan(msg.pose.x)
+    camera['model'] = 'plumb_bob'
     count = len(received)
     wait_for(lambda: next((m for m in received[count:] if m.valid), None), 10.0,
-             'a valid /tip_pose once camera_info agrees again')
+             'a valid /tip_pose once camera_info is usable again')

@@ -6,8 +6,12 @@ machine holds (a lock file per domain, :data:`LOCK_DIR`: immediate and certain, 
 can take seconds under load), or where a node of one of its names already runs (another
 flexarm graph, perhaps on another host: two simulators would publish ``/clock`` and
 ``/joint_states``, and the learner could measure against the other arm's joints), and it is
-ready only when each of its own nodes is discovered, besides the topics and servers. A node
-that dies is reported with its exit code and the last lines of its log, and restarted if
+ready only when each of its own nodes is discovered, besides the topics and servers. The
+supervisor's probe node that checks the domain in :meth:`Graph.start` also serves
+:meth:`Graph.wait_ready`: Fast DDS discovered most nodes that joined after the probe's initial
+announcements only at its first periodic one, ~3.5 s after the probe appeared, so a probe made
+before the nodes start has the graph ready ~1 s sooner (4.0 s, not 4.9 s: benchmarks/bringup.py).
+A node that dies is reported with its exit code and the last lines of its log, and restarted if
 graph.yaml says so (at most ``max_restarts`` times); the rest keeps running. :meth:`Graph.stop`
 shuts everything down (SIGINT, SIGTERM, SIGKILL) and removes stale Fast DDS shared-memory
 files. The run folder's ``graph.json`` (:data:`RECORD`) says which supervisor runs which
@@ -59,14 +63,18 @@ class Graph:
         self.nodes = {spec.name: NodeProcess(spec, env, run_dir / f'{spec.name}.log',
                                              parameters.get(spec.name))
                       for spec in specs}
+        self._discovery = contextlib.ExitStack()   # holds the probe of start() until ready
+        self._started_probe: Any = None
 
     def start(self) -> None:
         """Start every node; RuntimeError, and nothing started, if another graph of this
         machine holds the domain or the domain already runs a node of one of their names."""
         self._lock = _lock_domain(self.domain_id)
         try:
-            self._check_domain_free()
+            self._started_probe = self._discovery.enter_context(self._probe())
+            self._check_domain_free(self._started_probe)
         except BaseException:
+            self._close_probe()
             self._release()
             raise
         self.run_dir.mkdir(parents=True, exist_ok=True)
@@ -74,16 +82,19 @@ class Graph:
             node.start()
         self._write_record()
 
-    def _check_domain_free(self) -> None:
-        with self._probe() as probe:
-            deadline = time.monotonic() + DISCOVERY_WAIT
-            while time.monotonic() < deadline:
-                taken = sorted(set(probe.get_node_names()) & set(self.nodes))
-                if taken:
-                    raise RuntimeError(
-                        f'ROS domain {self.domain_id} already runs {", ".join(taken)}: another '
-                        'flexarm graph? Stop it, or start this one with another domain id')
-                time.sleep(0.1)
+    def _check_domain_free(self, probe: Any) -> None:
+        deadline = time.monotonic() + DISCOVERY_WAIT
+        while time.monotonic() < deadline:
+            taken = sorted(set(probe.get_node_names()) & set(self.nodes))
+            if taken:
+                raise RuntimeError(
+                    f'ROS domain {self.domain_id} already runs {", ".join(taken)}: another '
+                    'flexarm graph? Stop it, or start this one with another domain id')
+            time.sleep(0.1)
+
+    def _close_probe(self) -> None:
+        self._started_probe = None
+        self._discovery.close()
 
     def _release(self) -> None:
         if self._lock is not None:
@@ -119,7 +130,8 @@ class Graph:
         Raises TimeoutError naming what did not come up (and any node that died meanwhile).
         """
         started = time.monotonic()
-        with self._probe() as node:
+        try:
+            node = self._started_probe or self._discovery.enter_context(self._probe())
             while True:
                 missing = self._missing(node)
                 if not missing:
@@ -133,6 +145,8 @@ class Graph:
                     raise TimeoutError(f'graph not ready after {timeout:.0f} s: missing '
                                        f'{", ".join(missing)}')
                 time.sleep(0.2)
+        finally:
+            self._close_probe()
 
     def _missing(self, node: Any) -> list[str]:
         found_nodes = set(node.get_node_names())
@@ -171,6 +185,7 @@ class Graph:
         return dead
 
     def stop(self, timeout: float = 5.0) -> dict[str, int | None]:
+        self._close_probe()
         try:
             return stop_all(self.nodes.values(), timeout)
         finally:

@@ -18,7 +18,6 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from scipy.stats import qmc
 
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, inverse
 
@@ -57,6 +56,8 @@ def regions_from_dict(d: Mapping[str, Any]) -> dict[str, Region]:
 
 def unit_samples(strategy: str, count: int, seed: int) -> np.ndarray:
     """``count`` points of the unit cube [0, 1)^3 from ``strategy``."""
+    from scipy.stats import qmc  # here: ~0.2 s less for the learner node to start
+
     if strategy == 'sobol':
         return qmc.Sobol(3, scramble=True, seed=seed).random(count)
     if strategy == 'halton':

@@ -44,7 +44,6 @@ import numpy as np
 from scipy.sparse import coo_matrix
 from scipy.sparse.csgraph import connected_components
 from scipy.spatial import cKDTree
-from sklearn.model_selection import GroupKFold
 
 from flexarm_control.compensator import deflection_slope
 from flexarm_control.dataset import Dataset
@@ -161,6 +160,8 @@ def cross_validate(kind: str, settings: Mapping[str, Any] | None, joints: np.nda
     """Held-out residuals (N, 3), predicted − measured, of ``folds``-fold cross-validation
     (shuffled groups of :func:`pose_groups`: the samples of one pose are held out together).
     The data must have passed :func:`check_data`."""
+    from sklearn.model_selection import GroupKFold  # here: the learner node never imports it
+
     groups = pose_groups(joints)
     if groups.max() + 1 < folds:
         raise ValueError(f'too few distinct poses: {groups.max() + 1} in {len(joints)} '

@@ -12,20 +12,21 @@ the RBF's infinite smoothness would spread over the whole region; measured on re
 training seeds, 200 targets each), the RBF + Matérn sum cut the 95th-percentile miss from
 0.12-0.16 mm to 0.03-0.04 mm on three seeds of five. The model file stores the normalised
 training set and the fitted hyperparameters (log-θ per output); the GPs are rebuilt on load
-without re-optimising.
+without re-optimising. scikit-learn (~0.5 s to import) is imported when a GP is built, not with
+this module: a node that never fits or loads a GP does not pay for it.
 """
 from __future__ import annotations
 
 import warnings
 from collections.abc import Mapping
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
-from sklearn.exceptions import ConvergenceWarning
-from sklearn.gaussian_process import GaussianProcessRegressor
-from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Kernel, Matern, WhiteKernel
 
 from flexarm_control.predictors.base import OUTPUTS, Predictor
+
+if TYPE_CHECKING:
+    from sklearn.gaussian_process.kernels import Kernel
 
 KERNELS = ('rbf', 'matern52', 'matern32', 'rbf+matern32')
 
@@ -56,6 +57,8 @@ class GpPredictor(Predictor):
                              f"got {s['kernel']!r}")
 
     def _kernel(self, inputs: int) -> Kernel:
+        from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Matern, WhiteKernel
+
         s = self.settings
         bounds = tuple(s['length_scale_bounds'])
         smooth = RBF(np.ones(inputs), bounds)
@@ -68,6 +71,9 @@ class GpPredictor(Predictor):
                 + WhiteKernel(s['noise_level'], tuple(s['noise_bounds'])))
 
     def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
+        from sklearn.exceptions import ConvergenceWarning
+        from sklearn.gaussian_process import GaussianProcessRegressor
+
         with warnings.catch_warnings():
             warnings.simplefilter('ignore', ConvergenceWarning)   # hyperparameter at a bound
             self._gps = [GaussianProcessRegressor(
@@ -99,6 +105,8 @@ class GpPredictor(Predictor):
                 'theta': np.stack([gp.kernel_.theta for gp in self._gps])}
 
     def _restore(self, state: Mapping[str, np.ndarray]) -> None:
+        from sklearn.gaussian_process import GaussianProcessRegressor
+
         self._x = np.asarray(state['x'], dtype=float)
         self._y = np.asarray(state['y'], dtype=float)
         kernel = self._kernel(self._x.shape[1])

@@ -53,6 +53,7 @@ from flexarm_bringup.outcome_text import (
     pose_text,
 )
 from flexarm_control import topics
+from flexarm_control.modes import MODE_LABELS
 from flexarm_control.paths import MODELS_DIR, RESULTS_DIR, RUNS_DIR
 
 COMMANDS: dict[str, Callable[[argparse.Namespace], dict[str, Any]]] = {}
@@ -322,7 +323,7 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
             args.x / 1e3, args.y / 1e3, math.radians(args.phi), mode=args.mode,
             position_tolerance=args.position_tolerance / 1e3,
             angle_tolerance=math.radians(args.angle_tolerance),
-            max_iterations=args.max_iterations, trial=args.trial, timeout=args.timeout,
+            max_corrections=args.max_corrections, trial=args.trial, timeout=args.timeout,
             allow_extrapolation=args.allow_extrapolation, dry_run=args.dry_run,
             feedback=feedback),
             topics.MOVE_TO_POSE, _move_interrupted)
@@ -772,7 +773,7 @@ def _move_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('x', type=_finite, help='target x [mm] (horizontal, base frame)')
     p.add_argument('y', type=_finite, help='target y [mm] (up)')
     p.add_argument('phi', type=_finite, help='target tool angle [deg] from +x')
-    p.add_argument('--mode', choices=['rigid', 'predictive', 'closed_loop'],
+    p.add_argument('--mode', choices=MODE_LABELS,
                    default='predictive',
                    help='rigid: rigid inverse kinematics; predictive: compensate the learned '
                         'deflection (needs a model); closed_loop: predictive (rigid without a '
@@ -783,7 +784,7 @@ def _move_arguments(p: argparse.ArgumentParser) -> None:
                         'within it, else TOLERANCE_NOT_MET')
     p.add_argument('--angle-tolerance', type=_non_negative, default=0.0, metavar='DEG',
                    help='[deg] as --position-tolerance, for the tool angle')
-    p.add_argument('--max-iterations', type=_natural, default=0, metavar='N',
+    p.add_argument('--max-corrections', type=_natural, default=0, metavar='N',
                    help='CLOSED_LOOP only: corrective moves after the first (0: the '
                         'compensator\'s default)')
     p.add_argument('--allow-extrapolation', action='store_true',

@@ -25,8 +25,9 @@ from pathlib import Path
 import numpy as np
 
 from flexarm_bringup.supervisor import Graph
-from flexarm_bringup.trials import MODES, Trial, TruthMonitor, run_trials, summarise
+from flexarm_bringup.trials import Trial, TruthMonitor, run_trials, summarise
 from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.modes import MODE_LABELS
 from flexarm_control.paper import TABLE_9, TABLE_10
 from flexarm_control.params import load_config
 from flexarm_control.paths import BAGS_DIR, RESULTS_DIR, RUNS_DIR
@@ -43,7 +44,7 @@ class ExperimentSettings:
     real_time_factor: float = 10.0
     record: bool = True               # write bags/<name>/<name>.mcap
     seed: int = 1
-    modes: tuple[str, ...] = MODES
+    modes: tuple[str, ...] = MODE_LABELS
     ready_timeout: float = 120.0
     extra_parameters: dict = field(default_factory=dict)
 
@@ -252,8 +253,8 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path) -> None:
     fig, axes = plt.subplots(1, 2, figsize=(11, 4))
     named = [t for t in trials if t.group != 'random']
     names = sorted({t.name for t in named}, key=lambda n: (n[0], n))
-    width = 0.8 / len(MODES)
-    for i, mode in enumerate(MODES):
+    width = 0.8 / len(MODE_LABELS)
+    for i, mode in enumerate(MODE_LABELS):
         by_name = {t.name: t for t in named if t.mode == mode}
         xs = [j + i * width for j, n in enumerate(names) if n in by_name]
         axes[0].bar(xs, [by_name[n].position_error * 1e3 for n in names if n in by_name],

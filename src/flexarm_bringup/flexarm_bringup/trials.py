@@ -17,9 +17,8 @@ import numpy as np
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control.kinematics import pose_error
+from flexarm_control.modes import MODE_LABELS
 from flexarm_msgs.msg import TipPose
-
-MODES = ('rigid', 'predictive', 'closed_loop')
 
 
 @dataclass
@@ -101,7 +100,7 @@ def summarise(trials: list[Trial]) -> dict[str, dict[str, dict[str, float]]]:
     """Per group and mode: max and mean position [mm] / angle [deg] errors, successes."""
     out: dict[str, dict[str, dict[str, float]]] = {}
     for group in sorted({t.group for t in trials}):
-        for mode in MODES:
+        for mode in MODE_LABELS:
             chosen = [t for t in trials if t.group == group and t.mode == mode]
             if not chosen:
                 continue

@@ -34,7 +34,7 @@ BAD_INPUT = [
     (['train', '--dataset', 'a/b'], 'dataset name "a/b" must be'),
     (['move', '1450', '-150', 'nan'], 'argument phi: must be a finite number'),
     (['move', *A1, '--position-tolerance', '-0.1'], 'must be a number >= 0'),
-    (['move', *A1, '--max-iterations', '-1'], 'must be a whole number >= 0'),
+    (['move', *A1, '--max-corrections', '-1'], 'must be a whole number >= 0'),
     (['move', *A1, '--wait', '0'], 'argument --wait: must be a number > 0'),
     (['move', *A1, '--domain-id', '300'], 'must be a ROS domain 0..232'),
     (['bag', 'info', 'bags/nope'], 'no bag at bags/nope'),
@@ -75,7 +75,7 @@ def test_help_shows_defaults_and_what_each_option_governs(capsys):
     assert ('CLOSED_LOOP corrects until within it (0: the compensator\'s default); '
             'RIGID/PREDICTIVE: if given, the measured error must be within it, else '
             'TOLERANCE_NOT_MET') in out
-    assert '--max-iterations N CLOSED_LOOP only: corrective moves after the first' in out
+    assert '--max-corrections N CLOSED_LOOP only: corrective moves after the first' in out
     assert main(['--help']) == 0
     out = capsys.readouterr().out
     assert 'exit codes:' in out and '130  interrupted' in out and '--quiet' in out

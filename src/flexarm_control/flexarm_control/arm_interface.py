@@ -1,6 +1,7 @@
 """The arm as the control nodes see it: joint commands out, joint states and tip poses in.
 
-Shared by the compensator and the learner. Commands go to ros2_control's
+Shared by the compensator and the learner, whose policies drive it as an
+:class:`~flexarm_control.arm_motion.Arm`. Commands go to ros2_control's
 ``/forward_position_controller/commands`` (one value per joint, in ``JOINT_NAMES`` order), so a
 real controller drops in. Waits are in the node's clock (sim time under ``use_sim_time``) and
 are also capped in wall time, so a stopped ``/clock`` can never hang a goal. A wait also ends
@@ -94,6 +95,11 @@ class ArmInterface:
     def joints(self) -> JointSnapshot | None:
         with self._cond:
             return self._parse_joints()
+
+    def positions(self) -> np.ndarray | None:
+        """The newest joint positions (4,), None before the first joint state."""
+        snapshot = self.joints
+        return None if snapshot is None else snapshot.positions
 
     def now(self) -> Time:
         return self._node.get_clock().now()

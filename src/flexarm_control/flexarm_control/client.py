@@ -40,13 +40,11 @@ from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from flexarm_control import topics
+from flexarm_control.modes import Mode
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import ModelInfo, PlanarPose
 from flexarm_msgs.srv import Train, UseModel
 
-MODES = {'rigid': MoveToPose.Goal.MODE_RIGID,
-         'predictive': MoveToPose.Goal.MODE_PREDICTIVE,
-         'closed_loop': MoveToPose.Goal.MODE_CLOSED_LOOP}
 _ENDED = {GoalStatus.STATUS_CANCELED: 'canceled', GoalStatus.STATUS_ABORTED: 'aborted'}
 _SPIN_SLICE = 0.1   # [s] waits spin in slices so that a Ctrl-C is raised at once
 SERVER_SILENCE = 3.0  # [s] without an answer from a goal's action server: it is gone
@@ -180,19 +178,18 @@ class FlexarmClient(Node):
 
     def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
                 position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
-                max_iterations: int = 0, trial: str = '', timeout: float = 300.0,
+                max_corrections: int = 0, trial: str = '', timeout: float = 300.0,
                 allow_extrapolation: bool = False, dry_run: bool = False,
                 feedback: Callable[[MoveToPose.Feedback], None] | None = None,
                 ) -> MoveToPose.Result:
         """Send a MoveToPose goal and wait for its result (``allow_extrapolation``: run a
         PREDICTIVE goal beyond the learned data with a warning instead of its refusal;
         ``dry_run``: only plan, the result holds the plan and nothing moves)."""
-        if mode not in MODES:
-            raise ValueError(f'unknown mode {mode!r}; use one of {sorted(MODES)}')
         goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
-                               mode=MODES[mode], position_tolerance=float(position_tolerance),
+                               mode=int(Mode.of(mode)),
+                               position_tolerance=float(position_tolerance),
                                angle_tolerance=float(angle_tolerance),
-                               max_iterations=int(max_iterations), trial=trial,
+                               max_corrections=int(max_corrections), trial=trial,
                                allow_extrapolation=bool(allow_extrapolation),
                                dry_run=bool(dry_run))
         return self._run_goal(self._move, goal, timeout, feedback)

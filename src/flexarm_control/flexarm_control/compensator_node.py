@@ -5,10 +5,12 @@ of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip 
 the target from the measured error until within tolerance (beyond the paper). Which plan a
 goal runs — PREDICTIVE refused beyond the learned data (``OUTSIDE_LEARNED_DATA``, or run with
 a warning if the goal allows extrapolation), CLOSED_LOOP started from the rigid plan without a
-usable model — is :mod:`flexarm_control.planning`; every result, feedback and
+usable model — is :mod:`flexarm_control.planning`; how it runs (move, measure, correct until
+within tolerance) is :mod:`flexarm_control.goal_execution`, over
+:class:`~flexarm_control.arm_motion.ArmMotion` (config/motion.yaml); every result, feedback and
 ``/compensator/outcomes`` message carries the plan's distance from the learned data and the
 model's std there. The algorithm lives in :mod:`flexarm_control.compensator`; this node
-validates goals, moves the arm through :class:`~flexarm_control.arm_interface.ArmInterface`,
+validates goals, maps ROS to those calls and their outcomes to error codes,
 reports feedback and results, and hot-reloads the predictor the learner announces on
 ``/learner/model`` and republishes the one it uses on the latched
 ``/compensator/active_model``.
@@ -51,11 +53,23 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
+from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.compensator import Compensator, Plan
+from flexarm_control.goal_execution import (
+    CANCELED,
+    CONTROLLER_TIMEOUT,
+    MEASUREMENT_FAILED,
+    SUCCEEDED,
+    TOLERANCE_NOT_MET,
+    UNREACHABLE,
+    GoalSpec,
+    execute,
+)
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
+from flexarm_control.modes import Mode
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.planning import MODES, DataLimits, Planned, Refusal, plan_goal
+from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose
@@ -66,6 +80,10 @@ Result = MoveToPose.Result
 Feedback = MoveToPose.Feedback
 REFUSALS = {'no_model': Result.NO_MODEL, 'unreachable': Result.UNREACHABLE,
             'outside_learned_data': Result.OUTSIDE_LEARNED_DATA}
+OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
+            CONTROLLER_TIMEOUT: Result.CONTROLLER_TIMEOUT,
+            MEASUREMENT_FAILED: Result.MEASUREMENT_FAILED,
+            TOLERANCE_NOT_MET: Result.TOLERANCE_NOT_MET, UNREACHABLE: Result.UNREACHABLE}
 
 
 def planar(pose: np.ndarray) -> PlanarPose:
@@ -80,7 +98,7 @@ def goal_error(goal: Goal) -> str | None:
     bad = [name for name, v in values.items() if not math.isfinite(v)]
     if bad:
         return f'non-finite {", ".join(bad)}'
-    if goal.mode >= len(MODES):
+    if goal.mode >= len(Mode):
         return f'unknown mode {goal.mode}'
     if goal.position_tolerance < 0 or goal.angle_tolerance < 0:
         return 'tolerances must be >= 0 (0 = server default)'
@@ -98,17 +116,9 @@ class CompensatorNode(Node):
                                 '[m] default closed-loop position tolerance')
         self._ang_tol = declare(self, 'angle_tolerance', math.radians(0.005),
                                 '[rad] default closed-loop angle tolerance')
-        self._max_iter = declare(self, 'max_iterations', 5,
-                                 'default closed-loop corrections per goal')
-        self._joint_tol = np.array(declare(
-            self, 'arrival_tolerance', [1e-4, 1e-5, 1e-4, 1e-4],
-            'joint1..joint4 distance to the command that counts as arrived [rad, m, rad, rad]'))
-        self._move_margin = declare(self, 'move_timeout_margin', 10.0,
-                                    '[s] added to the slowest joint travel time for a timeout')
-        self._frames = declare(self, 'measurement_frames', 3,
-                               'valid settled tip poses averaged per measurement')
-        self._measure_timeout = declare(self, 'measurement_timeout', 30.0,
-                                        '[s] wait for a valid settled measurement after a move')
+        self._max_corrections = declare(
+            self, 'max_corrections', 5, 'default CLOSED_LOOP corrective moves after the first')
+        motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
         self._limits = DataLimits(
             declare(self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than '
                     'this from the learning samples [typical sample spacings]'),
@@ -119,6 +129,7 @@ class CompensatorNode(Node):
 
         self._group = ReentrantCallbackGroup()
         self._arm = ArmInterface(self, self._group)
+        self._motion = ArmMotion(self._arm, self._geometry, motion)
         self._model: tuple[Predictor, ModelInfo] | None = None     # swapped whole
         self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)
         self._load_error = ''          # why the last announced model was not loaded
@@ -200,14 +211,18 @@ class CompensatorNode(Node):
         predictor, info = self._model or (None, None)
         if not self._arm.wait_for_joints(5.0):
             return fail(Result.CONTROLLER_TIMEOUT, 'no /joint_states from the controller')
-        pos_tol = goal.position_tolerance or self._pos_tol
-        ang_tol = goal.angle_tolerance or self._ang_tol
-        max_iter = goal.max_iterations or self._max_iter
+        mode = Mode(goal.mode)
+        closed = mode == Mode.CLOSED_LOOP
+        spec = GoalSpec(
+            target, mode,
+            goal.position_tolerance or (self._pos_tol if closed else 0.0),
+            goal.angle_tolerance or (self._ang_tol if closed else 0.0),
+            goal.max_corrections or self._max_corrections)
 
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         try:
-            planned = plan_goal(self._compensator, MODES[goal.mode], target, predictor,
-                                self._limits, goal.allow_extrapolation)
+            planned = plan_goal(self._compensator, mode, target, predictor, self._limits,
+                                goal.allow_extrapolation)
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
@@ -220,121 +235,51 @@ class CompensatorNode(Node):
         self._goal_model_version = result.model_version
         if planned.uses_model:
             notes.append(f'warning: model {info.version}: {info.warning}' if info.warning else '')
-        result.error_string = '; '.join(filter(None, notes))
-        if result.error_string:
-            self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: '
-                                   f'{result.error_string}')
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations
         result.predicted_deflection = planar(plan.predicted_deflection)
+        result.joint_positions = plan.joints.tolist()
+        result.commanded_pose = planar(plan.commanded_pose)
         if goal.dry_run:
-            result.joint_positions = plan.joints.tolist()
-            result.commanded_pose = planar(plan.commanded_pose)
-            result.error_string = '; '.join(filter(None, ('dry run: nothing moved',
-                                                          result.error_string)))
+            notes.insert(0, 'dry run: nothing moved')
+            result.error_string = '; '.join(filter(None, notes))
             return result
+        if any(notes):
+            self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: '
+                                   f'{"; ".join(filter(None, notes))}')
 
-        iteration = 0
-        while True:
-            iteration += 1
-            outcome = self._move_and_measure(handle, plan, iteration, planned)
-            result.iterations = iteration
-            result.joint_positions = plan.joints.tolist()
-            result.commanded_pose = planar(plan.commanded_pose)
-            if isinstance(outcome, Result):
-                outcome.iterations, outcome.joint_positions = iteration, result.joint_positions
-                if outcome.error_code == Result.CANCELED:     # where the arm was held
-                    outcome.joint_positions = self._arm.joints.positions.tolist()
-                for name in ('commanded_pose', 'predicted_deflection', 'model_version',
-                             'compensation_iterations', 'data_distance', 'prediction_std'):
-                    setattr(outcome, name, getattr(result, name))
-                return outcome
-            closed = goal.mode == Goal.MODE_CLOSED_LOOP
-            checked = closed or goal.position_tolerance > 0 or goal.angle_tolerance > 0
-            if outcome is None:
-                if checked:
-                    return fail(Result.MEASUREMENT_FAILED,
-                                'no valid settled tip pose within '
-                                f'{self._measure_timeout:.0f} s after the move'
-                                + ('' if closed else ' to check the tolerance'))
-                result.error_string = '; '.join(filter(None, (
-                    result.error_string, 'moved; no valid settled tip measurement')))
-                return result
-            result.measured, result.measured_pose = True, planar(outcome)
-            result.position_error, result.angle_error = pose_error(target, outcome)
-            if not closed:
-                return self._check_tolerance(goal, result) if checked else result
-            if result.position_error <= pos_tol and result.angle_error <= ang_tol:
-                return result
-            if iteration > max_iter:
-                return fail(Result.TOLERANCE_NOT_MET,
-                            f'{result.position_error * 1e3:.3f} mm / '
-                            f'{math.degrees(result.angle_error):.4f} deg after {max_iter} '
-                            'corrections')
-            try:
-                plan = self._compensator.correct(plan, target, outcome)
-            except UnreachableError as exc:
-                return fail(Result.UNREACHABLE, f'correction: {exc}')
+        def progress(phase: str, move: int, plan: Plan, measured: np.ndarray | None) -> None:
+            self._feedback(handle, move, phase, plan.commanded_pose, planned, measured, target)
 
-    @staticmethod
-    def _check_tolerance(goal: Goal, result: Result) -> Result:
-        """A RIGID/PREDICTIVE result against the tolerances its goal gave (0: not checked)."""
-        missed = []
-        if goal.position_tolerance and result.position_error > goal.position_tolerance:
-            missed.append(f'position {result.position_error * 1e3:.3f} mm > '
-                          f'{goal.position_tolerance * 1e3:.3f} mm')
-        if goal.angle_tolerance and result.angle_error > goal.angle_tolerance:
-            missed.append(f'angle {math.degrees(result.angle_error):.4f} deg > '
-                          f'{math.degrees(goal.angle_tolerance):.4f} deg')
-        if missed:
-            result.error_code = Result.TOLERANCE_NOT_MET
-            result.error_string = '; '.join(filter(None, (
-                f'measured error beyond the tolerance: {", ".join(missed)}',
-                result.error_string)))
+        run = execute(spec, plan, self._motion, self._compensator,
+                      lambda: handle.is_cancel_requested, progress)
+        result.error_code = OUTCOMES[run.status]
+        if run.status == SUCCEEDED:
+            notes.append(run.reason)
+        else:
+            notes.insert(0, run.reason)
+        result.error_string = '; '.join(filter(None, notes))
+        result.iterations = run.moves
+        positions = run.held_at if run.held_at is not None else run.plan.joints
+        result.joint_positions = positions.tolist()
+        result.commanded_pose = planar(run.plan.commanded_pose)
+        if run.measured is not None:
+            result.measured, result.measured_pose = True, planar(run.measured)
+            result.position_error, result.angle_error = run.errors(target)
         return result
-
-    def _move_and_measure(self, handle: ServerGoalHandle, plan: Plan, iteration: int,
-                          planned: Planned):
-        """Move to the plan; the measured pose, None if unmeasured, or a failure Result."""
-        self._feedback(handle, iteration, Feedback.PHASE_MOVING, plan.commanded_pose, planned)
-        current = self._arm.joints.positions
-        travel = np.max(np.abs(plan.joints - current) / self._geometry.velocity)
-        arrived = self._arm.move(plan.joints, self._joint_tol, travel + self._move_margin,
-                                 abort=lambda: handle.is_cancel_requested)
-        if handle.is_cancel_requested:
-            self._arm.hold()
-            return Result(error_code=Result.CANCELED, error_string='canceled; arm held')
-        if not arrived:
-            silent = self._arm.controller_silent
-            self._arm.hold()
-            return Result(error_code=Result.CONTROLLER_TIMEOUT, error_string=(
-                'the controller stopped publishing /joint_states mid-move (died, or its link '
-                'was lost): the arm\'s state is unknown' if silent else
-                f'joints did not reach the command within {travel + self._move_margin:.0f} s'))
-        self._feedback(handle, iteration, Feedback.PHASE_SETTLING, plan.commanded_pose,
-                       planned)
-        measurement = self._arm.measure(self._frames, self._measure_timeout,
-                                        abort=lambda: handle.is_cancel_requested)
-        if handle.is_cancel_requested:
-            return Result(error_code=Result.CANCELED, error_string='canceled after the move')
-        if measurement is None:
-            return None
-        self._feedback(handle, iteration, Feedback.PHASE_MEASURING, plan.commanded_pose,
-                       planned, measurement.pose, handle.request)
-        return measurement.pose
 
     def _feedback(self, handle: ServerGoalHandle, iteration: int, phase: str,
                   commanded: np.ndarray, planned: Planned | None,
-                  measured: np.ndarray | None = None, goal: Goal | None = None) -> None:
+                  measured: np.ndarray | None = None, target: np.ndarray | None = None,
+                  ) -> None:
         fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
         if planned is not None:
             fb.data_distance, fb.prediction_std = planned.data_distance, planned.prediction_std
             fb.model_version = self._goal_model_version
-        if measured is not None and goal is not None:
+        if measured is not None and target is not None:
             fb.measured, fb.measured_pose = True, planar(measured)
-            fb.position_error, fb.angle_error = pose_error(
-                np.array([goal.target.x, goal.target.y, goal.target.phi]), measured)
+            fb.position_error, fb.angle_error = pose_error(target, measured)
         handle.publish_feedback(fb)
 
     def _publish_outcome(self, goal: Goal, result: Result) -> None:

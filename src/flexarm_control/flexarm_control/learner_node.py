@@ -6,7 +6,10 @@ region (:mod:`flexarm_control.sampling`), visited in a short-travel order, waits
 joints arrive and the tip is settled, averages a few valid ``/tip_pose`` frames and appends the
 sample to the dataset — on disk, fsync'ed — before the next move; the sample is also published
 on ``/learner/samples`` for bags. A failed measurement is retried, then the pose is skipped and
-counted, never stored. Cancel holds the arm and keeps every sample collected.
+counted, never stored. Cancel holds the arm and keeps every sample collected; a controller
+that falls silent ends the collection (FAILED, with the reason). That loop is the pure
+:mod:`flexarm_control.collection`, over :class:`~flexarm_control.arm_motion.ArmMotion`
+(config/motion.yaml); this node maps ROS to it.
 
 Collection poses cover the region grown by ``coverage_margin``, where compensated targets of
 the region's edge are commanded. Training (in a worker process, :mod:`flexarm_control.training`)
@@ -50,8 +53,10 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
+from flexarm_control.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.collection import Collected, Collector
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
-from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.model_store import (
     DamagedRecord,
     arm_fingerprint,
@@ -142,16 +147,9 @@ class LearnerNode(Node):
         self._default_strategy = declare(self, 'default_strategy', 'sobol',
                                          f'one of {", ".join(STRATEGIES)}')
         self._max_count = declare(self, 'max_count', 2000, 'largest count accepted')
-        self._frames = declare(self, 'measurement_frames', 3, 'tip poses averaged per sample')
-        self._measure_timeout = declare(self, 'measurement_timeout', 20.0,
-                                        '[s] wait for a valid settled measurement')
-        self._retries = declare(self, 'measurement_retries', 2,
-                                'extra measurement attempts before a pose is skipped')
-        self._joint_tol = np.array(declare(self, 'arrival_tolerance',
-                                           [1e-4, 1e-5, 1e-4, 1e-4],
-                                           '[rad, m, rad, rad] joints count as arrived'))
-        self._move_margin = declare(self, 'move_timeout_margin', 10.0,
-                                    '[s] added to the slowest joint travel time')
+        retries = declare(self, 'measurement_retries', 2,
+                          'extra measurement attempts before a pose is skipped')
+        motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
         self._coverage = np.array(declare(
             self, 'coverage_margin', [0.03, 0.03, 0.0436],
             '[m, m, rad] learning poses cover the region grown by this on every side'))
@@ -168,6 +166,10 @@ class LearnerNode(Node):
         self._collecting = threading.Lock()
         group = ReentrantCallbackGroup()
         self._arm = ArmInterface(self, group)
+        self._collector = Collector(
+            ArmMotion(self._arm, self._geometry, motion), self._geometry, retries,
+            clock=lambda: self.get_clock().now().nanoseconds * 1e-9,
+            warn=self.get_logger().warn)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._model_pub = self.create_publisher(ModelInfo, topics.MODEL, latched)
         self._sample_pub = self.create_publisher(DeflectionSample, topics.SAMPLES, 100)
@@ -237,58 +239,30 @@ class LearnerNode(Node):
         region = self._regions[goal.region or self._default_region].grown(self._coverage)
         _, plan = sample_poses(self._geometry, region, goal.count,
                                goal.strategy or self._default_strategy, goal.seed)
-        plan = plan[travel_order(plan, self._arm.joints.positions, self._geometry.velocity)]
+        plan = plan[travel_order(plan, self._arm.positions(), self._geometry.velocity)]
         self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
                                ' (grown by the coverage margin)'
                                f' into {path}')
-        with DatasetWriter(path) as writer:
-            for k, joints in enumerate(plan, start=1):
-                sample = self._sample_at(joints, handle)
-                if handle.is_cancel_requested:
-                    self._arm.hold()
-                    result.error_code, result.error_string = Result.CANCELED, 'canceled'
-                    return
-                if sample is None:
-                    result.skipped += 1
-                else:
-                    writer.append(sample)          # on disk before the next move
-                    result.collected += 1
-                    result.total += 1
-                msg = self._sample_msg(sample) if sample is not None else DeflectionSample()
-                if sample is not None:
-                    self._sample_pub.publish(msg)
-                handle.publish_feedback(Feedback(k=k, n=goal.count, skipped=result.skipped,
-                                                 last_sample=msg))
-        if result.collected == 0:
-            result.error_code, result.error_string = Result.FAILED, 'no valid measurement'
-
-    def _sample_at(self, joints: np.ndarray, handle: ServerGoalHandle) -> Sample | None:
-        """Move to ``joints``, measure; the sample, or None after the retries failed."""
-        current = self._arm.joints.positions
-        travel = float(np.max(np.abs(joints - current) / self._geometry.velocity))
         cancel = lambda: handle.is_cancel_requested  # noqa: E731
-        for attempt in range(1 + self._retries):
-            if not self._arm.move(joints, self._joint_tol, travel + self._move_margin, cancel):
-                if cancel():
-                    return None
-                self.get_logger().warn(f'joints did not arrive (attempt {attempt + 1})')
-                continue
-            measurement = self._arm.measure(self._frames, self._measure_timeout, cancel)
-            if cancel():
-                return None
-            if measurement is None:
-                self.get_logger().warn(f'no valid settled tip pose (attempt {attempt + 1})')
-                continue
-            reported = self._arm.joints.positions
-            rigid = forward(self._geometry, reported)
-            deflection = measurement.pose - rigid
-            deflection[2] = wrap_angle(deflection[2])
-            stamp = self.get_clock().now().nanoseconds * 1e-9
-            return Sample(stamp=stamp, joints=reported, payload=self._payload,
-                          rigid_pose=rigid, measured_pose=measurement.pose,
-                          deflection=deflection, holes_used=measurement.holes_used,
-                          residual=measurement.residual)
-        return None
+
+        def progress(k: int, counts: Collected, sample: Sample | None) -> None:
+            msg = self._sample_msg(sample) if sample is not None else DeflectionSample()
+            if sample is not None:
+                self._sample_pub.publish(msg)
+            handle.publish_feedback(Feedback(k=k, n=goal.count, skipped=counts.skipped,
+                                             last_sample=msg))
+
+        with DatasetWriter(path) as writer:     # each sample on disk before the next move
+            counts = self._collector.collect(plan, self._payload, writer.append, cancel,
+                                             progress)
+        result.collected, result.skipped = counts.collected, counts.skipped
+        result.total += counts.collected
+        if counts.canceled:
+            result.error_code, result.error_string = Result.CANCELED, 'canceled'
+        elif counts.stopped:
+            result.error_code, result.error_string = Result.FAILED, counts.stopped
+        elif counts.collected == 0:
+            result.error_code, result.error_string = Result.FAILED, 'no valid measurement'
 
     @staticmethod
     def _sample_msg(sample: Sample) -> DeflectionSample:

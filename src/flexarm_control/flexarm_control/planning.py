@@ -28,9 +28,8 @@ import numpy as np
 
 from flexarm_control.compensator import CompensationError, Compensator, Plan
 from flexarm_control.kinematics import inverse
+from flexarm_control.modes import Mode
 from flexarm_control.predictors import Predictor
-
-MODES = ('rigid', 'predictive', 'closed_loop')
 
 
 @dataclass(frozen=True)
@@ -69,15 +68,14 @@ def beyond_data(predictor: Predictor, joints: np.ndarray, limits: DataLimits
     return distance, std, ' and '.join(why)
 
 
-def plan_goal(compensator: Compensator, mode: str, target: np.ndarray,
+def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
               predictor: Predictor | None, limits: DataLimits,
               allow_extrapolation: bool = False) -> Planned | Refusal:
     """The plan for a goal in ``mode`` (module docstring), or why it is refused."""
-    if mode not in MODES:
-        raise ValueError(f'unknown mode {mode!r}')
-    if mode == 'rigid':
+    mode = Mode.of(mode)
+    if mode == Mode.RIGID:
         return Planned(compensator.rigid(target), 0.0, 0.0, '')
-    closed = mode == 'closed_loop'
+    closed = mode == Mode.CLOSED_LOOP
 
     def rigid_start(why: str, distance: float = 0.0, std: float = 0.0) -> Planned:
         return Planned(compensator.rigid(target), distance, std,

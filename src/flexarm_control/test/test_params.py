@@ -23,7 +23,8 @@ def test_unflatten_nests_dotted_names() -> None:
 
 
 @pytest.mark.parametrize('name', ['arm.yaml', 'sim.yaml', 'camera.yaml', 'vision.yaml',
-                                  'learner.yaml', 'compensator.yaml', 'recorder.yaml'])
+                                  'learner.yaml', 'compensator.yaml', 'motion.yaml',
+                                  'recorder.yaml'])
 def test_shipped_config_files_are_ros_params_files(name: str) -> None:
     import yaml
 

@@ -1,0 +1,150 @@
+"""Moving the arm and measuring its tip, as the control policies do it (pure core).
+
+:class:`ArmMotion` owns the settings every move and measurement share, in one place for the
+compensator and the learner (config/motion.yaml, ``motion.*``): when the joints count as
+arrived, how long a move may take (the slowest joint's travel time at the Table 1 speeds plus
+``move_timeout_margin``) and how a measurement is taken (``measurement_frames`` valid, settled
+tip poses averaged within ``measurement_timeout``) and from which side a pose is approached.
+
+Approach: friction makes a real arm's deflection depend on the direction from which a pose is
+reached (hysteresis, a band inside each joint's backlash). Every move therefore ends with a
+final leg of ``approach`` (4,) joint travel in its sign's direction: the arm first goes to
+``joints - approach`` (clipped to the joint limits), then to ``joints``, so the learner's
+samples and the compensator's goals meet each pose from the same side and the hysteresis is a
+repeatable part of the deflection the model learns. ``approach`` must exceed the travel that
+takes up the friction band (2 x 30 % of the backlash: 0.84 mrad at joint 4; some 10 um of
+joint 2); all zero turns it off. It drives any :class:`Arm` — the nodes'
+:class:`~flexarm_control.arm_interface.ArmInterface` or a fake in unit tests — and turns what
+goes wrong into exceptions the policies handle: :class:`Canceled` (the arm is held where it
+is) and :class:`MoveFailed` (the joints did not arrive in time, or the controller fell
+silent: the arm is held and its state is unknown).
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Mapping
+from dataclasses import dataclass
+from typing import Any, Protocol
+
+import numpy as np
+
+from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.measurement import Measurement
+
+Abort = Callable[[], bool]
+
+
+def never() -> bool:
+    return False
+
+
+class Arm(Protocol):
+    """What the policies need of an arm: joint positions, a move, a measurement, a hold."""
+
+    @property
+    def controller_silent(self) -> bool:
+        """Whether the controller stopped reporting its joints."""
+
+    def positions(self) -> np.ndarray | None:
+        """The joints now (4,) [rad, m, rad, rad], None before the first report."""
+
+    def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
+             abort: Abort = never) -> bool:
+        """Command ``q``; whether every joint came within ``tolerance`` of it in time."""
+
+    def measure(self, frames: int, timeout: float, abort: Abort = never,
+                ) -> Measurement | None:
+        """``frames`` valid settled tip poses taken after now, averaged; None on timeout."""
+
+    def hold(self) -> np.ndarray | None:
+        """Stop where the arm is; the joints it holds."""
+
+
+class Canceled(Exception):
+    """The caller aborted a move or measurement; the arm is held."""
+
+
+class MoveFailed(Exception):
+    """The joints did not reach the command; the arm is held."""
+
+    def __init__(self, reason: str, controller_lost: bool) -> None:
+        super().__init__(reason)
+        self.controller_lost = controller_lost
+
+
+@dataclass(frozen=True)
+class MotionSettings:
+    arrival_tolerance: np.ndarray   # (4,) [rad, m, rad, rad] joints within this have arrived
+    move_timeout_margin: float      # [s] added to the slowest joint's travel time
+    measurement_frames: int         # valid settled tip poses averaged per measurement
+    measurement_timeout: float      # [s] for them, after the joints arrived
+    approach: np.ndarray            # (4,) [rad, m, rad, rad] final leg of every move (0: none)
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> MotionSettings:
+        """From config/motion.yaml ``motion.*``; ValueError for a value out of range."""
+        settings = cls(np.asarray(d['arrival_tolerance'], dtype=float),
+                       float(d['move_timeout_margin']), int(d['measurement_frames']),
+                       float(d['measurement_timeout']),
+                       np.asarray(d['approach'], dtype=float))
+        if (settings.arrival_tolerance.shape != (4,) or np.any(settings.arrival_tolerance <= 0)
+                or settings.move_timeout_margin < 0 or settings.measurement_frames < 1
+                or settings.measurement_timeout <= 0 or settings.approach.shape != (4,)):
+            raise ValueError('motion: arrival_tolerance 4 values > 0, move_timeout_margin >= 0, '
+                             'measurement_frames >= 1, measurement_timeout > 0, approach 4 values')
+        return settings
+
+
+class ArmMotion:
+    """Moves an :class:`Arm` and measures its tip under one set of :class:`MotionSettings`."""
+
+    def __init__(self, arm: Arm, geometry: ArmGeometry, settings: MotionSettings) -> None:
+        self.arm = arm
+        self.geometry = geometry        # joint speeds (Table 1) and limits
+        self.settings = settings
+
+    def timeout(self, joints: np.ndarray) -> float:
+        """[s] a move from where the arm is to ``joints`` may take."""
+        now = self.arm.positions()
+        travel = (0.0 if now is None
+                  else float(np.max(np.abs(joints - now) / self.geometry.velocity)))
+        return travel + self.settings.move_timeout_margin
+
+    def approach_pose(self, joints: np.ndarray) -> np.ndarray | None:
+        """Where a move to ``joints`` starts its final leg, None without an approach."""
+        if not np.any(self.settings.approach):
+            return None
+        g = self.geometry
+        return np.clip(joints - self.settings.approach, g.lower, g.upper)
+
+    def move_to(self, joints: np.ndarray, abort: Abort = never) -> None:
+        """Move to ``joints`` by way of its approach pose and wait until they arrived;
+        :class:`Canceled` when ``abort()`` became true, :class:`MoveFailed` when they did
+        not arrive in time (both hold the arm)."""
+        joints = np.asarray(joints, dtype=float)
+        before = self.approach_pose(joints)
+        if before is not None:
+            self._leg(before, abort)
+        self._leg(joints, abort)
+
+    def _leg(self, joints: np.ndarray, abort: Abort) -> None:
+        timeout = self.timeout(joints)
+        arrived = self.arm.move(joints, self.settings.arrival_tolerance, timeout, abort)
+        if abort():
+            self.arm.hold()
+            raise Canceled('canceled; arm held')
+        if not arrived:
+            lost = self.arm.controller_silent
+            self.arm.hold()
+            raise MoveFailed(
+                'the controller stopped publishing /joint_states mid-move (died, or its link '
+                "was lost): the arm's state is unknown" if lost else
+                f'joints did not reach the command within {timeout:.0f} s', lost)
+
+    def measure(self, abort: Abort = never) -> Measurement | None:
+        """The tip where the arm stands, None if no valid settled measurement came in time;
+        :class:`Canceled` when ``abort()`` became true."""
+        s = self.settings
+        measurement = self.arm.measure(s.measurement_frames, s.measurement_timeout, abort)
+        if abort():
+            raise Canceled('canceled after the move')
+        return measurement

@@ -1,0 +1,103 @@
+"""The collection loop of ``/collect_samples`` (pure core of the learner node; seed section
+2-1 step 2).
+
+For every learning pose, in the order given: move there, measure the tip, and build the
+deflection sample from the joints the controller reports and the measured pose
+(:func:`deflection_sample`); a failed move or measurement is retried ``retries`` times, then
+the pose is skipped and counted, never stored. Each sample is handed to ``store`` (the
+dataset writer: on disk before the next move) as soon as it is taken. Cancel ends the loop
+with the arm held and every stored sample kept. A controller that fell silent ends it too:
+no later pose could be reached.
+"""
+from __future__ import annotations
+
+from collections.abc import Callable, Iterable
+from dataclasses import dataclass
+
+import numpy as np
+
+from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
+from flexarm_control.dataset import Sample
+from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_control.measurement import Measurement
+
+
+def deflection_sample(geometry: ArmGeometry, joints: np.ndarray, measurement: Measurement,
+                      payload: float, stamp: float) -> Sample:
+    """The learning pair at reported ``joints``: measured minus rigid tip pose, φ wrapped."""
+    rigid = forward(geometry, joints)
+    deflection = measurement.pose - rigid
+    deflection[2] = wrap_angle(deflection[2])
+    return Sample(stamp=stamp, joints=joints, payload=payload, rigid_pose=rigid,
+                  measured_pose=measurement.pose, deflection=deflection,
+                  holes_used=measurement.holes_used, residual=measurement.residual)
+
+
+@dataclass
+class Collected:
+    """Counts of one collection."""
+
+    collected: int = 0
+    skipped: int = 0
+    canceled: bool = False
+    stopped: str = ''      # why the loop ended early ('' if it did not), e.g. controller lost
+
+
+class Collector:
+    """Visits learning poses with an :class:`ArmMotion` and takes a sample at each."""
+
+    def __init__(self, motion: ArmMotion, geometry: ArmGeometry, retries: int,
+                 clock: Callable[[], float], warn: Callable[[str], None] = lambda _: None,
+                 ) -> None:
+        if retries < 0:
+            raise ValueError('measurement retries must be >= 0')
+        self.motion = motion
+        self.geometry = geometry
+        self.retries = retries
+        self.clock = clock        # [s] the node's time, stamped on each sample
+        self.warn = warn
+
+    def sample_at(self, joints: np.ndarray, payload: float, abort: Abort = never
+                  ) -> Sample | None:
+        """Move to ``joints`` and measure; the sample, or None after the retries failed.
+        Raises :class:`Canceled`, and :class:`MoveFailed` when the controller is lost."""
+        for attempt in range(1, 2 + self.retries):
+            try:
+                self.motion.move_to(joints, abort)
+            except MoveFailed as exc:
+                if exc.controller_lost:
+                    raise
+                self.warn(f'joints did not arrive (attempt {attempt}): {exc}')
+                continue
+            measurement = self.motion.measure(abort)
+            if measurement is None:
+                self.warn(f'no valid settled tip pose (attempt {attempt})')
+                continue
+            reported = self.motion.arm.positions()
+            return deflection_sample(self.geometry, reported, measurement, payload,
+                                     self.clock())
+        return None
+
+    def collect(self, poses: Iterable[np.ndarray], payload: float,
+                store: Callable[[Sample], None], abort: Abort = never,
+                progress: Callable[[int, Collected, Sample | None], None] = lambda *_: None,
+                ) -> Collected:
+        """Take a sample at every pose (module docstring); ``progress(k, counts, sample)``
+        after the k-th pose (sample None if it was skipped)."""
+        counts = Collected()
+        for k, joints in enumerate(poses, start=1):
+            try:
+                sample = self.sample_at(np.asarray(joints, dtype=float), payload, abort)
+            except Canceled:
+                counts.canceled = True
+                return counts
+            except MoveFailed as exc:
+                counts.stopped = str(exc)
+                return counts
+            if sample is None:
+                counts.skipped += 1
+            else:
+                store(sample)
+                counts.collected += 1
+            progress(k, counts, sample)
+        return counts

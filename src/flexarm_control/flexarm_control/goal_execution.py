@@ -1,0 +1,134 @@
+"""Executing a planned ``/move_to_pose`` goal: move, measure, correct (pure core of the
+compensator node; the plan itself is :mod:`flexarm_control.planning`).
+
+* Every mode moves to the plan and then measures the tip, when the camera sees the plate.
+* RIGID and PREDICTIVE end after that one move. They check the measured error only when the
+  goal gave a tolerance (``checked``): beyond it the goal ends ``tolerance_not_met``, without a
+  measurement ``measurement_failed``; unchecked, a missing measurement is only noted.
+* CLOSED_LOOP corrects the commanded pose by the measured error
+  (:meth:`~flexarm_control.compensator.Compensator.correct`) until the measured error is within
+  the tolerance, with at most ``max_corrections`` corrective moves after the first.
+
+The outcome is an :class:`Execution` whose ``status`` the node maps to the action's error
+codes; nothing here knows ROS. Cancel and a failed move end the goal with the arm held.
+"""
+from __future__ import annotations
+
+import math
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
+from flexarm_control.compensator import Compensator, Plan
+from flexarm_control.kinematics import UnreachableError, pose_error
+from flexarm_control.modes import Mode
+
+# Execution.status values (the node maps them to MoveToPose result codes).
+SUCCEEDED = 'succeeded'
+CANCELED = 'canceled'
+CONTROLLER_TIMEOUT = 'controller_timeout'
+MEASUREMENT_FAILED = 'measurement_failed'
+TOLERANCE_NOT_MET = 'tolerance_not_met'
+UNREACHABLE = 'unreachable'
+
+# Phases reported while a goal runs (the action feedback's PHASE_* values).
+MOVING, SETTLING, MEASURING = 'moving', 'settling', 'measuring'
+
+
+@dataclass(frozen=True)
+class GoalSpec:
+    """What a goal asks, with the server's defaults filled in."""
+
+    target: np.ndarray         # (3,) [m, m, rad]
+    mode: Mode
+    position_tolerance: float  # [m] CLOSED_LOOP: always; RIGID/PREDICTIVE: 0 = not checked
+    angle_tolerance: float     # [rad] as position_tolerance
+    max_corrections: int       # CLOSED_LOOP corrective moves after the first
+
+    @property
+    def checked(self) -> bool:
+        """Whether the measured error must be within the tolerances."""
+        return (self.mode == Mode.CLOSED_LOOP or self.position_tolerance > 0
+                or self.angle_tolerance > 0)
+
+
+@dataclass(frozen=True)
+class Execution:
+    status: str                    # one of the status constants above
+    reason: str                    # why it did not succeed, or a note ('' if none)
+    plan: Plan                     # the last plan commanded
+    moves: int                     # moves made (0: nothing moved)
+    measured: np.ndarray | None    # (3,) the last measured tip pose
+    held_at: np.ndarray | None = None   # (4,) joints where a canceled goal held the arm
+
+    def errors(self, target: np.ndarray) -> tuple[float, float]:
+        """(position [m], angle [rad]) error of the last measurement; (0, 0) without one."""
+        return (0.0, 0.0) if self.measured is None else pose_error(target, self.measured)
+
+
+# progress(phase, move number, plan, measured pose or None)
+Progress = Callable[[str, int, Plan, np.ndarray | None], None]
+
+
+def _quiet(phase: str, move: int, plan: Plan, measured: np.ndarray | None) -> None:
+    return None
+
+
+def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensator,
+            abort: Abort = never, progress: Progress = _quiet) -> Execution:
+    """Run ``plan`` for the goal ``spec`` (module docstring) on ``motion``'s arm."""
+    measured: np.ndarray | None = None
+    move = 0
+
+    def ended(status: str, reason: str, held_at: np.ndarray | None = None) -> Execution:
+        return Execution(status, reason, plan, move, measured, held_at)
+
+    while True:
+        move += 1
+        progress(MOVING, move, plan, None)
+        try:
+            motion.move_to(plan.joints, abort)
+            progress(SETTLING, move, plan, None)
+            measurement = motion.measure(abort)
+        except Canceled as exc:
+            return ended(CANCELED, str(exc), motion.arm.positions())
+        except MoveFailed as exc:
+            return ended(CONTROLLER_TIMEOUT, str(exc))
+        if measurement is None:
+            if spec.checked:
+                return ended(MEASUREMENT_FAILED, (
+                    f'no valid settled tip pose within {motion.settings.measurement_timeout:.0f}'
+                    ' s after the move' + ('' if spec.mode == Mode.CLOSED_LOOP
+                                           else ' to check the tolerance')))
+            return ended(SUCCEEDED, 'moved; no valid settled tip measurement')
+        measured = measurement.pose
+        progress(MEASURING, move, plan, measured)
+        position, angle = pose_error(spec.target, measured)
+        if spec.mode != Mode.CLOSED_LOOP:
+            missed = _beyond_tolerance(spec, position, angle)
+            return ended(TOLERANCE_NOT_MET, 'measured error beyond the tolerance: ' + missed
+                         ) if missed else ended(SUCCEEDED, '')
+        if position <= spec.position_tolerance and angle <= spec.angle_tolerance:
+            return ended(SUCCEEDED, '')
+        if move > spec.max_corrections:
+            return ended(TOLERANCE_NOT_MET, f'{position * 1e3:.3f} mm / '
+                         f'{math.degrees(angle):.4f} deg after {spec.max_corrections} '
+                         'corrections')
+        try:
+            plan = compensator.correct(plan, spec.target, measured)
+        except UnreachableError as exc:
+            return ended(UNREACHABLE, f'correction: {exc}')
+
+
+def _beyond_tolerance(spec: GoalSpec, position: float, angle: float) -> str:
+    """Which of a RIGID/PREDICTIVE goal's tolerances the measured error misses ('' none)."""
+    missed = []
+    if spec.position_tolerance and position > spec.position_tolerance:
+        missed.append(f'position {position * 1e3:.3f} mm > '
+                      f'{spec.position_tolerance * 1e3:.3f} mm')
+    if spec.angle_tolerance and angle > spec.angle_tolerance:
+        missed.append(f'angle {math.degrees(angle):.4f} deg > '
+                      f'{math.degrees(spec.angle_tolerance):.4f} deg')
+    return ', '.join(missed)

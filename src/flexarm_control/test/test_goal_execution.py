@@ -1,0 +1,140 @@
+"""Goal execution policy: move, measure, correct until within tolerance; cancel and faults."""
+import dataclasses
+import math
+
+import numpy as np
+import pytest
+from fake_arm import FakeArm
+
+from flexarm_control.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.compensator import Compensator
+from flexarm_control.goal_execution import (
+    CANCELED,
+    CONTROLLER_TIMEOUT,
+    MEASUREMENT_FAILED,
+    MEASURING,
+    MOVING,
+    SETTLING,
+    SUCCEEDED,
+    TOLERANCE_NOT_MET,
+    GoalSpec,
+    execute,
+)
+from flexarm_control.kinematics import ArmGeometry, pose_error
+from flexarm_control.modes import Mode
+from flexarm_control.params import load_config
+from flexarm_sim.plant import Plant
+
+TARGET = np.array([1.45, -0.15, math.radians(-45)])          # Table 10, A1
+START = np.array([0.0, 0.6, 0.0, 0.0])
+TOL = (0.05e-3, math.radians(0.005))
+
+
+@pytest.fixture(scope='module')
+def world():
+    config = load_config('arm.yaml', 'sim.yaml', 'compensator.yaml', 'motion.yaml',
+                         node_name='flexarm_compensator')
+    geometry = ArmGeometry.from_dict(config['arm'])
+    return (Compensator(geometry, config['compensation']), Plant.from_dict(config['plant'],
+                                                                          geometry),
+            dataclasses.replace(MotionSettings.from_dict(config['motion']),
+                                approach=np.zeros(4)))     # one command per move here
+
+
+def run(world, mode, tolerance=(0.0, 0.0), corrections=5, arm_setup=None, plan=None):
+    compensator, plant, settings = world
+    arm = FakeArm(plant, START)
+    if arm_setup:
+        arm_setup(arm)
+    motion = ArmMotion(arm, compensator.geometry, settings)
+    spec = GoalSpec(TARGET, mode, *tolerance, corrections)
+    phases = []
+    plan = plan or compensator.rigid(TARGET)
+    execution = execute(spec, plan, motion, compensator, arm.abort,
+                        lambda phase, move, p, measured: phases.append((phase, move)))
+    return execution, arm, phases
+
+
+def test_closed_loop_corrects_the_rigid_miss_until_within_tolerance(world):
+    execution, arm, phases = run(world, Mode.CLOSED_LOOP, TOL)
+    assert execution.status == SUCCEEDED
+    assert pose_error(TARGET, arm.plant.pose(arm.q))[0] <= TOL[0]
+    assert execution.errors(TARGET)[0] <= TOL[0] and execution.errors(TARGET)[1] <= TOL[1]
+    assert 2 <= execution.moves == len(arm.commands) <= 6     # the rigid plan misses ~18 mm
+    assert phases[:3] == [(MOVING, 1), (SETTLING, 1), (MEASURING, 1)]
+    assert phases[-1] == (MEASURING, execution.moves)
+    np.testing.assert_allclose(execution.plan.joints, arm.commands[-1])
+
+
+def test_closed_loop_gives_up_after_its_corrections(world):
+    execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, corrections=0)
+    assert execution.status == TOLERANCE_NOT_MET and execution.moves == 1
+    assert 'after 0 corrections' in execution.reason
+    assert execution.errors(TARGET)[0] > 10e-3                 # the rigid miss, measured
+
+
+def test_predictive_moves_once_and_checks_only_a_given_tolerance(world):
+    unchecked, arm, _ = run(world, Mode.RIGID)
+    assert unchecked.status == SUCCEEDED and unchecked.moves == 1 and len(arm.commands) == 1
+    checked, _, _ = run(world, Mode.RIGID, (1e-3, 0.0))
+    assert checked.status == TOLERANCE_NOT_MET
+    assert checked.reason.startswith('measured error beyond the tolerance: position')
+
+
+def test_a_missing_measurement_fails_only_a_checked_goal(world):
+    blind = lambda arm: arm.blind_moves.add(1)          # noqa: E731
+    unchecked, _, _ = run(world, Mode.PREDICTIVE, arm_setup=blind)
+    assert unchecked.status == SUCCEEDED and unchecked.measured is None
+    assert unchecked.reason == 'moved; no valid settled tip measurement'
+    checked, _, _ = run(world, Mode.PREDICTIVE, (1e-3, 0.0), arm_setup=blind)
+    assert checked.status == MEASUREMENT_FAILED and 'to check the tolerance' in checked.reason
+    closed, _, _ = run(world, Mode.CLOSED_LOOP, TOL, arm_setup=blind)
+    assert closed.status == MEASUREMENT_FAILED
+
+
+def test_cancel_mid_move_holds_the_arm_where_it_stopped(world):
+    def cancel_second(arm):
+        arm.cancel_at_move = 2
+    execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, arm_setup=cancel_second)
+    assert execution.status == CANCELED and execution.moves == 2 and arm.holds == 1
+    np.testing.assert_allclose(execution.held_at, arm.q)
+    assert not np.allclose(execution.held_at, execution.plan.joints)
+
+
+@pytest.mark.parametrize('silent', [False, True])
+def test_a_move_that_does_not_arrive_ends_the_goal_with_the_arm_held(world, silent):
+    def stuck(arm):
+        arm.arrives, arm.silent = False, silent
+    execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, arm_setup=stuck)
+    assert execution.status == CONTROLLER_TIMEOUT and arm.holds == 1 and arm.measurements == 0
+    assert ('stopped publishing /joint_states' in execution.reason) == silent
+    # the timeout: the slowest joint's travel time at the Table 1 speeds plus the margin
+    travel = np.max(np.abs(arm.commands[0] - START) / world[0].geometry.velocity)
+    assert arm.timeout == pytest.approx(travel + world[2].move_timeout_margin)
+
+
+def test_motion_settings_are_checked():
+    good = {'arrival_tolerance': [1e-4, 1e-5, 1e-4, 1e-4], 'move_timeout_margin': 10.0,
+            'measurement_frames': 3, 'measurement_timeout': 30.0, 'approach': [0.0] * 4}
+    assert MotionSettings.from_dict(good).measurement_frames == 3
+    for change in ({'arrival_tolerance': [1e-4] * 3}, {'measurement_frames': 0},
+                   {'measurement_timeout': 0.0}, {'move_timeout_margin': -1.0},
+                   {'approach': [0.0] * 3}):
+        with pytest.raises(ValueError, match='motion'):
+            MotionSettings.from_dict({**good, **change})
+
+
+def test_every_move_ends_with_the_approach_leg_from_below(world):
+    compensator, plant, settings = world
+    approach = np.array([2e-3, 1e-3, 2e-3, 2e-3])
+    arm = FakeArm(plant, START)
+    motion = ArmMotion(arm, compensator.geometry,
+                       dataclasses.replace(settings, approach=approach))
+    joints = compensator.rigid(TARGET).joints
+    motion.move_to(joints)
+    np.testing.assert_allclose(arm.commands[0], joints - approach)
+    np.testing.assert_allclose(arm.commands[1], joints)
+    at_limit = joints.copy()
+    at_limit[3] = compensator.geometry.lower[3]           # no room below: the leg is shorter
+    motion.move_to(at_limit)
+    assert arm.commands[2][3] == compensator.geometry.lower[3]

@@ -1,0 +1,54 @@
+"""An :class:`~flexarm_control.arm_motion.Arm` for the policy tests: the simulator's plant,
+no ROS. Joints arrive at once unless told otherwise; the tip is measured without noise."""
+from __future__ import annotations
+
+import numpy as np
+
+from flexarm_control.measurement import Measurement, average_frames
+from flexarm_sim.plant import Plant
+
+
+class FakeArm:
+    def __init__(self, plant: Plant, start: np.ndarray) -> None:
+        self.plant = plant
+        self.q = np.asarray(start, dtype=float).copy()
+        self.commands: list[np.ndarray] = []
+        self.holds = 0
+        self.arrives = True           # moves reach their command
+        self.silent = False           # the controller stopped reporting
+        self.blind_moves: set[int] = set()   # move numbers (1-based) measured as None
+        self.cancel_at_move = 0       # abort requested during this move (0: never)
+        self.measurements = 0
+
+    @property
+    def controller_silent(self) -> bool:
+        return self.silent
+
+    def positions(self) -> np.ndarray | None:
+        return self.q.copy()
+
+    def move(self, q, tolerance, timeout, abort=lambda: False) -> bool:
+        self.commands.append(np.asarray(q, dtype=float).copy())
+        self.timeout = timeout
+        if len(self.commands) == self.cancel_at_move:
+            self.q = (self.q + q) / 2          # stopped half-way
+            self.cancelled = True
+        if abort() or not self.arrives or self.silent:
+            return False
+        self.q = np.asarray(q, dtype=float).copy()
+        return True
+
+    def measure(self, frames, timeout, abort=lambda: False) -> Measurement | None:
+        self.measurements += 1
+        if abort() or len(self.commands) in self.blind_moves:
+            return None
+        return average_frames(np.repeat(self.plant.pose(self.q)[None], frames, axis=0),
+                              holes_used=12, residual=1e-6)
+
+    def hold(self) -> np.ndarray:
+        self.holds += 1
+        return self.q.copy()
+
+    def abort(self) -> bool:
+        """The cancel request a test makes at ``cancel_at_move``."""
+        return getattr(self, 'cancelled', False)

@@ -3,12 +3,14 @@
 Scalar node settings are declared one by one with a default and a description. Physical
 parameter trees (``arm.*``, ``plant.*``, ``camera.*`` ...) come from the ``config/*.yaml``
 files: the shipped file is the tree's schema (which names exist), the params files the node
-was given supply the values. Every name is declared read-only with a description pointing at
-its file and handed to the core as a nested dict; a name the node was not given is an error
-naming the file to pass. (rclpy has no public list of the overrides a node was given.)
+was given supply the values. Every name is declared with a description pointing at its file,
+read-only unless the node handles its changes, and handed to the core as a nested dict; a name
+the node was not given is an error naming the file to pass. (rclpy has no public list of the
+overrides a node was given.)
 """
 from __future__ import annotations
 
+from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
@@ -25,9 +27,11 @@ def declare(node: Node, name: str, default: Any, description: str,
     return node.declare_parameter(name, default, descriptor).value
 
 
-def declare_tree(node: Node, prefix: str, source: str) -> dict[str, Any]:
+def declare_tree(node: Node, prefix: str, source: str,
+                 dynamic: Collection[str] = ()) -> dict[str, Any]:
     """Declare every parameter ``prefix.*`` of the shipped ``source`` (``config/<file>``);
-    return the values the node was given as a nested dict.
+    return the values the node was given as a nested dict. Names in ``dynamic`` (below
+    ``prefix``) are writable, for a node that handles their changes; the rest read-only.
 
     Raises ``ValueError`` naming ``source`` when the node was not given one of them.
     """
@@ -36,8 +40,8 @@ def declare_tree(node: Node, prefix: str, source: str) -> dict[str, Any]:
         raise ValueError(f'{source} defines no "{prefix}.*" parameters')
     flat, missing = {}, []
     for name in flatten(schema):
-        descriptor = ParameterDescriptor(description=f'see {source}', read_only=True,
-                                         dynamic_typing=True)
+        descriptor = ParameterDescriptor(description=f'see {source}',
+                                         read_only=name not in dynamic, dynamic_typing=True)
         flat[name] = node.declare_parameter(f'{prefix}.{name}', None, descriptor).value
         if flat[name] is None:
             missing.append(f'{prefix}.{name}')

@@ -5,7 +5,8 @@ computed from the signed distance of ``supersampling``^2 sub-samples per pixel t
 (a linear ramp one sub-sample wide), through the same :class:`CameraModel` (incl. distortion)
 that the estimator inverts. On top: Gaussian defocus blur, a linear illumination gradient,
 motion blur (the mean of sub-exposures along the tip velocity during the shutter time) and
-Gaussian sensor noise, then 8-bit quantisation with saturation.
+Gaussian sensor noise, then 8-bit quantisation with saturation. ``mount_yaw`` turns the camera
+about its optical axis on the tip (:mod:`flexarm_sim.true_camera`; the model has none).
 """
 from __future__ import annotations
 
@@ -54,11 +55,12 @@ class RenderSettings:
 class CameraRenderer:
     """Renders what the tip camera sees of the plate."""
 
-    def __init__(self, plate: PlateLayout, camera: CameraModel,
-                 settings: RenderSettings) -> None:
+    def __init__(self, plate: PlateLayout, camera: CameraModel, settings: RenderSettings,
+                 mount_yaw: float = 0.0) -> None:
         self.plate = plate
         self.camera = camera
         self.settings = settings
+        self.mount_yaw = float(mount_yaw)     # [rad]
         i = camera.intrinsics
         radius_px = max(plate.diameters) / 2 / camera.scale
         self._patch = 2 * math.ceil(radius_px * self._max_stretch() + PATCH_MARGIN) + 1
@@ -130,7 +132,7 @@ class CameraRenderer:
         centre = self.camera.optical_centre(pose)
         index, centres = self.plate.holes_near(centre, self._view_radius)
         height, width = coverage.shape
-        metric = (centres - centre) @ rotation(pose[2])
+        metric = (centres - centre) @ rotation(pose[2] + self.mount_yaw)
         pixels = self.camera.metric_to_pixels(metric)
         corner = np.rint(pixels).astype(int) - self._patch // 2
         inside = ((corner[:, 0] + self._patch > 0) & (corner[:, 0] < width)

@@ -9,10 +9,14 @@
   payload and the No.2 arm length: 1/f² (∝ effective mass) interpolated linearly in payload
   (extrapolated down to 0 kg, held at the largest tabulated payload above it) and f linearly
   in the arm length, clamped to the measured range.
+* Error sources (:mod:`flexarm_sim.errors`, off unless given): the plant sees each joint at its
+  profiled position plus the servo's error of the current move, its elements lagging within
+  their friction band, and the arm's thermal growth at the simulated time. ``set_payload``
+  changes the load at run time; the tip rings into its new static pose at the new frequency.
 
 The static pose is evaluated once per :meth:`ArmDynamics.step`; the vibration is integrated in
 sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1). ``command`` and ``hold`` may
-run on another thread than ``step``: they replace the target array, ``step`` reads it once.
+run on another thread than ``step``: they replace the move, ``step`` reads it once.
 Pure numpy, no rclpy.
 """
 from __future__ import annotations
@@ -25,6 +29,7 @@ from typing import Any
 import numpy as np
 
 from flexarm_control.kinematics import ArmGeometry, command_error, wrap_angle
+from flexarm_sim.errors import ArmErrors
 from flexarm_sim.plant import Plant
 
 
@@ -74,8 +79,9 @@ class ArmDynamics:
     """Joint trajectories + tip vibration; ``command`` a target, ``step`` time forward."""
 
     def __init__(self, plant: Plant, geometry: ArmGeometry, params: Mapping[str, Any],
-                 initial: np.ndarray) -> None:
+                 initial: np.ndarray, errors: ArmErrors | None = None) -> None:
         self.plant = plant
+        self.errors = ArmErrors.none() if errors is None else errors
         self._vmax = geometry.velocity * float(params['speed_scale'])
         self._amax = np.asarray(params['acceleration'], dtype=float)
         self._zeta = float(params['damping_ratio'])
@@ -91,20 +97,27 @@ class ArmDynamics:
             raise ValueError('dynamics needs 0 < damping_ratio < 1 and max_step > 0')
         self._q = q.copy()
         self._qd = np.zeros(4)
-        self._target = self._q.copy()
-        self._static = plant.pose(self._q)
+        self._move = self.errors.start(self._q)
+        self._time = 0.0                  # [s] simulated since the start
+        self._motor = self._q.copy()      # joint positions the plant sees (with the errors)
+        self._play = np.zeros(4)          # friction play state, -1..1 (errors.slip)
+        self._static = self._static_pose()
         self._static_vel = np.zeros(3)
         self._z = np.zeros(3)
         self._zd = np.zeros(3)
 
     def command(self, target: np.ndarray) -> None:
         """New joint target (already checked against the limits by the caller)."""
-        self._target = np.asarray(target, dtype=float).copy()
+        self._move = self.errors.plan(self._move, self._q, np.asarray(target, dtype=float))
 
     def hold(self) -> None:
         """Stop where the arm is now (decelerating at the configured rate)."""
-        qd, a = self._qd, self._amax
-        self._target = self._q + np.sign(qd) * qd * qd / (2 * a)
+        q, qd, a = self._q, self._qd, self._amax
+        self._move = self.errors.plan(self._move, q, q + np.sign(qd) * qd * qd / (2 * a))
+
+    def set_payload(self, payload: float) -> None:
+        """The arm picks up or puts down a load: ``payload`` [kg] at the tip from now on."""
+        self.plant = self.plant.with_payload(payload)
 
     def natural_frequency(self) -> float:
         """[Hz] of the tip mode at the current payload and No.2 arm length."""
@@ -112,8 +125,13 @@ class ArmDynamics:
 
     def step(self, dt: float) -> None:
         """Advance ``dt`` seconds of simulated time toward the target as it is at the start."""
-        self._advance_joints(dt, self._target)
-        static = self.plant.pose(self._q)
+        move = self._move
+        self._advance_joints(dt, move.target)
+        self._time += dt
+        motor = self._q + move.error(self._q)
+        self._play = self.errors.slip(self._play, motor - self._motor)
+        self._motor = motor
+        static = self._static_pose()
         delta = static - self._static
         delta[2] = wrap_angle(delta[2])
         static_vel = delta / dt
@@ -125,6 +143,11 @@ class ArmDynamics:
         for _ in range(n):
             self._zd += h * (-accel - 2 * self._zeta * omega * self._zd - omega ** 2 * self._z)
             self._z += h * self._zd
+
+    def _static_pose(self) -> np.ndarray:
+        """The plant's pose at the joints as they are, with the error sources' state."""
+        return self.plant.pose(self._motor, self.errors.band * self._play,
+                               self.errors.strain(self._time))
 
     def _advance_joints(self, dt: float, target: np.ndarray) -> None:
         error = target - self._q
@@ -143,4 +166,4 @@ class ArmDynamics:
         return ArmState(joint_positions=self._q.copy(), joint_velocities=self._qd.copy(),
                         tip_pose=tip,
                         tip_velocity=self._static_vel + self._zd,
-                        is_moving=bool(np.any(self._q != self._target)))
+                        is_moving=bool(np.any(self._q != self._move.target)))

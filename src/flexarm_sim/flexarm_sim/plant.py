@@ -16,6 +16,9 @@ an ambiguous one is in config/sim.yaml ``plant.*``):
 * Backlash: each joint sits at ± half its play on the side the moment pushes it, smoothed over
   ``backlash_smoothing`` kgf·m (static friction keeps a real joint from snapping across).
 * Fabrication errors: link-length, offset and joint-zero errors of the real arm.
+* Optional per call (the error sources of :mod:`flexarm_sim.errors`): friction offsets of the
+  four elements on top of their backlash (hysteresis) and a thermal strain that grows every
+  length of the arm uniformly about joint 1.
 
 Small-deflection approximation: the moments are computed on the rigid pose. Deterministic,
 vectorised over any leading axes of the joint array; no rclpy.
@@ -143,8 +146,13 @@ class Plant:
             'joint4': k * (beyond4 - mass4 * x4),
         }
 
-    def pose(self, joints: np.ndarray) -> np.ndarray:
-        """Actual tip pose(s) (..., 3) [m, m, rad] for joint positions (..., 4)."""
+    def pose(self, joints: np.ndarray, lag: np.ndarray | None = None,
+             strain: float = 0.0) -> np.ndarray:
+        """Actual tip pose(s) (..., 3) [m, m, rad] for joint positions (..., 4).
+
+        ``lag`` (..., 4): friction offsets [rad] of J1, the guide, J3 and J4 added to their
+        backlash (hysteresis); ``strain``: thermal growth of every length (expansion x ΔT).
+        """
         g = self.geometry
         q = np.asarray(joints, dtype=float) + self.joint_zero_error
         mom = self.moments(joints)
@@ -154,7 +162,8 @@ class Plant:
         smooth = self.backlash_smoothing
 
         def slack(i: int, moment: np.ndarray) -> np.ndarray:
-            return play[i] * np.tanh(moment / smooth)
+            taken = play[i] * np.tanh(moment / smooth)
+            return taken if lag is None else taken + np.asarray(lag)[..., i]
 
         a1 = q[..., 0] + j1(m1) + slack(0, m1) + guide(m2) + slack(1, m2)
         u1, n1 = _unit(a1)
@@ -167,7 +176,7 @@ class Plant:
         u4, n4 = _unit(a4)
         p = p + (g.link4 + self.link4_error) * u4 + self.arm_deflection[2](m4)[..., None] * n4
         phi = wrap_angle(a4 + self.arm_angle[2](m4))
-        return np.concatenate([p, np.asarray(phi)[..., None]], axis=-1)
+        return np.concatenate([p * (1.0 + strain), np.asarray(phi)[..., None]], axis=-1)
 
     def deflection(self, joints: np.ndarray) -> np.ndarray:
         """Actual minus rigid-model tip pose (..., 3), φ difference wrapped."""

@@ -5,6 +5,13 @@ Publishes ``/joint_states`` and the simulation ``/clock``, executes
 (``/camera/image_raw`` + ``/camera/camera_info``) at the actual, deflected and vibrating tip
 pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for evaluation only.
 
+Error sources (config/sim.yaml ``error_sources``, off by default): the arm's joint
+repeatability, friction hysteresis and thermal drift (:mod:`flexarm_sim.errors`), a true camera
+that differs from the calibration it publishes on camera_info (:mod:`flexarm_sim.true_camera`),
+and payload changes at run time: ``plant.payload`` is the one writable parameter of the plant,
+``ros2 param set /flexarm_sim plant.payload 5.0`` [kg] loads the tip (refused while the source
+is off); the deflection and the tip frequency follow at once.
+
 Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
 dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), counted in integer
 ticks so that stamps never drift or step back (:func:`tick_time`); the wall timer runs
@@ -15,7 +22,9 @@ from __future__ import annotations
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
@@ -26,9 +35,11 @@ from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
-from flexarm_sim.camera import CameraRenderer
 from flexarm_sim.dynamics import ArmDynamics, ArmState
+from flexarm_sim.errors import ArmErrors, active
 from flexarm_sim.plant import Plant
+from flexarm_sim.true_camera import true_renderer
+from flexarm_vision.camera_model import CameraModel
 
 BASE_FRAME = 'base_link'
 CAMERA_FRAME = 'tip_camera'
@@ -58,13 +69,17 @@ class SimNode(Node):
             raise ValueError('real_time_factor and all rates must be positive')
 
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
-        sim = {key: declare_tree(self, key, 'config/sim.yaml') for key in ('plant', 'dynamics')}
-        plant = Plant.from_dict(sim['plant'], self._geometry)
-        self._dynamics = ArmDynamics(plant, self._geometry, sim['dynamics'],
-                                     np.asarray(initial, dtype=float))
+        plant = Plant.from_dict(declare_tree(self, 'plant', 'config/sim.yaml', {'payload'}),
+                                self._geometry)
+        errors = declare_tree(self, 'error_sources', 'config/sim.yaml')
+        self._payload_changes = active(errors, 'payload')
+        self._dynamics = ArmDynamics(
+            plant, self._geometry, declare_tree(self, 'dynamics', 'config/sim.yaml'),
+            np.asarray(initial, dtype=float), ArmErrors.from_dict(errors, plant.backlash))
         cam = {key: declare_tree(self, key, 'config/camera.yaml')
                for key in ('plate', 'camera', 'camera_render')}
-        self._camera = CameraRenderer.from_dict(cam)
+        self._camera = true_renderer(cam, errors)
+        self._calibration = CameraModel.from_dict(cam['camera']).intrinsics
         self._rng = np.random.default_rng(seed)
 
         self._dt = 1.0 / self._js_rate
@@ -83,6 +98,7 @@ class SimNode(Node):
         self._camera_info = self._make_camera_info()
         self._info_pub.publish(self._camera_info)
         self.create_timer(self._dt / self._rtf, self._on_tick)
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self.get_logger().info(
             f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
             f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
@@ -111,6 +127,23 @@ class SimNode(Node):
         """Stop the arm where it is (e.g. when the link to the PC is lost)."""
         self._dynamics.hold()
 
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """A new ``plant.payload`` [kg] loads the tip at once, if payload changes are on."""
+        for param in params:
+            if param.name != 'plant.payload':
+                continue
+            if not self._payload_changes:
+                return SetParametersResult(successful=False, reason=(
+                    'run-time payload changes are off (config/sim.yaml error_sources.payload)'))
+            if param.type_ not in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
+                return SetParametersResult(successful=False, reason='payload: a number [kg]')
+            try:
+                self._dynamics.set_payload(float(param.value))
+            except ValueError as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+            self.get_logger().info(f'payload now {param.value:g} kg')
+        return SetParametersResult(successful=True)
+
     def _on_tick(self) -> None:
         self._dynamics.step(self._dt)
         self._tick += 1
@@ -138,7 +171,8 @@ class SimNode(Node):
         self._info_pub.publish(self._camera_info)
 
     def _make_camera_info(self) -> CameraInfo:
-        intr = self._camera.intrinsics
+        """The camera's calibration (config/camera.yaml), not its true intrinsics."""
+        intr = self._calibration
         return CameraInfo(
             header=self._header(self._now(), CAMERA_FRAME), width=intr.width,
             height=intr.height, distortion_model='plumb_bob', d=list(intr.distortion),

@@ -62,3 +62,57 @@ def test_bad_command_is_refused_and_nothing_moves(sim, wait_for, bad):
     wait_for(lambda: heard['clock'].clock.sec >= stamp + 2, 20.0, '2 s of sim time')
     np.testing.assert_allclose(positions(heard['joints']), START)
     assert not any(heard['joints'].velocity)
+
+
+@pytest.mark.parametrize('on', [True, False])
+def test_the_payload_changes_at_run_time_with_its_error_source_on(launch, ros_node, wait_for,
+                                                                   on):
+    from rclpy.parameter import Parameter
+    from rclpy.parameter_client import AsyncParameterClient
+    from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+    from sensor_msgs.msg import CameraInfo
+
+    from flexarm_control.kinematics import ArmGeometry
+    from flexarm_control.params import load_config
+    from flexarm_sim.plant import Plant
+
+    heard = {'truth': None, 'info': None}
+    ros_node.create_subscription(TipPose, topics.TIP_POSE_TRUTH,
+                                 lambda m: heard.__setitem__('truth', m), 10)
+    ros_node.create_subscription(CameraInfo, topics.CAMERA_INFO,
+                                 lambda m: heard.__setitem__('info', m), QoSProfile(
+                                     depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))
+    # Every source on (the arm rests: no joint errors; the thermal drift is 0.1 um in 10 s).
+    launch('flexarm_sim', real_time_factor=10.0, initial_positions=START,
+           error_sources={'enabled': on})
+    wait_for(lambda: heard['truth'] is not None and heard['info'] is not None, 20.0,
+             'the simulator')
+    config = load_config('arm.yaml', 'sim.yaml', 'camera.yaml')
+    assert list(heard['info'].k)[:3] == [config['camera']['fx'], 0.0, config['camera']['cx']]
+    client = AsyncParameterClient(ros_node, 'flexarm_sim')
+    assert client.wait_for_services(10.0)
+
+    def set_payload(value: float):
+        future = client.set_parameters([Parameter('plant.payload', value=value)])
+        wait_for(future.done, 10.0, 'the parameter service')
+        return future.result().results[0]
+
+    def settled_y(seconds: float) -> float:
+        stamp = heard['truth'].header.stamp.sec
+        wait_for(lambda: heard['truth'].header.stamp.sec >= stamp + seconds, 30.0,
+                 f'{seconds} s of sim time')
+        return heard['truth'].pose.y
+
+    before = settled_y(1)
+    result = set_payload(5.0)
+    assert result.successful is on
+    if not on:
+        assert 'error_sources.payload' in result.reason
+        assert settled_y(2) == before
+        return
+    plant = Plant.from_dict(config['plant'], ArmGeometry.from_dict(config['arm']))
+    sag = plant.with_payload(5.0).pose(START)[1] - plant.pose(START)[1]
+    assert sag < -5e-3
+    assert settled_y(12) - before == pytest.approx(sag, abs=1e-5)
+    refused = set_payload(-1.0)
+    assert not refused.successful and 'payload must be finite and >= 0' in refused.reason

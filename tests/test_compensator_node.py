@@ -31,6 +31,10 @@ from flexarm_msgs.msg import GoalOutcome, ModelInfo
 from flexarm_sim.plant import Plant
 
 pytestmark = pytest.mark.node
+# The goal behaviour is checked in the ideal world: the realistic arm's repeatability (some
+# 0.03 mm at the tip per move) can keep CLOSED_LOOP from its 0.05 mm tolerance now and then
+# (benchmarks/error_budget.py counts it), which a behaviour test must not depend on.
+IDEAL = {'error_sources': {'enabled': False}}
 Result = MoveToPose.Result
 TARGET = (1.30, -0.20, math.radians(-61))          # Table 10, B6
 
@@ -59,7 +63,7 @@ def model_path(tmp_path_factory):
 def graph(request, launch, domain_id, model_path):
     """Simulator (10x real time unless parametrised), vision, compensator; a client and the
     latest joint state."""
-    launch('flexarm_sim', real_time_factor=getattr(request, 'param', 10.0))
+    launch('flexarm_sim', real_time_factor=getattr(request, 'param', 10.0), **IDEAL)
     launch('flexarm_vision')
     launch('flexarm_compensator', model_path=str(model_path))
     context = Context()
@@ -137,7 +141,7 @@ def test_provenance_tolerances_and_dry_run(graph):
 @pytest.fixture
 def no_model_graph(launch, domain_id):
     """Simulator (10x), vision and a compensator without a model; a client."""
-    launch('flexarm_sim', real_time_factor=10.0)
+    launch('flexarm_sim', real_time_factor=10.0, **IDEAL)
     launch('flexarm_vision')
     launch('flexarm_compensator')
     context = Context()

@@ -30,7 +30,9 @@ def test_settled_tip_pose_matches_the_truth(launch, ros_node, wait_for):
 
     ros_node.create_subscription(TipPose, topics.TIP_POSE, measured.append, 10)
     ros_node.create_subscription(TipPose, topics.TIP_POSE_TRUTH, on_truth, 100)
-    launch('flexarm_sim', real_time_factor=2.0)
+    # The ideal world: the pipeline's own accuracy. In the realistic one the true camera differs
+    # from its calibration by a constant tool-frame error (tests/test_calibrate.py).
+    launch('flexarm_sim', real_time_factor=2.0, error_sources={'enabled': False})
     launch('flexarm_vision')
     pairs = wait_for(paired, 60.0, '3 valid, settled tip poses with their ground truth')
     for m, true_pose in pairs:

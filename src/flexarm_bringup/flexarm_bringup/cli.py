@@ -459,7 +459,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
     name = args.name or time.strftime('up-%Y%m%d-%H%M%S')
-    simulated = {'real_time_factor': args.rtf}
+    simulated = {'real_time_factor': args.rtf, **_world(args)}
     link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
     params: dict[str, dict[str, Any]] = {'flexarm_sim': simulated,
                                          'flexarm_fake_controller': simulated | link,
@@ -553,7 +553,7 @@ def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
     settings = ExperimentSettings(
         name=args.name or time.strftime(f'{args.command}-%Y%m%d-%H%M%S'),
         samples=args.samples, kind=args.kind, real_time_factor=args.rtf,
-        record=not args.no_record, seed=args.seed, **overrides)
+        record=not args.no_record, seed=args.seed, world=_world(args), **overrides)
     with reserved_domain(args.domain_id) as domain:
         summary = run_experiment(settings, domain, progress=_progress(args))
     print(table_text(summary))
@@ -692,6 +692,22 @@ def _model_use(args: argparse.Namespace) -> dict[str, Any]:
 
 
 @command
+def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
+    """Measure the camera's error in the tool frame against a reference; correct for it."""
+    from flexarm_bringup.calibration import calibrate_tool
+    from flexarm_control.paths import CALIBRATION_DIR
+
+    path = Path(args.file) if args.file else CALIBRATION_DIR / 'tool_camera.json'
+    with _session(args, learner=False) as client:
+        c, found, details = calibrate_tool(client, args.reference_topic, path, args.timeout)
+    print(f'camera error in the tool frame: axial {mm(c.axial):.4f} mm, lateral '
+          f'{mm(c.lateral):.4f} mm, angle {deg(c.angle):.5f} deg ({found.poses} poses; largest '
+          f'deviation of one pose {mm(found.spread[0]):.4f} mm, {deg(found.spread[1]):.5f} '
+          f'deg); stored in {path}, the vision node corrects for it from now on')
+    return {'ok': True, 'tool_correction': c.as_list(), 'path': str(path), **details}
+
+
+@command
 def cmd_keygen(args: argparse.Namespace) -> dict[str, Any]:
     """Write a new site key for the controller link (give it to the PC and the controller)."""
     from flexarm_bridge.link_auth import make_key
@@ -769,6 +785,17 @@ def _graph_options(parser: argparse.ArgumentParser, wait: bool) -> None:
                             help='[s] to wait for the graph\'s servers to answer')
 
 
+def _calibrate_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--reference-topic', default=topics.TIP_POSE_TRUTH, metavar='TOPIC',
+                   help='flexarm_msgs/TipPose of the reference instrument (a laser tracker at '
+                        "the tool point); in simulation the simulator's ground truth")
+    p.add_argument('--timeout', type=_positive, default=120.0, metavar='S',
+                   help='[s] per pose, for the move and for the reference')
+    p.add_argument('--file', default='', metavar='PATH',
+                   help="where to store it (default: calibration/tool_camera.json, the vision "
+                        "node's tool_calibration_file)")
+
+
 def _move_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('x', type=_finite, help='target x [mm] (horizontal, base frame)')
     p.add_argument('y', type=_finite, help='target y [mm] (up)')
@@ -822,7 +849,18 @@ def _train_arguments(p: argparse.ArgumentParser) -> None:
                    help='[s] for the training')
 
 
+IDEAL_HELP = ('the ideal simulated world: every error source of config/sim.yaml off (exact '
+              'joints, no hysteresis or thermal drift, a perfectly calibrated camera), as in '
+              'the paper comparison; default: the realistic world')
+
+
+def _world(args: argparse.Namespace) -> dict[str, Any]:
+    """Simulator parameters of the world ``--ideal`` chooses (none: config/sim.yaml's)."""
+    return {'error_sources': {'enabled': False}} if args.ideal else {}
+
+
 def _up_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--ideal', action='store_true', help=IDEAL_HELP)
     p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
     p.add_argument('--record', default='', metavar='NAME', help='record bags/NAME/NAME.mcap')
     p.add_argument('--rtf', type=_positive, default=1.0, help='simulator real-time factor')
@@ -845,6 +883,7 @@ def _experiment_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--name', default='',
                    help='results/NAME, bags/NAME, runs/NAME (default: COMMAND-DATE-TIME)')
     p.add_argument('--no-record', action='store_true', help='do not write a bag')
+    p.add_argument('--ideal', action='store_true', help=IDEAL_HELP)
 
 
 def _benchmark_arguments(p: argparse.ArgumentParser) -> None:
@@ -893,6 +932,7 @@ SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | N
     'bag': (_bag_arguments, None),
     'model': (_model_arguments, True),
     'keygen': (_keygen_arguments, None),
+    'calibrate': (_calibrate_arguments, True),
 }
 
 

@@ -24,8 +24,10 @@ from pathlib import Path
 
 import numpy as np
 
+from flexarm_bringup.calibration import calibrate_tool
 from flexarm_bringup.supervisor import Graph
 from flexarm_bringup.trials import Trial, TruthMonitor, run_trials, summarise
+from flexarm_control import topics
 from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.modes import MODE_LABELS
 from flexarm_control.paper import TABLE_9, TABLE_10
@@ -47,6 +49,7 @@ class ExperimentSettings:
     modes: tuple[str, ...] = MODE_LABELS
     ready_timeout: float = 120.0
     extra_parameters: dict = field(default_factory=dict)
+    world: dict = field(default_factory=dict)   # simulator parameters, e.g. the ideal world
 
 
 @contextlib.contextmanager
@@ -86,10 +89,12 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
     regions = regions_from_dict(load_config('learner.yaml', node_name='flexarm_learner')[
         'regions'])
     parameters = {
-        'flexarm_sim': {'real_time_factor': settings.real_time_factor},
+        'flexarm_sim': {'real_time_factor': settings.real_time_factor, **settings.world},
         'flexarm_learner': {'data_directory': str(run_dir / 'data'),
                             'model_directory': str(run_dir / 'models')},
         'flexarm_recorder': {'bag_name': settings.name},
+        # the run's own tool calibration (below), never the site's calibration/ file
+        'flexarm_vision': {'tool_calibration_file': str(run_dir / 'tool_camera.json')},
         **settings.extra_parameters}
     optional = ('flexarm_recorder',) if settings.record else ()
     region_names = ['A', 'B'] + (['paper'] if settings.table9 else [])
@@ -105,6 +110,17 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
         say(f'graph ready after {time.monotonic() - started:.1f} s')
         client.wait_until_ready(timeout=30.0)
         truth = TruthMonitor(client)
+        calibration = None
+        if not settings.world:          # the realistic world: calibrate the camera first
+            correction, found, _ = calibrate_tool(client, topics.TIP_POSE_TRUTH,
+                                                  run_dir / 'tool_camera.json', say=say)
+            calibration = {'axial_mm': correction.axial * 1e3,
+                           'lateral_mm': correction.lateral * 1e3,
+                           'angle_deg': math.degrees(correction.angle), 'poses': found.poses,
+                           'spread_mm': found.spread[0] * 1e3}
+            say(f'tool calibration against the reference (the ground truth): camera error '
+                f'axial {calibration["axial_mm"]:.4f} mm, lateral '
+                f'{calibration["lateral_mm"]:.4f} mm, {calibration["angle_deg"]:.5f} deg')
         for region in region_names:
             bar = tqdm(total=settings.samples, desc=f'collect {region}', unit='sample',
                        disable=not progress)
@@ -139,6 +155,8 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
                                  on_trial=lambda t, bar=bar: bar.update(1))
             bar.close()
     summary = {'name': settings.name, 'seconds': time.monotonic() - started,
+               'world': 'ideal' if settings.world else 'realistic',
+               'tool_calibration': calibration,
                'learning': learning, 'summary': summarise(trials),
                'trials': [t.as_dict() for t in trials],
                'bag': str(BAGS_DIR / settings.name) if settings.record else None,
@@ -190,7 +208,8 @@ def _client(domain_id: int):
 def table_text(summary: dict) -> str:
     """Markdown tables: Table 10 (and 9) per target next to the paper, then summaries."""
     by_key = {(t['name'], t['mode']): t for t in summary['trials']}
-    lines = ['| target | paper rigid | ours rigid | paper NN | ours predictive '
+    lines = [f'{summary["world"]} simulated world (errors against its ground truth)', '',
+             '| target | paper rigid | ours rigid | paper NN | ours predictive '
              '| ours closed loop |',
              '|---|---|---|---|---|---|']
 

@@ -28,6 +28,7 @@ import uuid
 from collections.abc import Callable, Iterable, Mapping
 from typing import Any
 
+import numpy as np
 import rclpy
 from action_msgs.msg import GoalStatus
 from rclpy.action import ActionClient
@@ -35,6 +36,8 @@ from rclpy.action.client import ClientGoalHandle
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter, parameter_value_to_python
+from rclpy.parameter_client import AsyncParameterClient
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
@@ -42,7 +45,7 @@ from unique_identifier_msgs.msg import UUID
 from flexarm_control import topics
 from flexarm_control.modes import Mode
 from flexarm_msgs.action import CollectSamples, MoveToPose
-from flexarm_msgs.msg import ModelInfo, PlanarPose
+from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
 from flexarm_msgs.srv import Train, UseModel
 
 _ENDED = {GoalStatus.STATUS_CANCELED: 'canceled', GoalStatus.STATUS_ABORTED: 'aborted'}
@@ -231,6 +234,45 @@ class FlexarmClient(Node):
                                    f'after {timeout:.0f} s')
             self.spin_once(0.05)
         return self.active_model
+
+    def poses_from(self, topic: str, count: int, timeout: float = 10.0) -> np.ndarray:
+        """``count`` valid ``flexarm_msgs/TipPose`` poses (count, 3) published on ``topic``
+        after this call (e.g. a reference instrument's); TimeoutError if they do not come."""
+        heard: list[TipPose] = []
+        subscription = self.create_subscription(TipPose, topic, heard.append, 100)
+        try:
+            deadline = time.monotonic() + timeout
+            while sum(m.valid for m in heard) < count:
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f'{count} valid poses on {topic} did not come within '
+                                       f'{timeout:.0f} s')
+                self.spin_once(0.05)
+        finally:
+            self.destroy_subscription(subscription)
+        return np.array([[m.pose.x, m.pose.y, m.pose.phi] for m in heard if m.valid][:count])
+
+    def node_parameter(self, node: str, name: str, timeout: float = 10.0) -> Any:
+        """The value of parameter ``name`` of the graph's node ``node``."""
+        client = self._parameter_client(node, timeout)
+        values = self._spin_until(client.get_parameters([name]), timeout,
+                                  f'{node} parameter {name}').values
+        return parameter_value_to_python(values[0])
+
+    def set_node_parameter(self, node: str, name: str, value: Any,
+                           timeout: float = 10.0) -> None:
+        """Set parameter ``name`` of the graph's node ``node``; ValueError with the node's
+        reason if it refuses."""
+        client = self._parameter_client(node, timeout)
+        result = self._spin_until(client.set_parameters([Parameter(name, value=value)]),
+                                  timeout, f'{node} parameter {name}').results[0]
+        if not result.successful:
+            raise ValueError(f'{node} refused {name}: {result.reason}')
+
+    def _parameter_client(self, node: str, timeout: float) -> AsyncParameterClient:
+        client = AsyncParameterClient(self, node)
+        if not client.wait_for_services(timeout):
+            raise TimeoutError(f'no parameter services of {node} within {timeout:.0f} s')
+        return client
 
     def spin_once(self, timeout: float) -> None:
         """Process this client's pending callbacks for up to ``timeout`` seconds."""

@@ -69,7 +69,7 @@ from flexarm_control.model_store import (
 )
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.paths import REPO
+from flexarm_control.paths import repo_path
 from flexarm_control.predictors import KINDS, load_predictor, make_predictor
 from flexarm_control.sampling import STRATEGIES, regions_from_dict, sample_poses, travel_order
 from flexarm_control.training import Metrics, Screening, TrainingWorker, train
@@ -115,11 +115,6 @@ def _warm_up() -> None:
 
     threadpool_limits(1)
     torch.set_num_threads(1)
-
-
-def repo_path(value: str) -> Path:
-    path = Path(value).expanduser()
-    return path if path.is_absolute() else REPO / path
 
 
 def dataset_name_error(name: str) -> str | None:

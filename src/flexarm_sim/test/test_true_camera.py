@@ -58,7 +58,7 @@ def predicted_pose(renderer: CameraRenderer, pose: np.ndarray) -> np.ndarray:
     return BELIEVED.tip_from_camera(p.mean(axis=0) - rotation(phi) @ q.mean(axis=0), phi)
 
 
-@pytest.mark.parametrize('sources', [SOURCES, camera_sources(enabled=False)])
+@pytest.mark.parametrize('sources', [{**SOURCES, 'enabled': False}, camera_sources(enabled=False)])
 def test_with_the_source_off_the_camera_is_its_calibration(sources):
     assert CameraErrors.from_dict(sources) is None
     ideal, renderer = CameraRenderer.from_dict(CAMERA), true_renderer(CAMERA, sources)

@@ -12,20 +12,31 @@ the mounting (standoff, offset) and the intrinsics used until the first camera_i
 camera_info with other values (K, plumb_bob D up to k3, size) replaces them, with one log line
 per change. A camera_info the model cannot use (another distortion model, skew) makes every
 image invalid, with the reason, until a usable one comes.
+
+Tool calibration: the reported pose is the tool's, through ``tool_correction`` [axial m,
+lateral m, angle rad] (:class:`~flexarm_control.tool_calibration.ToolCorrection`: the camera's
+error in the tool frame, measured against a reference by ``flexarm calibrate``). Its value
+comes from the site's calibration file (``tool_calibration_file``, written by ``flexarm
+calibrate``) when there is one, else zeros; ``flexarm calibrate`` also sets the parameter on
+the running node. A damaged file is reported and the node runs uncorrected.
 """
 from __future__ import annotations
 
 import math
 
 import numpy as np
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import qos_profile_sensor_data
 from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from flexarm_control import topics
 from flexarm_control.node_main import run
-from flexarm_control.node_params import declare_tree
+from flexarm_control.node_params import declare, declare_tree
+from flexarm_control.paths import repo_path
+from flexarm_control.tool_calibration import ToolCorrection, read_calibration
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_model import Intrinsics
 from flexarm_vision.image_encoding import to_mono8, unpack
@@ -76,6 +87,11 @@ class VisionNode(Node):
         self._settle = SettleDetector(SettleSettings.from_dict(
             declare_tree(self, 'settle', 'config/vision.yaml')))
         self._configured = self._estimator.camera.intrinsics
+        self._correction = ToolCorrection.from_list(declare(
+            self, 'tool_correction', self._stored_correction().as_list(),
+            "[m, m, rad] the camera's error in the tool frame (axial, lateral, angle), removed "
+            'from every pose; default: tool_calibration_file'))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
         self._info_problem = ''
         self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10)
         self.create_subscription(Image, topics.CAMERA_IMAGE, self._on_image,
@@ -91,6 +107,31 @@ class VisionNode(Node):
         i = self._estimator.camera.intrinsics
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
                                f'a {self._estimator.plate.shape} hole plate')
+
+    def _stored_correction(self) -> ToolCorrection:
+        """The correction of the site's calibration file, zeros without a usable one."""
+        path = repo_path(declare(self, 'tool_calibration_file', 'calibration/tool_camera.json',
+                                 'tool calibration written by flexarm calibrate (relative: to '
+                                 'the repository)'))
+        try:
+            record = read_calibration(path)
+        except (ValueError, OSError) as exc:
+            self.get_logger().error(f'{exc}; poses are reported uncorrected')
+            return ToolCorrection()
+        if record is None:
+            return ToolCorrection()
+        self.get_logger().info(f'tool calibration from {path}: {record["correction"]}')
+        return record['correction']
+
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        for param in params:
+            if param.name == 'tool_correction':
+                try:
+                    self._correction = ToolCorrection.from_list(param.value)
+                except (ValueError, TypeError) as exc:
+                    return SetParametersResult(successful=False, reason=str(exc))
+                self.get_logger().info(f'tool correction now {self._correction}')
+        return SetParametersResult(successful=True)
 
     def _on_info(self, msg: CameraInfo) -> None:
         intrinsics, problem = info_intrinsics(msg)
@@ -127,7 +168,7 @@ class VisionNode(Node):
         out.header.stamp = msg.header.stamp
         out.header.frame_id = BASE_FRAME
         if estimate.valid:
-            x, y, phi = (float(v) for v in estimate.pose)
+            x, y, phi = (float(v) for v in self._correction.pose(estimate.pose))
             out.pose = PlanarPose(x=x, y=y, phi=phi)
             out.status = unsettled or ''
         else:

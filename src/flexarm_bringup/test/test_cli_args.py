@@ -150,3 +150,13 @@ def test_model_list_marks_the_current_model_and_says_why_one_is_unusable(tmp_pat
     assert main(['model', 'list', '--models', str(tmp_path)]) == Exit.OK
     out = capsys.readouterr().out
     assert '* v1: unusable:' in out and 'not a model file' in out
+
+
+@pytest.mark.parametrize('command', ['up', 'demo', 'benchmark'])
+def test_ideal_switches_every_error_source_off_for_the_simulator(command):
+    from flexarm_bringup.cli import _world, build_parser
+
+    parser = build_parser()
+    assert _world(parser.parse_args([command])) == {}               # config/sim.yaml's world
+    assert _world(parser.parse_args([command, '--ideal'])) == {
+        'error_sources': {'enabled': False}}

@@ -332,6 +332,21 @@ def test_unusable_models_are_refused_and_the_previous_one_kept(in_process, model
         assert node._model is good and good[1].version == str(model_path)
 
 
+def test_an_announcement_older_than_the_model_in_use_is_ignored(in_process, model_path):
+    from builtin_interfaces.msg import Time as TimeMsg
+
+    node, _, _ = in_process
+    node._on_model(ModelInfo(version='2', kind='gp', path=str(model_path),
+                             stamp=TimeMsg(sec=20)))
+    assert node._model[1].version == '2'
+    node._on_model(ModelInfo(version='1', kind='gp', path=str(model_path),   # late, latched
+                             stamp=TimeMsg(sec=10)))
+    assert node._model[1].version == '2'
+    node._on_model(ModelInfo(version='1', kind='gp', path=str(model_path),   # a roll back
+                             stamp=TimeMsg(sec=30)))
+    assert node._model[1].version == '1'
+
+
 def test_an_unexpected_error_aborts_with_a_reason(in_process):
     node, client, outcomes = in_process
     model = make_predictor('rbf', {'payload_input': True})   # predict needs a payload

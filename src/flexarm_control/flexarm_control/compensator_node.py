@@ -13,7 +13,9 @@ model's std there. The algorithm lives in :mod:`flexarm_control.compensator`; th
 validates goals, maps ROS to those calls and their outcomes to error codes,
 reports feedback and results, and hot-reloads the predictor the learner announces on
 ``/learner/model`` and republishes the one it uses on the latched
-``/compensator/active_model``.
+``/compensator/active_model``. An announcement stamped before the one in use is ignored: DDS
+may hand a late joiner the latched older announcement after a newer live one, and a roll back
+(``/learner/use_model``) is a new announcement with a new stamp.
 
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
 arriving together can both pass that check: execution decides, and the one that finds the
@@ -86,6 +88,10 @@ OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
             TOLERANCE_NOT_MET: Result.TOLERANCE_NOT_MET, UNREACHABLE: Result.UNREACHABLE}
 
 
+def _nanoseconds(stamp: TimeMsg) -> int:
+    return stamp.sec * 1_000_000_000 + stamp.nanosec
+
+
 def planar(pose: np.ndarray) -> PlanarPose:
     return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
 
@@ -148,8 +154,11 @@ class CompensatorNode(Node):
 
     # --- model hot reload -------------------------------------------------------------------
     def _on_model(self, msg: ModelInfo) -> None:
-        if self._model is None or msg.version != self._model[1].version:
-            self._load_model(msg.path, f'version {msg.version}', msg)
+        if self._model is not None and (msg.version == self._model[1].version
+                                        or _nanoseconds(msg.stamp)
+                                        < _nanoseconds(self._model[1].stamp)):
+            return      # the same model, or an announcement older than the one in use
+        self._load_model(msg.path, f'version {msg.version}', msg)
 
     def _load_model(self, path: str, what: str, info: ModelInfo | None = None) -> None:
         try:

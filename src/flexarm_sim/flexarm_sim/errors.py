@@ -120,7 +120,10 @@ class ArmErrors:
         return Move(q.copy(), q.copy(), np.zeros(4), np.zeros(4))
 
     def plan(self, move: Move, q: np.ndarray, target: np.ndarray) -> Move:
-        """The move to ``target`` accepted at positions ``q`` during ``move``."""
+        """The move to ``target`` accepted at positions ``q`` during ``move`` (the same move
+        if ``target`` is its target: a repeated command is no new move)."""
+        if np.array_equal(target, move.target):
+            return move
         now = move.error(q)
         moving = (target != move.target) & (target != q)
         after = np.where(moving, self._rng.normal(0.0, 1.0, 4) * self.sigma, now)

@@ -189,3 +189,13 @@ def test_a_payload_change_at_run_time_moves_the_tip_as_the_heavier_plant_would()
     with pytest.raises(ValueError, match='payload'):
         arm.set_payload(-1.0)
     assert arm.plant.payload == 5.0
+
+
+def test_a_repeated_command_is_the_same_move_with_the_same_error():
+    errors = ArmErrors.from_dict(only('repeatability'), PLANT.backlash)
+    start = np.array([0.0, 0.6, -0.5, -0.5])
+    target = start + [0.1, 0.05, 0.1, 0.1]
+    move = errors.plan(errors.start(start), start, target)
+    halfway = (start + target) / 2
+    assert errors.plan(move, halfway, target.copy()) is move
+    assert errors.plan(move, halfway, target + 1e-3) is not move

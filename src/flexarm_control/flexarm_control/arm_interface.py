@@ -34,10 +34,6 @@ from flexarm_msgs.msg import TipPose
 _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
 _POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them at once)
-# [s, wall] a move re-sends its command this often until the joints arrived: a command lost on
-# the way (or a controller that missed it) cannot stall a move. Idempotent: the simulator and a
-# ros2_control forward controller take a repeated command as the same target.
-RESEND = 0.5
 # [s, wall] without /joint_states, once they came, after which the controller counts as gone.
 # At 100 Hz of sim time even a simulator at a tenth of real time publishes every 0.1 s, but on a
 # loaded 2-core machine a starved simulator or subscriber has paused for over 1 s (a CI run),
@@ -166,22 +162,14 @@ class ArmInterface:
 
     def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
              abort: Callable[[], bool] = lambda: False) -> bool:
-        """Command ``q`` (again every ``RESEND`` s) and wait until every joint is within
-        ``tolerance`` of it."""
+        """Command ``q`` and wait until every joint is within ``tolerance`` of it."""
         target = np.asarray(q, dtype=float)
         self.command(target)
-        sent = time.monotonic()
 
         def arrived() -> bool:
-            nonlocal sent
             joints = self._parse_joints()
-            if joints is not None and bool(np.all(np.abs(joints.positions - target)
-                                                  <= tolerance)):
-                return True
-            if time.monotonic() - sent > RESEND:
-                self.command(target)
-                sent = time.monotonic()
-            return False
+            return joints is not None and bool(np.all(np.abs(joints.positions - target)
+                                                      <= tolerance))
         return self.wait_until(arrived, timeout, abort)
 
     def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,

@@ -49,11 +49,12 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.arm_motion import Abort, ArmMotion, MotionSettings, never
 from flexarm_control.collection import Collector
 from flexarm_control.compensator import CompensationError, Compensator
 from flexarm_control.goal_execution import SUCCEEDED, GoalSpec, execute
 from flexarm_control.kinematics import ArmGeometry, pose_error
+from flexarm_control.measurement import Measurement
 from flexarm_control.modes import Mode
 from flexarm_control.paper import TABLE_10
 from flexarm_control.params import load_config
@@ -188,8 +189,8 @@ class CalibratedMotion(ArmMotion):
         super().__init__(rig.arm, rig.geometry, rig.motion.settings)
         self._rig = rig
 
-    def measure(self, abort: Any = None) -> Any:
-        measurement = super().measure()
+    def measure(self, abort: Abort = never) -> Measurement | None:
+        measurement = super().measure(abort)
         return None if measurement is None else self._rig.correction.apply(measurement)
 
 

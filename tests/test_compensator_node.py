@@ -295,6 +295,7 @@ def in_process(launch, domain_id, client):
     rclpy.init(context=context, domain_id=domain_id, args=[
         '--ros-args', '--params-file', str(config_path('arm.yaml')),
         '--params-file', str(config_path('motion.yaml')),
+        '--params-file', str(config_path('learner.yaml')),
         '--params-file', str(config_path('compensator.yaml'))])
     node = CompensatorNode(context=context)
     executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=context)

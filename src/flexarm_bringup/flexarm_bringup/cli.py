@@ -380,6 +380,9 @@ def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_msgs.action import CollectSamples
 
     with _session(args, learner=True) as client:
+        if args.payload is not None:
+            client.set_payload(args.payload)
+            print(f'payload declared: {args.payload:g} kg')
         bar = tqdm(total=args.count, unit='sample', desc='collect', disable=not _progress(args))
         try:
             result = _goal(lambda: client.collect(
@@ -404,6 +407,56 @@ def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
     moved = name != 'INVALID_GOAL'
     raise Outcome(failure_text(name, result.error_string, COLLECT_HINTS, moved) + (
         f'\n  dataset: {_collect_kept(result)}' if moved else ''), Exit.FAILED, **out)
+
+
+@command
+def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
+    """Mend a model the health check reports stale from a few new samples."""
+    if args.region:
+        _check_region(args.region)
+    from tqdm import tqdm
+
+    from flexarm_msgs.action import RefreshModel
+
+    with _session(args, learner=True) as client:
+        bar = tqdm(unit='sample', desc='refresh', disable=not _progress(args))
+
+        def show(fb: Any) -> None:
+            bar.total = fb.n
+            bar.update(fb.k - bar.n)
+
+        try:
+            result = _goal(lambda: client.refresh(args.count, args.region, args.timeout, show),
+                           topics.REFRESH_MODEL, lambda r: 'interrupted; the model is unchanged '
+                           'unless the refresh had ended')
+        finally:
+            bar.close()
+    name = code_name(RefreshModel.Result, result.error_code)
+    out = {'ok': result.error_code == RefreshModel.Result.SUCCESSFUL,
+           'error_code': result.error_code, 'error_name': name,
+           'error_string': result.error_string, 'collected': result.collected,
+           'dataset_path': result.dataset_path, 'model_version': result.model.version,
+           'residual_before': result.residual_before, 'residual_after': result.residual_after}
+    if not out['ok']:
+        if is_busy(result.error_string):
+            raise Outcome(busy_text(topics.REFRESH_MODEL), Exit.BUSY, **out)
+        raise Outcome(f'{name}: {human_units(result.error_string)}', Exit.FAILED, **out)
+    print(f'model v{result.model.version} announced: the previous one corrected from '
+          f'{result.collected} new samples (in {result.dataset_path}); their median residual '
+          f'{mm(result.residual_before):.3f} mm before, {mm(result.residual_after):.3f} mm '
+          'after')
+    return out
+
+
+@command
+def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
+    """Show the payload the arm carries, or declare a new one [kg] (a tool picked up)."""
+    with _session(args, learner=True) as client:
+        if args.kg is not None:
+            client.set_payload(args.kg)
+        kg = float(client.node_parameter('flexarm_learner', 'payload'))
+    print(f'payload: {kg:g} kg' + (' (declared now)' if args.kg is not None else ''))
+    return {'ok': True, 'payload_kg': kg}
 
 
 @command
@@ -830,12 +883,31 @@ def _collect_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--region', default='',
                    help='region preset of config/learner.yaml (default: the learner\'s, AB)')
     p.add_argument('--strategy', default='',
-                   help='sobol | halton | lhs | random (default: the learner\'s, sobol)')
+                   help='sobol | halton | lhs | random | active (each pose where the model '
+                        'so far is least sure; default: the learner\'s, sobol)')
     p.add_argument('--seed', type=_natural, default=0, help='seed of the sampling strategy')
     p.add_argument('--dataset', default='',
                    help='dataset name: data/NAME.jsonl (default: the learner\'s, default)')
+    p.add_argument('--payload', type=_non_negative, metavar='KG',
+                   help='[kg] declare the payload the arm carries first (stored with every '
+                        'sample; default: as declared before)')
     p.add_argument('--timeout', type=_positive, default=3600.0, metavar='S',
                    help='[s] for the collection; then it is cancelled')
+
+
+def _refresh_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--count', type=_natural, default=0, metavar='N',
+                   help='samples to take (default: the learner\'s refresh_samples, 8)')
+    p.add_argument('--region', default='',
+                   help='region preset to refresh (default: the ones the model health '
+                        'reports stale)')
+    p.add_argument('--timeout', type=_positive, default=1800.0, metavar='S',
+                   help='[s] for the refresh; then it is cancelled')
+
+
+def _payload_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('kg', nargs='?', type=_non_negative, metavar='KG',
+                   help='[kg] the payload the arm carries from now on (default: only show it)')
 
 
 def _train_arguments(p: argparse.ArgumentParser) -> None:
@@ -926,6 +998,8 @@ SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | N
     'move': (_move_arguments, True),
     'collect': (_collect_arguments, True),
     'train': (_train_arguments, True),
+    'refresh': (_refresh_arguments, True),
+    'payload': (_payload_arguments, True),
     'demo': (_experiment_arguments, False),
     'benchmark': (_benchmark_arguments, False),
     'study': (_study_arguments, None),

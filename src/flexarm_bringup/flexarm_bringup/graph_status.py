@@ -25,7 +25,7 @@ from flexarm_bringup.launcher import load_graph, load_optional
 from flexarm_bringup.supervisor import RECORD
 from flexarm_control import topics
 from flexarm_control.predictors.base import read_model
-from flexarm_msgs.msg import ModelInfo
+from flexarm_msgs.msg import ModelHealth, ModelInfo
 
 CONTROLLERS = {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}
 
@@ -97,6 +97,8 @@ def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
     subscriptions = [
         client.create_subscription(ModelInfo, topics.MODEL,
                                    lambda m: heard.__setitem__('learner', m), latched),
+        client.create_subscription(ModelHealth, topics.MODEL_HEALTH,
+                                   lambda m: heard.__setitem__('health', m), latched),
         client.create_subscription(JointState, topics.JOINT_STATES,
                                    lambda _: heard.__setitem__('joint_states',
                                                                heard['joint_states'] + 1), 10)]
@@ -114,6 +116,7 @@ def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
         'joint_state_rate_hz': heard['joint_states'] / listen,
         'learner_model': model_summary(heard.get('learner')),
         'active_model': model_summary(client.active_model),
+        'model_health': health_summary(heard.get('health')),
         'payload_kg': {'learner': _parameter(client, 'flexarm_learner', 'payload')
                        if nodes['flexarm_learner'] else None,
                        'simulated': _parameter(client, 'flexarm_sim', 'plant.payload')
@@ -124,6 +127,31 @@ def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
     for subscription in subscriptions:
         client.destroy_subscription(subscription)
     return status
+
+
+def health_summary(msg: ModelHealth | None) -> dict[str, Any] | None:
+    """The compensator's model health as plain data (None if it was not heard)."""
+    if msg is None:
+        return None
+    return {'model_version': msg.model_version, 'stale': msg.stale, 'summary': msg.summary,
+            'stale_residual': msg.stale_residual,
+            'regions': [{'name': r.name, 'observations': r.observations,
+                         'median_position_residual': r.median_position_residual,
+                         'max_position_residual': r.max_position_residual,
+                         'stale': r.stale} for r in msg.regions]}
+
+
+def _health_line(health: dict[str, Any] | None) -> str:
+    if health is None:
+        return 'model health: not heard (no compensator)'
+    if not health['regions']:
+        return 'model health: no measured goal yet'
+    regions = ', '.join(f'{r["name"]} {r["median_position_residual"] * 1e3:.3f} mm '
+                        f'({r["observations"]} measurements{", STALE" if r["stale"] else ""})'
+                        for r in health['regions'])
+    line = (f'model health (median residual; stale above '
+            f'{health["stale_residual"] * 1e3:.3f} mm): {regions}')
+    return line + (f'\n  WARNING: {health["summary"]}' if health['stale'] else '')
 
 
 def _discover(client: Any, settle: float = 1.0, empty: float = 3.0,
@@ -218,6 +246,7 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     learner, active = status['learner_model'], status['active_model']
     if learner is not None and (active is None or learner['version'] != active['version']):
         lines.append(model_line('model announced by the learner (NOT in use)', learner))
+    lines.append(_health_line(status['model_health']))
     payload = status['payload_kg']
     known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
     lines.append('payload: ' + (', '.join(known) or 'unknown'))

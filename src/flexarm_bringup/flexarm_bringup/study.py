@@ -8,9 +8,16 @@ seed) against the plant's TRUE deflection. Every configuration is repeated over 
 (learning poses, image noise, held-out poses and the predictor's own seed all change); the
 tables give the mean of the per-seed maximum errors and the worst of them, so a lucky draw
 does not decide. Table 7's "fitting precision" is read as a normalised error: RMS error /
-range of the true deflection, averaged over x, y, φ. Pure core (no rclpy)::
+range of the true deflection, averaged over x, y, φ.
+
+Beyond the paper, every predictor kind is fitted on the same samples, next to what a user would
+pick instead of a learned model (issue 18): ``kinematic`` calibration, the ``greybox`` physics
+model, the learned ``mlp``, ``rbf`` and ``gp``, and ``auto`` (the learner's default, which
+chooses among them by cross-validation; the row says what it chose per seed); the rigid model
+(no prediction: the error is the whole deflection) is the reference. Pure core (no rclpy)::
 
     python -m flexarm_bringup.study [--region paper] [--seeds 3] [--quick] [--json]
+        [--kinds auto,gp] [--samples 10,20,40] [--no-paper-tables]
 """
 from __future__ import annotations
 
@@ -34,7 +41,7 @@ from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.paper import TABLE_7, TABLE_8
 from flexarm_control.params import load_config
 from flexarm_control.paths import RESULTS_DIR
-from flexarm_control.predictors import KINDS, make_predictor
+from flexarm_control.predictors import KINDS, AutoPredictor, make_predictor
 from flexarm_control.sampling import regions_from_dict, sample_poses
 
 FULL_SAMPLES = (10, 20, 30, 40, 50, 80, 120, 160)
@@ -45,7 +52,7 @@ PAPER_HIDDEN = 10     # the paper's hidden units in Table 8 and our extended MLP
 # L-BFGS iterations × 4 restarts the held-out error grows with the samples (2 mm worst at
 # 160, paper workspace); 1000 iterations, weight decay 1e-4 and 8 restarts avoid that.
 PREDICTOR_SETTINGS = {'mlp': {'max_iterations': 1000, 'weight_decay': 1e-4, 'restarts': 8},
-                      'rbf': {}, 'gp': {}}
+                      'rbf': {}, 'gp': {}, 'kinematic': {}, 'greybox': {}, 'auto': {}}
 DEFAULTS: dict[str, Any] = {
     'region': 'paper',            # region preset of config/learner.yaml
     'seeds': 3,                   # repetitions of every configuration
@@ -71,6 +78,8 @@ class Row:
     worst_position_mm: float  # worst over seeds of the max |error| in x or y
     mean_position_mm: float   # mean |error| in x and y, over every seed
     normalised: float         # RMS error / range of the true deflection (Table 7's measure)
+    mean_max_position_mm: float = 0.0   # mean over seeds of the max |error| in x or y
+    chosen: str = ''          # auto: the kind it chose, per seed
 
 
 class World:
@@ -170,7 +179,8 @@ def run_study(settings: Mapping[str, Any] | None = None,
         rows.append(_evaluate(s, kind, hidden, n, data, tests))
     progress(total, total, 'done')
     biggest = max(float(np.abs(truth[:, :2]).max()) for _, truth in tests)
-    return {'settings': s, 'rows': [asdict(r) for r in rows],
+    rigid = _row(s, 'rigid', None, 0, [np.zeros_like(truth) for _, truth in tests], tests)
+    return {'settings': s, 'rows': [asdict(r) for r in rows], 'rigid': asdict(rigid),
             'largest_deflection_mm': 1e3 * biggest, 'elapsed_s': time.monotonic() - start}
 
 
@@ -178,27 +188,41 @@ def _evaluate(s: Mapping[str, Any], kind: str, hidden: int | None, n: int,
               data: list[tuple[np.ndarray, np.ndarray]],
               tests: list[tuple[np.ndarray, np.ndarray]]) -> Row:
     """One configuration fitted on each seed's first ``n`` samples, judged on its held-out."""
-    maxima, errors, normalised = [], [], []
-    for seed, ((joints, deflections), (test_q, truth)) in enumerate(zip(data, tests)):
+    predictions, chosen = [], []
+    for seed, ((joints, deflections), (test_q, _)) in enumerate(zip(data, tests)):
         predictor_settings = dict(s['predictors'].get(kind, {}))
         if hidden is not None:
             predictor_settings['hidden'] = [hidden]
         if 'seed' in make_predictor(kind).defaults:
             predictor_settings['seed'] = seed
         model = make_predictor(kind, predictor_settings).fit(joints[:n], deflections[:n])
-        err = np.abs(model.predict(test_q) - truth)
+        predictions.append(model.predict(test_q))
+        if isinstance(model, AutoPredictor):
+            chosen.append(model.chosen.kind)
+    return _row(s, kind, hidden, n, predictions, tests, '/'.join(chosen))
+
+
+def _row(s: Mapping[str, Any], kind: str, hidden: int | None, n: int,
+         predictions: list[np.ndarray], tests: list[tuple[np.ndarray, np.ndarray]],
+         chosen: str = '') -> Row:
+    """The errors of each seed's ``predictions`` at its held-out poses."""
+    maxima, errors, normalised = [], [], []
+    for prediction, (_, truth) in zip(predictions, tests):
+        err = np.abs(prediction - truth)
         maxima.append(err.max(axis=0))
         errors.append(err)
         span = truth.max(axis=0) - truth.min(axis=0)
         normalised.append(float(np.mean(np.sqrt(np.mean(err ** 2, axis=0)) / span)))
     maxima, every = np.array(maxima), np.concatenate(errors)
-    return Row(s['region'], kind, hidden, n, len(data),
+    return Row(s['region'], kind, hidden, n, len(tests),
                max_x_mm=1e3 * float(maxima[:, 0].mean()),
                max_y_mm=1e3 * float(maxima[:, 1].mean()),
                max_phi_deg=math.degrees(float(maxima[:, 2].mean())),
                worst_position_mm=1e3 * float(maxima[:, :2].max()),
                mean_position_mm=1e3 * float(every[:, :2].mean()),
-               normalised=float(np.mean(normalised)))
+               normalised=float(np.mean(normalised)),
+               mean_max_position_mm=1e3 * float(maxima[:, :2].max(axis=1).mean()),
+               chosen=chosen)
 
 
 def _find(rows: list[dict[str, Any]], kind: str, hidden: int | None, n: int
@@ -245,6 +269,19 @@ def table_text(result: Mapping[str, Any]) -> str:
             r = _find(rows, kind, PAPER_HIDDEN if kind == 'mlp' else None, n)
             cells.append('-' if r is None else f"{_errors(r)}; {r['mean_position_mm']:.3f}")
         lines.append(f'| {n} | ' + ' | '.join(cells) + ' |')
+    rigid = result['rigid']
+    lines += ['', '**Side by side**: max position error mm (|x| or |y|) over the held-out '
+              'poses, worst seed / mean over seeds; rigid model (no prediction): '
+              f"{rigid['worst_position_mm']:.1f} / {rigid['mean_max_position_mm']:.1f}", '',
+              '| samples | ' + ' | '.join(names) + ' |', '|---|' + '---|' * len(kinds)]
+    for n in s['samples']:
+        cells = []
+        for kind in kinds:
+            r = _find(rows, kind, PAPER_HIDDEN if kind == 'mlp' else None, n)
+            cells.append('-' if r is None else
+                         f"{r['worst_position_mm']:.3f} / {r['mean_max_position_mm']:.3f}"
+                         + (f" ({r['chosen']})" if r['chosen'] else ''))
+        lines.append(f'| {n} | ' + ' | '.join(cells) + ' |')
     return '\n'.join(lines) + '\n'
 
 
@@ -274,6 +311,9 @@ def write_study(result: Mapping[str, Any], out_dir: str | Path) -> dict[str, Pat
                 [max(r['max_x_mm'], r['max_y_mm']) for r in chosen], 'o-', label=kind)
     ax.plot(list(TABLE_8), [max(v[0], v[1]) for v in TABLE_8.values()], 'ks--',
             label=f'paper (Table 8, mlp {PAPER_HIDDEN} units)')
+    rigid = result['rigid']
+    ax.axhline(max(rigid['max_x_mm'], rigid['max_y_mm']), color='grey', linestyle=':',
+               label='rigid model (no prediction)')
     ax.set_yscale('log')
     ax.set_xlabel('learning samples')
     ax.set_ylabel('max position prediction error [mm]\n(mean over seeds of max of x, y)')
@@ -294,6 +334,12 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument('--quick', action='store_true',
                         help=f"small grid for a smoke run (samples {QUICK_SAMPLES}, "
                              f"{QUICK['held_out']} held-out)")
+    parser.add_argument('--kinds', type=lambda text: text.split(','),
+                        help=f"comma-separated predictor kinds (default: {','.join(KINDS)})")
+    parser.add_argument('--samples', type=lambda text: [int(n) for n in text.split(',')],
+                        help='comma-separated learning-set sizes of the extended grid')
+    parser.add_argument('--no-paper-tables', action='store_true',
+                        help='skip the Table 7 and Table 8 configurations')
     parser.add_argument('--predictors', type=json.loads, default={},
                         help='JSON {kind: settings} over the study\'s predictor settings, '
                              'e.g. \'{"mlp": {"max_iterations": 300, "weight_decay": 1e-5}}\'')
@@ -305,6 +351,11 @@ def main(argv: Sequence[str] | None = None) -> int:
                                  'predictors': args.predictors}
     if args.quick:
         overrides.update(QUICK)
+    for name in ('kinds', 'samples'):
+        if getattr(args, name) is not None:
+            overrides[name] = getattr(args, name)
+    if args.no_paper_tables:
+        overrides['paper_tables'] = False
     try:
         result = run_study(overrides)
     except ValueError as error:

@@ -44,7 +44,7 @@ from unique_identifier_msgs.msg import UUID
 
 from flexarm_control import topics
 from flexarm_control.modes import Mode
-from flexarm_msgs.action import CollectSamples, MoveToPose
+from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
 from flexarm_msgs.srv import Train, UseModel
 
@@ -143,6 +143,7 @@ class FlexarmClient(Node):
         self._use_model = self.create_client(UseModel, topics.USE_MODEL)
         self._move = ActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
         self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
+        self._refresh = ActionClient(self, RefreshModel, topics.REFRESH_MODEL)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._executor.add_node(self)
         self._goal_handle: Any = None
@@ -205,6 +206,19 @@ class FlexarmClient(Node):
         goal = CollectSamples.Goal(count=int(count), region=region, strategy=strategy,
                                    seed=int(seed), dataset=dataset)
         return self._run_goal(self._collect, goal, timeout, feedback)
+
+    def refresh(self, count: int = 0, region: str = '', timeout: float = 1800.0,
+                feedback: Callable[[RefreshModel.Feedback], None] | None = None,
+                ) -> RefreshModel.Result:
+        """Refresh the current model from ``count`` new samples (0: the learner's default) in
+        ``region`` ('': the regions the model health reports stale) and wait for the result."""
+        goal = RefreshModel.Goal(count=int(count), region=region)
+        return self._run_goal(self._refresh, goal, timeout, feedback)
+
+    def set_payload(self, kg: float, timeout: float = 10.0) -> None:
+        """Declare the payload [kg] the arm carries now (the learner's ``payload``, published
+        on /payload for the compensator and the simulator)."""
+        self.set_node_parameter('flexarm_learner', 'payload', float(kg), timeout)
 
     def train(self, kind: str = '', settings: Mapping[str, Any] | None = None,
               dataset: str = '', timeout: float = 120.0) -> Train.Response:
@@ -286,6 +300,7 @@ class FlexarmClient(Node):
     def destroy_node(self) -> None:
         self._move.destroy()
         self._collect.destroy()
+        self._refresh.destroy()
         self._executor.shutdown(timeout_sec=1.0)
         super().destroy_node()
 

@@ -23,8 +23,19 @@ other executing is aborted (INVALID_GOAL, "busy") before anything moves. Every a
 is validated before anything moves and aborted with an error code and reason if invalid; an
 unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never with an
 empty result. Cancel holds the arm at its current joint positions (the result's
-``joint_positions`` are those). A model that takes the payload as an input is refused (the
-compensator does not know the payload): the previous one stays active.
+``joint_positions`` are those).
+
+Payload: the payload the arm carries comes on the latched ``/payload`` (std_msgs/Float64 [kg],
+the learner's ``payload`` parameter: ``flexarm payload KG``). A model that takes it as an input
+is run at it (:class:`~flexarm_control.at_payload.AtPayload`); a model without that input,
+trained at other payloads, or one with it beyond its trained range, adds a warning to the
+result (:func:`~flexarm_control.model_store.payload_warning`). Until a payload is known, a
+payload-aware model is not used.
+
+Model health (:mod:`flexarm_control.model_health`): every measured tip checks the model in use
+(measured − predicted deflection at the reported joints), per working region; the statistics
+are published latched on ``/compensator/model_health`` after each measurement; a region
+turning stale is logged, and every later result carries the warning until a new model comes.
 
 Provenance and tolerances: every result, feedback and outcome names the model version its plan
 used ("" for a rigid plan); a model announced with a warning (e.g. trained at another payload)
@@ -52,10 +63,12 @@ from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from std_msgs.msg import Float64
 
 from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.at_payload import AtPayload
 from flexarm_control.compensator import Compensator, Plan
 from flexarm_control.goal_execution import (
     CANCELED,
@@ -67,14 +80,18 @@ from flexarm_control.goal_execution import (
     GoalSpec,
     execute,
 )
-from flexarm_control.kinematics import ArmGeometry, UnreachableError, pose_error
+from flexarm_control.kinematics import ArmGeometry, UnreachableError, forward, pose_error
+from flexarm_control.model_health import HealthSettings, ModelHealth
+from flexarm_control.model_store import payload_warning
 from flexarm_control.modes import Mode
 from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
+from flexarm_control.sampling import regions_from_dict
 from flexarm_msgs.action import MoveToPose
-from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
+from flexarm_msgs.msg import ModelHealth as HealthMsg
 
 EXECUTOR_THREADS = 4
 Goal = MoveToPose.Goal
@@ -132,6 +149,12 @@ class CompensatorNode(Node):
                     "the model's std of the predicted tip position exceeds this"))
         model_path = declare(self, 'model_path', '',
                              'predictor loaded at start ("" = wait for /learner/model)')
+        self._health = ModelHealth(
+            HealthSettings.from_dict(declare_tree(self, 'model_health',
+                                                  'config/compensator.yaml')),
+            regions_from_dict(declare_tree(self, 'regions', 'config/learner.yaml')))
+        self._health_lock = threading.Lock()
+        self._payload: float | None = None     # [kg] from /payload; None until it comes
 
         self._group = ReentrantCallbackGroup()
         self._arm = ArmInterface(self, self._group)
@@ -142,6 +165,9 @@ class CompensatorNode(Node):
         self._busy = threading.Lock()
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
+        self._health_pub = self.create_publisher(HealthMsg, topics.MODEL_HEALTH, latched)
+        self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched,
+                                 callback_group=self._group)
         if model_path:
             self._load_model(model_path, 'start-up')
         self.create_subscription(ModelInfo, topics.MODEL, self._on_model, latched,
@@ -163,9 +189,6 @@ class CompensatorNode(Node):
     def _load_model(self, path: str, what: str, info: ModelInfo | None = None) -> None:
         try:
             predictor = load_predictor(path)
-            if predictor.settings['payload_input']:
-                raise ValueError('it takes the payload as an input, which the compensator does '
-                                 'not know')
         except (OSError, ValueError) as exc:
             self._load_error = f'the model {what} from {path} could not be loaded: {exc}'
             self.get_logger().error(f'{self._load_error}; keeping the previous one')
@@ -174,9 +197,46 @@ class CompensatorNode(Node):
         info = info or ModelInfo(version=path, kind=predictor.kind, path=path)
         self._model = (predictor, info)
         self._active_pub.publish(info)
+        with self._health_lock:
+            self._health.reset(info.version)
+        self._publish_health()
         self.get_logger().info(f'predictor {what} loaded ({predictor.kind}) from {path}')
         if info.warning:
             self.get_logger().warn(f'model {info.version}: {info.warning}')
+
+    def _on_payload(self, msg: Float64) -> None:
+        if msg.data != self._payload:
+            self.get_logger().info(f'payload now {msg.data:g} kg')
+        self._payload = float(msg.data)
+
+    # --- model health -----------------------------------------------------------------------
+    def _observe(self, model: AtPayload, joints: np.ndarray, measured: np.ndarray) -> None:
+        """File the residual of a measured tip against the model; log a region turning
+        stale."""
+        residual = measured - forward(self._geometry, joints) - model.predict(joints)
+        with self._health_lock:
+            before = set(self._health.stale_regions())
+            self._health.observe(measured, joints, residual)
+            newly = set(self._health.stale_regions()) - before
+            summary = self._health.summary()
+        if newly:
+            self.get_logger().warn(summary)
+        self._publish_health()
+
+    def _publish_health(self) -> None:
+        with self._health_lock:
+            report, summary = self._health.report(), self._health.summary()
+            version, threshold = self._health.version, self._health.settings.stale_residual
+            worst = {r.name: self._health.worst_joints(r.name, 4) for r in report}
+        self._health_pub.publish(HealthMsg(
+            stamp=self.get_clock().now().to_msg(), model_version=version,
+            stale=any(r.stale for r in report), summary=summary, stale_residual=threshold,
+            regions=[RegionHealth(
+                name=r.name, observations=r.observations,
+                median_position_residual=r.median_position,
+                max_position_residual=r.max_position, median_angle_residual=r.median_angle,
+                stale=r.stale, worst_joints=worst[r.name].reshape(-1).tolist())
+                for r in report]))
 
     # --- goal policy ------------------------------------------------------------------------
     def _on_goal(self, goal: Goal) -> GoalResponse:
@@ -217,7 +277,13 @@ class CompensatorNode(Node):
         reason = goal_error(goal)
         if reason is not None:
             return fail(Result.INVALID_GOAL, reason)
-        predictor, info = self._model or (None, None)
+        loaded, info = self._model or (None, None)
+        predictor, unusable = None, ''
+        if loaded is not None and loaded.settings['payload_input'] and self._payload is None:
+            unusable = (f'model {info.version} takes the payload as an input and no /payload '
+                        'has come (`flexarm payload KG`)')
+        elif loaded is not None:
+            predictor = AtPayload(loaded, self._payload or 0.0)
         if not self._arm.wait_for_joints(5.0):
             return fail(Result.CONTROLLER_TIMEOUT, 'no /joint_states from the controller')
         mode = Mode(goal.mode)
@@ -235,15 +301,18 @@ class CompensatorNode(Node):
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
-            return fail(REFUSALS[planned.code], planned.reason + (
-                f'; {self._load_error}' if planned.code == 'no_model' and self._load_error
-                else ''))
+            return fail(REFUSALS[planned.code], '; '.join(filter(None, [planned.reason] + (
+                [self._load_error, unusable] if planned.code == 'no_model' else []))))
         plan = planned.plan
         notes = [planned.note]
         result.model_version = info.version if planned.uses_model else ''
         self._goal_model_version = result.model_version
         if planned.uses_model:
-            notes.append(f'warning: model {info.version}: {info.warning}' if info.warning else '')
+            fit = [info.warning, payload_warning(list(info.payloads),
+                                                 loaded.settings['payload_input'],
+                                                 predictor.payload)]
+            notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
+                         if any(fit) else '')
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations
@@ -261,13 +330,18 @@ class CompensatorNode(Node):
         def progress(phase: str, move: int, plan: Plan, measured: np.ndarray | None) -> None:
             self._feedback(handle, move, phase, plan.commanded_pose, planned, measured, target)
 
+        observe = ((lambda q, measured: self._observe(predictor, q, measured))
+                   if predictor is not None else (lambda q, measured: None))
         run = execute(spec, plan, self._motion, self._compensator,
-                      lambda: handle.is_cancel_requested, progress)
+                      lambda: handle.is_cancel_requested, progress, observe)
         result.error_code = OUTCOMES[run.status]
         if run.status == SUCCEEDED:
             notes.append(run.reason)
         else:
             notes.insert(0, run.reason)
+        with self._health_lock:
+            stale = self._health.summary()
+        notes.append(f'warning: {stale}' if stale else '')
         result.error_string = '; '.join(filter(None, notes))
         result.iterations = run.moves
         positions = run.held_at if run.held_at is not None else run.plan.joints

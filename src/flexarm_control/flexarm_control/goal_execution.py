@@ -70,15 +70,23 @@ class Execution:
 
 # progress(phase, move number, plan, measured pose or None)
 Progress = Callable[[str, int, Plan, np.ndarray | None], None]
+# observe(joints the arm reported, measured tip pose): every measurement (the model health)
+Observe = Callable[[np.ndarray, np.ndarray], None]
 
 
 def _quiet(phase: str, move: int, plan: Plan, measured: np.ndarray | None) -> None:
     return None
 
 
+def _unobserved(joints: np.ndarray, measured: np.ndarray) -> None:
+    return None
+
+
 def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensator,
-            abort: Abort = never, progress: Progress = _quiet) -> Execution:
-    """Run ``plan`` for the goal ``spec`` (module docstring) on ``motion``'s arm."""
+            abort: Abort = never, progress: Progress = _quiet,
+            observe: Observe = _unobserved) -> Execution:
+    """Run ``plan`` for the goal ``spec`` (module docstring) on ``motion``'s arm;
+    ``observe(joints, measured)`` gets every measurement with the joints the arm reported."""
     measured: np.ndarray | None = None
     move = 0
 
@@ -104,6 +112,7 @@ def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensa
                                            else ' to check the tolerance')))
             return ended(SUCCEEDED, 'moved; no valid settled tip measurement')
         measured = measurement.pose
+        observe(motion.arm.positions(), measured)
         progress(MEASURING, move, plan, measured)
         position, angle = pose_error(spec.target, measured)
         if spec.mode != Mode.CLOSED_LOOP:

@@ -2,8 +2,10 @@
 (``/train``), seed section 2-1 steps 2-3.
 
 Collection moves the arm through the controller's command topic to space-filling poses of a
-region (:mod:`flexarm_control.sampling`), visited in a short-travel order, waits until the
-joints arrive and the tip is settled, averages a few valid ``/tip_pose`` frames and appends the
+region (:mod:`flexarm_control.sampling`), visited in a short-travel order — or, strategy
+``active``, to poses each chosen from the samples so far (:mod:`flexarm_control.active_sampling`;
+the choice runs in the training worker while the arm moves) — waits until the joints arrive
+and the tip is settled, averages valid ``/tip_pose`` frames and appends the
 sample to the dataset — on disk, fsync'ed — before the next move; the sample is also published
 on ``/learner/samples`` for bags. A failed measurement is retried, then the pose is skipped and
 counted, never stored. Cancel holds the arm and keeps every sample collected; a controller
@@ -24,34 +26,53 @@ again (roll back), with the same checks. Every announcement carries the model's 
 (dataset, payloads, metrics) and a warning when it was trained at another payload or for
 another arm configuration than the learner's now.
 
-A model the compensator cannot run (one that takes the payload as an input) is refused before
-training, so it never becomes current. Policy: one collection at a time; a collection goal
-arriving while another runs is rejected (one that wins the race past that check is aborted
-with FAILED, "busy"). A training request while a collection runs is refused (it would slow
-the collection down; train on the finished dataset), as is one while a timed-out training job
-still occupies the worker. Every failure gives an error code or message; nothing escapes a
-callback. The executor has ``EXECUTOR_THREADS`` threads, so a running collection and a
-training request (each holding one thread while it waits) leave threads for the joint
-states, tip poses and cancel requests.
+Payload: the learner's ``payload`` parameter [kg] is what the arm carries now; it is stored
+with every sample and published latched on ``/payload`` (std_msgs/Float64) at start and on
+every change (``flexarm payload KG``, ``flexarm collect --payload KG``), for the compensator and
+the simulator (which follows it: the tool really was picked up). A dataset holding samples at
+more than one payload is trained with the payload as a model input (``payload_input``) unless
+the request's settings say otherwise.
+
+Refresh (``/learner/refresh``, :mod:`flexarm_control.refresh`): when the compensator's model
+health (``/compensator/model_health``) says the model no longer fits in a region, a few samples
+are taken where the largest residuals were and across the region, into the dataset
+``<dataset>-refresh``; a low-dimensional correction fitted to them on top of the current model
+(:mod:`flexarm_control.drift_correction`) becomes the next model version, announced as usual.
+The refresh moves the arm: like a collection, only on request (`flexarm refresh`), never on
+its own — an arm in a vessel moves when its operator says so.
+
+Policy: one collection or refresh at a time; a goal arriving while another runs is rejected
+(one that wins the race past that check is aborted with FAILED, "busy"). A training request
+while a collection runs is refused (it would slow the collection down; train on the finished
+dataset), as is one while a timed-out training job still occupies the worker. Every failure
+gives an error code or message; nothing escapes a callback. The executor has
+``EXECUTOR_THREADS`` threads, so a running collection and a training request (each holding one
+thread while it waits) leave threads for the joint states, tip poses and cancel requests.
 """
 from __future__ import annotations
 
 import json
 import threading
 import traceback
+from collections.abc import Callable, Iterable
+from concurrent.futures import Future, ThreadPoolExecutor
 from functools import partial
 from pathlib import Path
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
+from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
 from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
+from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from std_msgs.msg import Float64
 
 from flexarm_control import topics
+from flexarm_control.active_sampling import ActivePoses
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.collection import Collected, Collector
@@ -71,13 +92,27 @@ from flexarm_control.node_main import finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.paths import repo_path
 from flexarm_control.predictors import KINDS, load_predictor, make_predictor
-from flexarm_control.sampling import STRATEGIES, regions_from_dict, sample_poses, travel_order
+from flexarm_control.refresh import refresh_poses, refreshed
+from flexarm_control.sampling import (
+    STRATEGIES,
+    Region,
+    regions_from_dict,
+    sample_poses,
+    travel_order,
+)
 from flexarm_control.training import Metrics, Screening, TrainingWorker, train
-from flexarm_msgs.action import CollectSamples
-from flexarm_msgs.msg import DeflectionSample, ModelInfo, PlanarPose, PredictionMetrics
+from flexarm_msgs.action import CollectSamples, RefreshModel
+from flexarm_msgs.msg import (
+    DeflectionSample,
+    ModelHealth,
+    ModelInfo,
+    PlanarPose,
+    PredictionMetrics,
+)
 from flexarm_msgs.srv import Train, UseModel
 
 EXECUTOR_THREADS = 4
+CHOICE_TIMEOUT = 60.0    # [s, wall] for the choice of an active learning pose
 Goal = CollectSamples.Goal
 Result = CollectSamples.Result
 Feedback = CollectSamples.Feedback
@@ -90,13 +125,16 @@ def planar(pose: np.ndarray) -> PlanarPose:
 def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
                    model_path: str, geometry: ArmGeometry, screening: Screening,
                    arm: str) -> tuple[Metrics, str, list[int]]:
-    """Training job, run in the learner's worker process: fit, record the provenance (dataset
+    """Training job, run in the learner's worker process: fit (with the payload as an input
+    when the samples hold several and ``settings`` do not say), record the provenance (dataset
     name, payloads, ``arm`` fingerprint), save atomically.
 
     A worker process of its own keeps training at full speed while the node serves
     1000+ callbacks a second at 10x real time (in-process it ran 3-4x slower on the GIL).
     """
     dataset = load_dataset(dataset_path)
+    if 'payload_input' not in settings and len({s.payload for s in dataset.samples}) > 1:
+        settings = {**settings, 'payload_input': True}
     predictor, metrics = train(kind, settings, dataset, folds=folds, geometry=geometry,
                                screening=screening)
     predictor.metadata['provenance'] = provenance(
@@ -137,7 +175,10 @@ class LearnerNode(Node):
         self._model_dir = repo_path(declare(self, 'model_directory', 'models',
                                             'models directory (relative: to the repository)'))
         self._default_dataset = declare(self, 'default_dataset', 'default', 'dataset name')
-        self._payload = declare(self, 'payload', 0.0, '[kg] payload carried by the arm')
+        self._payload = declare(self, 'payload', 0.0, '[kg] payload carried by the arm now '
+                                '(published on /payload)')
+        self._refresh_samples = declare(self, 'refresh_samples', 8,
+                                        'samples a refresh takes when its goal gives no count')
         self._default_region = declare(self, 'default_region', 'AB', 'region preset')
         self._default_strategy = declare(self, 'default_strategy', 'sobol',
                                          f'one of {", ".join(STRATEGIES)}')
@@ -155,6 +196,7 @@ class LearnerNode(Node):
         self._train_timeout = declare(self, 'training_timeout', 600.0,
                                       '[s, wall] longest a training request may take')
         self._trainer = TrainingWorker(_warm_up)
+        self._chooser = ThreadPoolExecutor(1)   # waits on the worker for active poses
         if self._default_region not in self._regions:
             raise ValueError(f'default_region {self._default_region} is not in regions')
 
@@ -167,9 +209,20 @@ class LearnerNode(Node):
             warn=self.get_logger().warn)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._model_pub = self.create_publisher(ModelInfo, topics.MODEL, latched)
+        self._payload_pub = self.create_publisher(Float64, topics.PAYLOAD, latched)
+        self._payload_pub.publish(Float64(data=float(self._payload)))
+        self.add_on_set_parameters_callback(self._on_set_parameters)
+        self._health: ModelHealth | None = None
+        self.create_subscription(ModelHealth, topics.MODEL_HEALTH,
+                                 lambda msg: setattr(self, '_health', msg), latched,
+                                 callback_group=group)
         self._sample_pub = self.create_publisher(DeflectionSample, topics.SAMPLES, 100)
         self._collect_server = ActionServer(
             self, CollectSamples, topics.COLLECT_SAMPLES, execute_callback=self._collect,
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+            callback_group=group)
+        self._refresh_server = ActionServer(
+            self, RefreshModel, topics.REFRESH_MODEL, execute_callback=self._refresh,
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
             callback_group=group)
         models = MutuallyExclusiveCallbackGroup()      # one model change at a time
@@ -177,13 +230,28 @@ class LearnerNode(Node):
         self.create_service(UseModel, topics.USE_MODEL, self._use_model, callback_group=models)
         self._announce_current()
 
+    def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
+        """A new ``payload`` [kg]: stored with the next samples and published on /payload."""
+        for param in params:
+            if param.name != 'payload':
+                continue
+            value = param.value
+            if (param.type_ not in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER)
+                    or not 0 <= float(value) < float('inf')):
+                return SetParametersResult(successful=False,
+                                           reason='payload: a finite number >= 0 [kg]')
+            self._payload = float(value)
+            self._payload_pub.publish(Float64(data=self._payload))
+            self.get_logger().info(f'payload now {self._payload:g} kg')
+        return SetParametersResult(successful=True)
+
     def dataset_path(self, name: str) -> Path:
         return self._data_dir / f'{name or self._default_dataset}.jsonl'
 
     # --- collection -------------------------------------------------------------------------
-    def _on_goal(self, goal: Goal) -> GoalResponse:
+    def _on_goal(self, goal: Goal | RefreshModel.Goal) -> GoalResponse:
         if self._collecting.locked():
-            self.get_logger().warn('collection goal rejected: another collection is running')
+            self.get_logger().warn('goal rejected: a collection or refresh is running')
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
@@ -232,11 +300,11 @@ class LearnerNode(Node):
             result.error_code, result.error_string = Result.INVALID_GOAL, reason
             return
         region = self._regions[goal.region or self._default_region].grown(self._coverage)
-        _, plan = sample_poses(self._geometry, region, goal.count,
-                               goal.strategy or self._default_strategy, goal.seed)
-        plan = plan[travel_order(plan, self._arm.positions(), self._geometry.velocity)]
-        self.get_logger().info(f'collecting {goal.count} samples in region {region.describe()}'
-                               ' (grown by the coverage margin)'
+        strategy = goal.strategy or self._default_strategy
+        taken: list[Sample] = []
+        plan = self._plan(region, goal.count, strategy, goal.seed, taken)
+        self.get_logger().info(f'collecting {goal.count} samples ({strategy}) in region '
+                               f'{region.describe()} (grown by the coverage margin)'
                                f' into {path}')
         cancel = lambda: handle.is_cancel_requested  # noqa: E731
 
@@ -248,8 +316,11 @@ class LearnerNode(Node):
                                              last_sample=msg))
 
         with DatasetWriter(path) as writer:     # each sample on disk before the next move
-            counts = self._collector.collect(plan, self._payload, writer.append, cancel,
-                                             progress)
+            def store(sample: Sample) -> None:
+                writer.append(sample)
+                taken.append(sample)
+
+            counts = self._collector.collect(plan, self._payload, store, cancel, progress)
         result.collected, result.skipped = counts.collected, counts.skipped
         result.total += counts.collected
         if counts.canceled:
@@ -258,6 +329,126 @@ class LearnerNode(Node):
             result.error_code, result.error_string = Result.FAILED, counts.stopped
         elif counts.collected == 0:
             result.error_code, result.error_string = Result.FAILED, 'no valid measurement'
+
+    def _plan(self, region: Region, count: int, strategy: str, seed: int,
+              taken: list[Sample]) -> Iterable[np.ndarray]:
+        """Joints of the learning poses: space-filling in travel order, or ``active``: each
+        chosen from the samples ``taken`` so far, in the training worker while the arm moves."""
+        start = self._arm.positions()
+        if strategy == 'active':
+            return ActivePoses(
+                self._geometry, region, count, seed,
+                lambda: (np.array([s.joints for s in taken]).reshape(-1, 4),
+                         np.array([s.deflection for s in taken]).reshape(-1, 3)),
+                start, self._choose)
+        _, plan = sample_poses(self._geometry, region, count, strategy, seed)
+        return plan[travel_order(plan, start, self._geometry.velocity)]
+
+    def _choose(self, job: Callable[..., int], *args: object) -> Future[int]:
+        return self._chooser.submit(self._trainer.run, job, *args, timeout=CHOICE_TIMEOUT)
+
+    # --- refresh ----------------------------------------------------------------------------
+    def _refresh(self, handle: ServerGoalHandle) -> RefreshModel.Result:
+        result = RefreshModel.Result()
+        if not self._collecting.acquire(blocking=False):   # lost a race past _on_goal
+            result.error_code = RefreshModel.Result.FAILED
+            result.error_string = 'busy: a collection or refresh is running'
+        else:
+            try:
+                self._run_refresh(handle, handle.request, result)
+            except Exception as exc:   # last resort: a reason for the client, never a crash
+                self.get_logger().error(f'refresh failed: {traceback.format_exc()}')
+                result.error_code = RefreshModel.Result.FAILED
+                result.error_string = f'refresh failed: {type(exc).__name__}: {exc}'
+            finally:
+                self._collecting.release()
+        finish_goal(handle, result.error_code, RefreshModel.Result.CANCELED)
+        self.get_logger().info(f'refresh ended ({result.error_code}): {result.collected} '
+                               f'samples, model {result.model.version or "unchanged"} '
+                               f'{result.error_string}')
+        return result
+
+    def _refresh_plan(self, goal: RefreshModel.Goal) -> tuple[np.ndarray, str]:
+        """Joints to measure and the regions they cover; ValueError if nothing to refresh."""
+        health = self._health
+        if goal.region:
+            if goal.region not in self._regions:
+                raise ValueError(f'unknown region "{goal.region}"; known: '
+                                 f'{", ".join(self._regions)}')
+            names = [goal.region]
+        else:
+            names = [r.name for r in (health.regions if health else [])
+                     if r.stale and r.name in self._regions]
+            if not names:
+                raise ValueError('the model health reports no stale region; name a region '
+                                 '(--region) to refresh anyway')
+        worst = {r.name: np.asarray(r.worst_joints).reshape(-1, 4)
+                 for r in (health.regions if health else [])}
+        count = goal.count or self._refresh_samples
+        share = [count // len(names) + (i < count % len(names)) for i in range(len(names))]
+        plan = np.concatenate([refresh_poses(
+            self._geometry, self._regions[name].grown(self._coverage),
+            worst.get(name, np.empty((0, 4))), n, seed=next_version(self._model_dir))
+            for name, n in zip(names, share) if n])
+        return plan[travel_order(plan, self._arm.positions(), self._geometry.velocity)], \
+            ', '.join(names)
+
+    def _run_refresh(self, handle: ServerGoalHandle, goal: RefreshModel.Goal,
+                     result: RefreshModel.Result) -> None:
+        codes = RefreshModel.Result
+        try:
+            current = read_current(self._model_dir)
+            if current is None:
+                raise ValueError('no current model to refresh: collect samples and train')
+            if not self._arm.wait_for_joints(5.0):
+                raise ValueError('no /joint_states from the controller')
+            predictor = load_predictor(current['path'])
+            plan, regions = self._refresh_plan(goal)
+        except (DamagedRecord, ValueError, OSError) as exc:
+            result.error_code, result.error_string = codes.INVALID_GOAL, str(exc)
+            return
+        dataset = ((predictor.metadata.get('provenance') or {}).get('dataset')
+                   or self._default_dataset) + '-refresh'
+        path = self.dataset_path(dataset)
+        result.dataset_path = str(path)
+        self.get_logger().info(f'refreshing model v{current["version"]} with {len(plan)} '
+                               f'samples in region {regions} into {path}')
+        samples: list[Sample] = []
+
+        def store(sample: Sample) -> None:
+            writer.append(sample)
+            samples.append(sample)
+            self._sample_pub.publish(self._sample_msg(sample))
+
+        def progress(k: int, counts: Collected, sample: Sample | None) -> None:
+            handle.publish_feedback(RefreshModel.Feedback(k=k, n=len(plan)))
+
+        with DatasetWriter(path) as writer:
+            counts = self._collector.collect(plan, self._payload, store,
+                                             lambda: handle.is_cancel_requested, progress)
+        result.collected = counts.collected
+        if counts.canceled or counts.stopped or not samples:
+            result.error_code = codes.CANCELED if counts.canceled else codes.FAILED
+            result.error_string = ('canceled; the model is unchanged' if counts.canceled else
+                                   counts.stopped or 'no valid measurement')
+            return
+        version = next_version(self._model_dir)
+        mended = refreshed(predictor, self._geometry, np.array([s.joints for s in samples]),
+                           np.array([s.deflection for s in samples]),
+                           np.array([s.payload for s in samples]), str(version))
+        model_path = self._model_dir / f'{dataset}-{predictor.kind}-v{version}.model'
+        mended.save(model_path)
+        info = self._model_info(str(version), model_path)
+        write_current(self._model_dir, version, info.kind, info.path, info.dataset_hash)
+        self._model_pub.publish(info)
+        correction = mended.corrections[-1]
+        result.model = info
+        result.residual_before = correction.residual_before
+        result.residual_after = correction.residual_after
+        self.get_logger().info(
+            f'model v{version} (v{current["version"]} refreshed with {len(samples)} samples) '
+            f'announced; median residual {correction.residual_before * 1e3:.3f} mm -> '
+            f'{correction.residual_after * 1e3:.3f} mm')
 
     @staticmethod
     def _sample_msg(sample: Sample) -> DeflectionSample:
@@ -285,10 +476,7 @@ class LearnerNode(Node):
             settings = json.loads(request.settings_json) if request.settings_json else {}
             if not isinstance(settings, dict):
                 raise ValueError('settings_json must be a JSON object')
-            if make_predictor(kind, settings).settings['payload_input']:
-                raise ValueError('the compensator cannot run a model that takes the payload as '
-                                 'an input (it does not know the payload yet); the current '
-                                 'model stays')
+            make_predictor(kind, settings)      # unknown kind or bad settings: fail here
             if not path.exists():
                 raise ValueError(f'no dataset at {path}: collect samples first')
             metrics, samples_hash, skipped = self._trainer.run(
@@ -324,19 +512,16 @@ class LearnerNode(Node):
         return response
 
     def destroy_node(self) -> None:
+        self._chooser.shutdown(wait=False, cancel_futures=True)
         self._trainer.shutdown()
         self._collect_server.destroy()   # Node.destroy_node leaves actions (and the node) alive
+        self._refresh_server.destroy()
         super().destroy_node()
 
     def _model_info(self, version: str, path: Path) -> ModelInfo:
-        """The announcement of a model file: provenance, metrics and how it fits the arm now.
-
-        ValueError/OSError if the compensator could not run it (unreadable, damaged, or it
-        takes the payload as an input)."""
+        """The announcement of a model file: provenance, metrics and whether it was made for
+        this arm. ValueError/OSError if it cannot be loaded (unreadable, damaged)."""
         predictor = load_predictor(path)
-        if predictor.settings['payload_input']:
-            raise ValueError('the compensator cannot run a model that takes the payload as an '
-                             'input')
         meta = predictor.metadata
         origin = meta.get('provenance') or {}
         info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=version,
@@ -344,7 +529,7 @@ class LearnerNode(Node):
                          dataset_hash=str(meta.get('dataset_hash', '')),
                          dataset=str(origin.get('dataset', '')),
                          payloads=[float(p) for p in origin.get('payloads', [])],
-                         warning=fit_warning(meta, self._payload, self._arm_id))
+                         warning=fit_warning(meta, self._arm_id))
         if meta.get('metrics'):
             info.metrics = PredictionMetrics(**meta['metrics'])
         if info.warning:

@@ -10,7 +10,8 @@ or damaged record can never make a new model overwrite an older one.
 Provenance: a model file's metadata holds, besides its metrics, ``provenance``: the dataset it
 was trained on, the distinct payloads of its samples and ``arm``, a fingerprint of the arm
 configuration (config/arm.yaml as the learner loaded it). :func:`fit_warning` says why a model
-may not fit the arm as configured now; :func:`list_models` is ``flexarm model list``.
+may not fit the arm as configured now, :func:`payload_warning` the payload it carries now;
+:func:`list_models` is ``flexarm model list``.
 """
 from __future__ import annotations
 
@@ -18,7 +19,7 @@ import hashlib
 import json
 import math
 import re
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -79,20 +80,33 @@ def provenance(dataset: str, payloads: list[float], arm: str) -> dict[str, Any]:
             'arm': arm}
 
 
-def fit_warning(metadata: dict[str, Any], payload: float, arm: str) -> str:
-    """Why a model may not fit an arm of fingerprint ``arm`` carrying ``payload`` [kg] ('' if
-    no reason is known)."""
+def fit_warning(metadata: dict[str, Any], arm: str) -> str:
+    """Why a model may not fit an arm of fingerprint ``arm`` ('' if no reason is known); the
+    payload is checked at every goal (:func:`payload_warning`), as it changes at run time."""
     origin = metadata.get('provenance')
     if not isinstance(origin, dict):
         return 'trained before models recorded their dataset, payload and arm configuration'
-    reasons = []
-    payloads = origin.get('payloads') or []
-    if payloads and not any(math.isclose(p, payload, abs_tol=1e-6) for p in payloads):
-        reasons.append(f'trained at payload {", ".join(f"{p:g}" for p in payloads)} kg, the '
-                       f'arm carries {payload:g} kg now')
     if origin.get('arm') != arm:
-        reasons.append('trained for another arm configuration (config/arm.yaml differs)')
-    return '; '.join(reasons)
+        return 'trained for another arm configuration (config/arm.yaml differs)'
+    return ''
+
+
+def payload_warning(payloads: Sequence[float], payload_input: bool, payload: float) -> str:
+    """Why a model trained at ``payloads`` [kg] may miss with the arm carrying ``payload``:
+    a model without the payload input must have been trained at it, one with it within the
+    range it was trained over ('' if it fits)."""
+    if not payloads:
+        return ''
+    listed = ', '.join(f'{p:g}' for p in payloads)
+    if payload_input:
+        if min(payloads) - 1e-6 <= payload <= max(payloads) + 1e-6:
+            return ''
+        return (f'the arm carries {payload:g} kg, outside the payloads {listed} kg the model '
+                'was trained over (extrapolated)')
+    if any(math.isclose(p, payload, abs_tol=1e-6) for p in payloads):
+        return ''
+    return (f'trained at payload {listed} kg, the arm carries {payload:g} kg now: collect at '
+            'this payload (`flexarm collect --payload`) and train')
 
 
 @dataclass(frozen=True)

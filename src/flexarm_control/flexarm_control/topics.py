@@ -15,8 +15,11 @@ SAMPLES = '/learner/samples'                                # flexarm_msgs/Defle
 MODEL = '/learner/model'                                    # flexarm_msgs/ModelInfo, latched
 OUTCOMES = '/compensator/outcomes'                          # flexarm_msgs/GoalOutcome
 ACTIVE_MODEL = '/compensator/active_model'                  # flexarm_msgs/ModelInfo, latched
+MODEL_HEALTH = '/compensator/model_health'                  # flexarm_msgs/ModelHealth, latched
+PAYLOAD = '/payload'                                        # std_msgs/Float64 [kg], latched
 
 MOVE_TO_POSE = '/move_to_pose'                              # flexarm_msgs/action/MoveToPose
 COLLECT_SAMPLES = '/collect_samples'                        # flexarm_msgs/action/CollectSamples
 TRAIN = '/train'                                            # flexarm_msgs/srv/Train
 USE_MODEL = '/learner/use_model'                            # flexarm_msgs/srv/UseModel
+REFRESH_MODEL = '/learner/refresh'                          # flexarm_msgs/action/RefreshModel

@@ -7,6 +7,8 @@ the model checked for solvability (pure core of the learner).
    ``cv_choices`` the caller did not fix (MLP weight decay, GP kernel, RBF smoothing), with
    the kind's cheaper ``cv_overrides`` (GP: 1 restart); the one with the lowest trimmed RMS
    held-out error (the worst 10 % of samples left out, so one bad sample cannot choose) wins.
+   Kind ``auto`` (:mod:`~flexarm_control.predictors.auto`) chooses among the candidates of
+   every kind of its ``kinds`` at once; the model is an ``AutoPredictor`` of the chosen one.
 2. **Outlier screening**: a sample whose held-out residual is ``outlier_threshold`` robust
    standard deviations (1.4826 × median |residual|) off in some output, and more than
    ``outlier_floor`` there, is excluded — the worst one, then the chosen settings are validated
@@ -80,6 +82,7 @@ class Screening:
 
 
 DEFAULT_SCREENING = Screening()
+NO_SCREENING = Screening(max_outlier_fraction=0.0)   # no sample excluded, no check of the slope
 
 
 @dataclass(frozen=True)
@@ -198,6 +201,18 @@ def candidates(kind: str, settings: Mapping[str, Any] | None) -> list[dict[str, 
     return [{**given, **dict(zip(choices, combo))} for combo in combos]
 
 
+def _options(kind: str, settings: Mapping[str, Any] | None
+             ) -> list[tuple[str, dict[str, Any], dict[str, Any]]]:
+    """(kind, settings, the settings given rather than chosen) to choose among: the
+    :func:`candidates` of ``kind``, or for ``auto`` those of each of its kinds."""
+    if kind != 'auto':
+        given = dict(settings or {})
+        return [(kind, option, given) for option in candidates(kind, given)]
+    auto = make_predictor(kind, settings)
+    return [(k, option, auto.kind_settings(k)) for k in auto.settings['kinds']
+            for option in candidates(k, auto.kind_settings(k))]
+
+
 def _trimmed_rms(residuals: np.ndarray, scale: np.ndarray) -> float:
     """RMS of the per-sample residual norms (outputs divided by ``scale``), the worst
     ``TRIM`` of the samples left out."""
@@ -215,6 +230,16 @@ def outlier_scores(residuals: np.ndarray, scale: np.ndarray, screening: Screenin
     return np.where(flagged, z, 0.0).max(axis=1)
 
 
+def _slope(geometry: ArmGeometry, predictor: Predictor, joints: np.ndarray,
+           payload: np.ndarray | None) -> float:
+    """The largest :func:`deflection_slope` of ``predictor`` at ``joints`` (N, 4), each at
+    its own payload."""
+    groups = [(None, joints)] if payload is None else [
+        (p, joints[payload == p]) for p in np.unique(payload)]
+    return max(float(deflection_slope(
+        geometry, lambda q, p=p: predictor.predict(q, p), q).max()) for p, q in groups)
+
+
 def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
                deflections: np.ndarray, payload: np.ndarray | None = None, folds: int = 5,
                seed: int = 0, geometry: ArmGeometry | None = None,
@@ -226,29 +251,37 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
     contradict (a bad sample's neighbours can look bad while it is in the data) are taken
     back and screened once more. Without ``geometry`` the solvability check is skipped.
     """
-    options = candidates(kind, settings)
-    for option in options:
-        make_predictor(kind, option)     # unknown kind or bad settings: fail before any fit
+    options = _options(kind, settings)
+    for option_kind, option, _ in options:
+        make_predictor(option_kind, option)   # unknown kind or bad settings: fail before any fit
     joints, deflections, payload = check_data(joints, deflections, payload, folds)
     output_std = deflections.std(axis=0)
     output_std = np.where(output_std > 0, output_std, 1.0)
     kept, excluded = np.arange(len(joints)), np.array([], dtype=int)
     most = int(screening.max_outlier_fraction * len(joints))
 
-    cheaper = {name: value for name, value in make_predictor(kind).cv_overrides.items()
-               if name not in (settings or {})}
-
     def validate_option(i: int) -> np.ndarray:
         """Held-out residuals of option ``i`` on the kept samples."""
-        return cross_validate(kind, {**options[i], **cheaper}, joints[kept], deflections[kept],
-                              _subset(payload, kept), folds, seed)
+        option_kind, option, given = options[i]
+        cheaper = {name: value for name, value in make_predictor(option_kind).cv_overrides.items()
+                   if name not in given}
+        return cross_validate(option_kind, {**option, **cheaper}, joints[kept],
+                              deflections[kept], _subset(payload, kept), folds, seed)
 
-    def fit(option: Mapping[str, Any]) -> Predictor:
-        return make_predictor(kind, option).fit(joints[kept], deflections[kept],
-                                                _subset(payload, kept))
+    def fit(i: int) -> Predictor:
+        option_kind, option, _ = options[i]
+        return make_predictor(option_kind, option).fit(joints[kept], deflections[kept],
+                                                       _subset(payload, kept))
+
+    def label(i: int) -> dict[str, Any]:
+        """The settings option ``i`` chose (and its kind, for ``auto``)."""
+        option_kind, option, given = options[i]
+        chosen = {name: option[name] for name in option if name not in given}
+        return chosen if kind != 'auto' else {'kind': option_kind, **chosen}
 
     first = [validate_option(i) for i in range(len(options))]
-    ranked = sorted(range(len(options)), key=lambda i: _trimmed_rms(first[i], output_std))
+    cv_scores = [_trimmed_rms(residuals, output_std) for residuals in first]
+    ranked = sorted(range(len(options)), key=lambda i: cv_scores[i])
     best, residuals = ranked[0], first[ranked[0]]
     for _ in range(2):          # screen; take back what the screened model does not contradict
         while True:
@@ -261,7 +294,7 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
             residuals = validate_option(best)
         if not len(excluded):
             break
-        predicted = fit(options[best]).predict(joints[excluded], _subset(payload, excluded))
+        predicted = fit(best).predict(joints[excluded], _subset(payload, excluded))
         back = outlier_scores(predicted - deflections[excluded], scale, screening) == 0
         if not back.any():
             break
@@ -271,18 +304,21 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
     for i in ranked:            # the best choice, unless the compensator could not solve with it
         if i != best:
             residuals = validate_option(i)
-        predictor = fit(options[i])
-        slope = (0.0 if geometry is None else float(
-            deflection_slope(geometry, predictor.predict, joints[kept]).max()))
+        predictor = fit(i)
+        slope = (0.0 if geometry is None else
+                 _slope(geometry, predictor, joints[kept], _subset(payload, kept)))
         if slope <= screening.max_slope:
-            chosen = {name: options[i][name] for name in options[i]
-                      if name not in (settings or {})}
             metrics = Metrics.from_errors(
                 f'{folds}-fold cross-validation', len(kept), np.abs(residuals),
                 excluded_samples=tuple(int(e) for e in sorted(excluded)),
-                selected_settings=json.dumps(chosen), max_slope=slope)
+                selected_settings=json.dumps(label(i)), max_slope=slope)
+            if kind == 'auto':
+                by_kind = {k: min(score for (option_kind, _, _), score
+                                  in zip(options, cv_scores) if option_kind == k)
+                           for k, _, _ in options}
+                predictor = make_predictor(kind, settings).adopt(predictor, by_kind)
             return predictor, metrics
-        slopes.append(f'{json.dumps(options[i])}: {slope:.2f}')
+        slopes.append(f'{json.dumps({**label(i), **options[i][1]})}: {slope:.2f}')
     raise ValueError(
         'every model changes its deflection too fast for the compensator to solve '
         f'(slope > {screening.max_slope} at a training pose; {"; ".join(slopes)}): the data '

@@ -11,6 +11,7 @@ from flexarm_control.model_store import (
     fit_warning,
     list_models,
     next_version,
+    payload_warning,
     provenance,
     read_current,
     write_current,
@@ -45,15 +46,22 @@ def test_record_ahead_of_the_files_wins(tmp_path):
     assert next_version(tmp_path) == 13
 
 
-def test_fit_warning_names_another_payload_or_arm():
+def test_fit_warning_names_another_arm():
     arm = arm_fingerprint({'a': 1.0, 'b': [1, 2]})
     assert arm == arm_fingerprint({'b': [1, 2], 'a': 1.0}) != arm_fingerprint({'a': 1.5})
     meta = {'provenance': provenance('B', [0.0, 0.0, 5.0], arm)}
     assert meta['provenance']['payloads'] == [0.0, 5.0]
-    assert fit_warning(meta, 5.0, arm) == ''
-    assert 'payload 0, 5 kg, the arm carries 2 kg' in fit_warning(meta, 2.0, arm)
-    assert 'another arm configuration' in fit_warning(meta, 0.0, arm_fingerprint({}))
-    assert 'trained before' in fit_warning({}, 0.0, arm)
+    assert fit_warning(meta, arm) == ''
+    assert 'another arm configuration' in fit_warning(meta, arm_fingerprint({}))
+    assert 'trained before' in fit_warning({}, arm)
+
+
+def test_payload_warning_without_and_with_the_payload_input():
+    assert payload_warning([0.0, 5.0], False, 5.0) == ''
+    assert 'payload 0, 5 kg, the arm carries 2 kg' in payload_warning([0.0, 5.0], False, 2.0)
+    assert payload_warning([0.0, 5.0], True, 2.5) == ''          # inside the trained range
+    assert 'outside the payloads 0, 5 kg' in payload_warning([0.0, 5.0], True, 7.0)
+    assert payload_warning([], False, 3.0) == ''                 # nothing known: no claim
 
 
 def test_models_are_listed_by_version_and_found(tmp_path):

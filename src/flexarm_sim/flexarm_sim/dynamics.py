@@ -21,6 +21,7 @@ Pure numpy, no rclpy.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -118,6 +119,11 @@ class ArmDynamics:
     def set_payload(self, payload: float) -> None:
         """The arm picks up or puts down a load: ``payload`` [kg] at the tip from now on."""
         self.plant = self.plant.with_payload(payload)
+
+    def set_fabrication(self, link3: float, link4: float, offset: float) -> None:
+        """The arm's link errors [m] from now on (a knock bent a link)."""
+        self.plant = dataclasses.replace(self.plant, link3_error=link3, link4_error=link4,
+                                         offset_error=offset)
 
     def natural_frequency(self) -> float:
         """[Hz] of the tip mode at the current payload and No.2 arm length."""

@@ -8,9 +8,13 @@ pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for eva
 Error sources (config/sim.yaml ``error_sources``, off by default): the arm's joint
 repeatability, friction hysteresis and thermal drift (:mod:`flexarm_sim.errors`), a true camera
 that differs from the calibration it publishes on camera_info (:mod:`flexarm_sim.true_camera`),
-and payload changes at run time: ``plant.payload`` is the one writable parameter of the plant,
+and payload changes at run time: ``plant.payload`` is writable,
 ``ros2 param set /flexarm_sim plant.payload 5.0`` [kg] loads the tip (refused while the source
-is off); the deflection and the tip frequency follow at once.
+is off); the deflection and the tip frequency follow at once. The simulator also follows the
+payload the graph declares on the latched ``/payload`` (the tool really was picked up); setting
+``plant.payload`` directly is a load nobody declared. ``plant.fabrication.link3``, ``link4``
+and ``offset`` [m] are writable too while error sources are on: a knock bends a link (e.g.
+``plant.fabrication.offset`` + 1 mm: the No.2 arm's end 1 mm off its axis), for drift studies.
 
 Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
 dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), counted in integer
@@ -28,7 +32,7 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
-from std_msgs.msg import Float64MultiArray, Header
+from std_msgs.msg import Float64, Float64MultiArray, Header
 
 from flexarm_control import topics
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
@@ -40,6 +44,8 @@ from flexarm_sim.errors import ArmErrors, active
 from flexarm_sim.plant import Plant
 from flexarm_sim.true_camera import true_renderer
 from flexarm_vision.camera_model import CameraModel
+
+FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
 BASE_FRAME = 'base_link'
 CAMERA_FRAME = 'tip_camera'
@@ -69,10 +75,11 @@ class SimNode(Node):
             raise ValueError('real_time_factor and all rates must be positive')
 
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
-        plant = Plant.from_dict(declare_tree(self, 'plant', 'config/sim.yaml', {'payload'}),
-                                self._geometry)
+        plant = Plant.from_dict(declare_tree(self, 'plant', 'config/sim.yaml', {
+            'payload', *(f'fabrication.{name}' for name in FABRICATION)}), self._geometry)
         errors = declare_tree(self, 'error_sources', 'config/sim.yaml')
         self._payload_changes = active(errors, 'payload')
+        self._fabrication_changes = bool(errors['enabled'])
         self._dynamics = ArmDynamics(
             plant, self._geometry, declare_tree(self, 'dynamics', 'config/sim.yaml'),
             np.asarray(initial, dtype=float), ArmErrors.from_dict(errors, plant.backlash))
@@ -99,6 +106,7 @@ class SimNode(Node):
         self._info_pub.publish(self._camera_info)
         self.create_timer(self._dt / self._rtf, self._on_tick)
         self.add_on_set_parameters_callback(self._on_set_parameters)
+        self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self.get_logger().info(
             f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
             f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
@@ -127,8 +135,36 @@ class SimNode(Node):
         """Stop the arm where it is (e.g. when the link to the PC is lost)."""
         self._dynamics.hold()
 
+    def _on_payload(self, msg: Float64) -> None:
+        """The graph declares the payload: the arm carries it from now on (``plant.payload``
+        follows, so the parameter always says what the arm carries)."""
+        if msg.data == self._dynamics.plant.payload:
+            return
+        result = self.set_parameters([Parameter('plant.payload', Parameter.Type.DOUBLE,
+                                                float(msg.data))])[0]
+        if not result.successful:
+            self.get_logger().error(f'/payload {msg.data:g} kg ignored: {result.reason}')
+
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
-        """A new ``plant.payload`` [kg] loads the tip at once, if payload changes are on."""
+        """A new ``plant.payload`` [kg] loads the tip at once, if payload changes are on; new
+        ``plant.fabrication`` link errors [m] bend the arm, if error sources are on."""
+        plant = self._dynamics.plant
+        errors = {'link3': plant.link3_error, 'link4': plant.link4_error,
+                  'offset': plant.offset_error}
+        for param in params:
+            name = param.name.removeprefix('plant.fabrication.')
+            if name in FABRICATION:
+                if not self._fabrication_changes:
+                    return SetParametersResult(successful=False, reason=(
+                        'run-time link changes need error sources on (config/sim.yaml '
+                        'error_sources.enabled)'))
+                if param.type_ not in (Parameter.Type.DOUBLE, Parameter.Type.INTEGER):
+                    return SetParametersResult(successful=False, reason=f'{name}: a number [m]')
+                errors[name] = float(param.value)
+        if any(p.name.removeprefix('plant.fabrication.') in FABRICATION for p in params):
+            self._dynamics.set_fabrication(**errors)
+            self.get_logger().info('link errors now ' + ', '.join(
+                f'{k} {v * 1e3:.3f} mm' for k, v in errors.items()))
         for param in params:
             if param.name != 'plant.payload':
                 continue

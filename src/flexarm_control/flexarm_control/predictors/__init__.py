@@ -1,7 +1,13 @@
 """Deflection predictors Δ(θ) → (dx, dy, dφ) behind one interface (:class:`Predictor`).
 
 ``make_predictor(kind, settings)`` builds an unfitted one of ``KINDS``;
-``load_predictor(path)`` reads any saved model (format: :mod:`.base`).
+``load_predictor(path)`` reads any saved model (format: :mod:`.base`). The kinds: learned ones
+on the normalised link angles — ``mlp`` (the paper's network), ``rbf``, ``gp`` (Gaussian
+process, with a predictive std) — and ones that model the arm — ``kinematic`` (joint zero
+offsets and link lengths by least squares: kinematic calibration), ``greybox`` (compliances ×
+gravity moments through the kinematic chain, plus a GP on what is left) — and ``auto``, the
+learner's default, which picks the best of kinematic, greybox and gp for the dataset by grouped
+cross-validation (:mod:`.auto`).
 """
 from __future__ import annotations
 
@@ -9,17 +15,22 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
+from flexarm_control.predictors.auto import AutoPredictor
 from flexarm_control.predictors.base import FORMAT_VERSION, Predictor, read_model, restore
 from flexarm_control.predictors.gp import GpPredictor
+from flexarm_control.predictors.greybox import GreyboxPredictor
+from flexarm_control.predictors.kinematic import KinematicPredictor
 from flexarm_control.predictors.mlp import MlpPredictor
 from flexarm_control.predictors.rbf import RbfPredictor
 
 _CLASSES: dict[str, type[Predictor]] = {
-    cls.kind: cls for cls in (MlpPredictor, RbfPredictor, GpPredictor)}
+    cls.kind: cls for cls in (MlpPredictor, RbfPredictor, GpPredictor, KinematicPredictor,
+                              GreyboxPredictor, AutoPredictor)}
 KINDS = tuple(_CLASSES)
 
-__all__ = ['FORMAT_VERSION', 'KINDS', 'GpPredictor', 'MlpPredictor', 'Predictor',
-           'RbfPredictor', 'load_predictor', 'make_predictor']
+__all__ = ['FORMAT_VERSION', 'KINDS', 'AutoPredictor', 'GpPredictor', 'GreyboxPredictor',
+           'KinematicPredictor', 'MlpPredictor', 'Predictor', 'RbfPredictor', 'load_predictor',
+           'make_predictor']
 
 
 def _class_of(kind: str) -> type[Predictor]:

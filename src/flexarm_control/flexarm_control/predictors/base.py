@@ -8,8 +8,9 @@ absolute orientation, so these make the deflection a simpler function (a Gaussia
 them missed region-A targets 5-10× less than on the raw joints, 40 samples, 5 seeds). Inputs
 and outputs are z-scored with the training set's mean and standard deviation; an input that
 is constant in the training set (e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as
-nothing can be learned about it. The kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever
-see the normalised space.
+nothing can be learned about it. The learned kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only
+ever see the normalised space; the ``physical`` ones (:mod:`.kinematic`, :mod:`.greybox`,
+:mod:`.auto`) model the arm and take the joints and the payload in SI units instead.
 
 Learned-data support: the model keeps its normalised training inputs, and
 :meth:`Predictor.data_distance` says how far a query lies from them — the distance to the
@@ -34,13 +35,16 @@ nothing executable in it). Entry ``metadata`` is a JSON string::
 entry ``support`` holds the normalised training inputs, and the kind's arrays are entries
 ``<kind>.<name>`` (MLP: its weights; RBF: the normalised
 training set, the model is rebuilt on load; GP: the normalised training set and the fitted
-kernel hyperparameters per output). ``version`` defaults to the UTC fit time, so it sorts in
+kernel hyperparameters per output). A refreshed model (:meth:`Predictor.corrected`) also has
+``corrections``, a list of :class:`~flexarm_control.drift_correction.Correction` dicts added to
+its prediction in order. ``version`` defaults to the UTC fit time, so it sorts in
 training order; the learner may overwrite it before saving. Saving writes a temporary file in
 the target's directory, fsyncs it, renames it over the target (``os.replace``) and fsyncs the
 directory: a crash or a failed save leaves either the old file or the new one, never a mix.
 """
 from __future__ import annotations
 
+import copy
 import json
 from abc import ABC, abstractmethod
 from collections.abc import Mapping
@@ -53,6 +57,7 @@ import numpy as np
 from scipy.spatial import cKDTree
 
 from flexarm_control.atomic_file import atomic_write
+from flexarm_control.drift_correction import Correction
 
 FORMAT_VERSION = 2        # 2: link-angle inputs and the learned-data support
 JOINTS = 4
@@ -138,6 +143,10 @@ class Predictor(ABC):
     # Settings the cross-validation fits take instead of the defaults (cheaper; the final fit
     # keeps the defaults), unless the user sets them.
     cv_overrides: ClassVar[dict[str, Any]] = {}
+    # True: the kind is fitted and queried on the joints (N, 4) and the payload (N,) [kg] (None
+    # unless ``payload_input``) in SI units (:meth:`_fit_physical`, :meth:`_predict_physical`),
+    # not on the normalised space.
+    physical: ClassVar[bool] = False
 
     def __init__(self, settings: Mapping[str, Any] | None = None) -> None:
         given = dict(settings or {})
@@ -155,18 +164,28 @@ class Predictor(ABC):
             'dataset_hash': '', 'metrics': None, 'support_spacing': None}
         self._normalisation: Normalisation | None = None
         self._support: np.ndarray | None = None
+        self.corrections: list[Correction] = []   # refreshes (drift_correction), in order
 
     @abstractmethod
     def _check_settings(self) -> None:
         """Raise ValueError for settings out of range."""
 
-    @abstractmethod
     def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
-        """Fit on normalised inputs (N, d) and outputs (N, 3)."""
+        """Fit on normalised inputs (N, d) and outputs (N, 3) (kinds not ``physical``)."""
+        raise NotImplementedError
 
-    @abstractmethod
     def _predict_normalised(self, x: np.ndarray) -> np.ndarray:
-        """Normalised outputs (M, 3) for normalised inputs (M, d)."""
+        """Normalised outputs (M, 3) for normalised inputs (M, d) (kinds not ``physical``)."""
+        raise NotImplementedError
+
+    def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
+                      deflections: np.ndarray) -> None:
+        """Fit on joints (N, 4), payload (N,) or None and deflections (N, 3) (``physical``)."""
+        raise NotImplementedError
+
+    def _predict_physical(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
+        """Deflections (M, 3) at joints (M, 4) and payload (M,) or None (``physical``)."""
+        raise NotImplementedError
 
     @abstractmethod
     def _state(self) -> dict[str, np.ndarray]:
@@ -194,7 +213,10 @@ class Predictor(ABC):
             raise ValueError(f'at least 2 samples are needed to fit, got {len(x)}')
         normalisation = Normalisation.of(x, y)
         support = normalisation.inputs(x)
-        self._fit_normalised(support, normalisation.outputs(y))
+        if self.physical:
+            self._fit_physical(*self._physical_inputs(x), y)
+        else:
+            self._fit_normalised(support, normalisation.outputs(y))
         self._normalisation, self._support = normalisation, support
         now = datetime.now(UTC)
         self.metadata.update(created=now.isoformat(), version=now.strftime('%Y%m%dT%H%M%S.%fZ'),
@@ -219,8 +241,21 @@ class Predictor(ABC):
         """Deflection (3,) for joints (4,), or (M, 3) for joints (M, 4)."""
         x, single = self._inputs(joints, payload)
         normalisation = self._require_fitted()
-        y = normalisation.outputs_back(self._predict_normalised(normalisation.inputs(x)))
+        y = (self._predict_physical(*self._physical_inputs(x)) if self.physical else
+             normalisation.outputs_back(self._predict_normalised(normalisation.inputs(x))))
+        for correction in self.corrections:
+            y = correction.apply(np.atleast_2d(np.asarray(joints, dtype=float)), y)
         return y[0] if single else y
+
+    def corrected(self, correction: Correction, version: str) -> Predictor:
+        """This model with ``correction`` added to its prediction (a refresh), as ``version``;
+        this one is left unchanged."""
+        self._require_fitted()
+        new = copy.copy(self)
+        new.corrections = [*self.corrections, correction]
+        new.metadata = {**self.metadata, 'version': version,
+                        'corrections': [c.as_dict() for c in new.corrections]}
+        return new
 
     def position_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
                      ) -> np.ndarray | float:
@@ -241,6 +276,11 @@ class Predictor(ABC):
         if self._normalisation is None:
             raise RuntimeError(f'the {self.kind} predictor is not fitted')
         return self._normalisation
+
+    def _physical_inputs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
+        """Joints (N, 4) and payload (N,) or None of model inputs ``x`` (:meth:`_inputs`)."""
+        joints = np.column_stack([x[:, 0], x[:, 1], x[:, 2] - x[:, 0], x[:, 3] - x[:, 2]])
+        return joints, x[:, JOINTS] if self.settings['payload_input'] else None
 
     def _inputs(self, joints: np.ndarray, payload: np.ndarray | float | None,
                 ) -> tuple[np.ndarray, bool]:
@@ -316,6 +356,8 @@ def restore(cls: type[Predictor], metadata: dict[str, Any],
         if not float(metadata['support_spacing']) > 0:
             raise ValueError(f"support_spacing {metadata['support_spacing']}")
         predictor._restore(state)
+        predictor.corrections = [Correction.from_dict(c)
+                                 for c in metadata.get('corrections', [])]
         mean = predictor._normalisation.input_mean    # link angles: back to joints
         joints = np.array([mean[0], mean[1], mean[2] - mean[0], mean[3] - mean[2]])
         probe = predictor.predict(joints,

@@ -1,0 +1,29 @@
+"""A deflection model seen at the payload the arm carries now (pure).
+
+Planning (:mod:`flexarm_control.planning`) and the model health call ``predict``,
+``data_distance`` and ``position_std`` with joints only. :class:`AtPayload` passes the current
+payload [kg] to a model that takes it as an input (its ``payload_input`` setting) and nothing to
+one that does not; for the former the payload counts in the distance from the learned data, so
+a payload far outside the trained ones is refused like any other extrapolation.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from flexarm_control.predictors import Predictor
+
+
+class AtPayload:
+    def __init__(self, predictor: Predictor, payload: float) -> None:
+        self.predictor = predictor
+        self.payload = float(payload)
+        self._given = self.payload if predictor.settings['payload_input'] else None
+
+    def predict(self, joints: np.ndarray) -> np.ndarray:
+        return self.predictor.predict(joints, self._given)
+
+    def data_distance(self, joints: np.ndarray) -> np.ndarray | float:
+        return self.predictor.data_distance(joints, self._given)
+
+    def position_std(self, joints: np.ndarray) -> np.ndarray | float:
+        return self.predictor.position_std(joints, self._given)

@@ -1,0 +1,122 @@
+"""Mending a model that no longer fits the arm from a few samples (pure; issue 18 part 2).
+
+When the arm changes after training — a heavier tool nobody declared, thermal growth, a link
+bent by a knock — the learned deflection Δ(θ) is off everywhere by something smooth and
+low-dimensional. A refresh measures a few samples, then fits a :class:`Correction` added to the
+model's prediction: ``Δ'(θ) = Δ(θ) + F(θ) p``, whose columns F are what such changes do to the
+tip, linear in small parameters p:
+
+* the joint zeros (4) and the lengths link3, link4 and the lateral offset (3): a bent or
+  knocked link, a slipped encoder (the rigid model's sensitivities, :func:`features`);
+* growth: every length scaled by (1 + ε), about joint 1 (thermal expansion);
+* gravity scale: the model's own deflection scaled by (1 + s) (a different load at the tip).
+
+Nine parameters from as few as five samples (three equations each): a ridge toward zero with
+the prior scales ``PRIOR`` keeps them finite, and residuals are weighted by the measurement
+noise ``NOISE``. Corrections compose: a refresh of a refreshed model adds another. The model's
+training samples are not used again (they describe the arm before the change): the refresh is
+incremental, its cost the few samples it measures.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+PARAMETERS = ('joint1_zero', 'joint2_zero', 'joint3_zero', 'joint4_zero', 'link3', 'link4',
+              'offset', 'growth', 'gravity_scale')
+# Prior scale of each parameter [rad, m, rad, rad, m, m, m, -, -]: a change of about this size
+# is as plausible as none.
+PRIOR = np.array([2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 2e-3, 5e-4, 0.5])
+NOISE = np.array([4e-5, 4e-5, 6e-5])   # [m, m, rad] one averaged measurement of a sample
+
+
+def features(lengths: tuple[float, float, float], joints: np.ndarray,
+             deflection: np.ndarray) -> np.ndarray:
+    """F (M, 3, 9): the tip's change per unit of each parameter at joints (M, 4), for the
+    arm's (link3, link4, offset) [m] and the model's deflection (M, 3) there."""
+    link3, link4, offset = lengths
+    q = np.atleast_2d(np.asarray(joints, dtype=float))
+    d = np.atleast_2d(np.asarray(deflection, dtype=float))
+    t1, t2 = q[:, 0], q[:, 1]
+    a13, a134 = t1 + q[:, 2], t1 + q[:, 2] + q[:, 3]
+    c1, s1 = np.cos(t1), np.sin(t1)
+    x3, y3 = t2 * c1 - offset * s1, t2 * s1 + offset * c1          # joint 3
+    x4, y4 = x3 + link3 * np.cos(a13), y3 + link3 * np.sin(a13)    # joint 4
+    x, y = x4 + link4 * np.cos(a134), y4 + link4 * np.sin(a134)    # tip
+    zero, one = np.zeros_like(t1), np.ones_like(t1)
+    columns = [
+        (-y, x, one),                           # joint 1 zero: turn about the base
+        (c1, s1, zero),                         # joint 2 zero: along the No.2 arm
+        (-(y - y3), x - x3, one),               # joint 3 zero: turn about joint 3
+        (-(y - y4), x - x4, one),               # joint 4 zero: turn about joint 4
+        (np.cos(a13), np.sin(a13), zero),       # link3
+        (np.cos(a134), np.sin(a134), zero),     # link4
+        (-s1, c1, zero),                        # lateral offset of the No.2 arm
+        (x, y, zero),                           # growth about joint 1
+        (d[:, 0], d[:, 1], d[:, 2]),            # gravity scale
+    ]
+    return np.stack([np.stack(c, axis=-1) for c in columns], axis=-1)
+
+
+@dataclass(frozen=True)
+class Correction:
+    """``F(θ) p`` on top of a model; ``samples`` measured it, ``residual_*`` [m] are the
+    median position residuals of those samples against the model before and after."""
+
+    parameters: np.ndarray                  # (9,) in the order of PARAMETERS
+    lengths: tuple[float, float, float]     # [m] link3, link4, offset of the arm's model
+    samples: int
+    residual_before: float
+    residual_after: float
+
+    def apply(self, joints: np.ndarray, deflection: np.ndarray) -> np.ndarray:
+        """The corrected deflection (M, 3) for the model's ``deflection`` (M, 3) at joints."""
+        return deflection + features(self.lengths, joints, deflection) @ self.parameters
+
+    def as_dict(self) -> dict[str, Any]:
+        return {'parameters': dict(zip(PARAMETERS, self.parameters.tolist())),
+                'lengths': list(self.lengths), 'samples': self.samples,
+                'residual_before': self.residual_before, 'residual_after': self.residual_after}
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> Correction:
+        """From :meth:`as_dict`; ValueError if incomplete."""
+        try:
+            values = np.array([float(d['parameters'][name]) for name in PARAMETERS])
+            lengths = tuple(float(v) for v in d['lengths'])
+            correction = cls(values, lengths, int(d['samples']), float(d['residual_before']),
+                             float(d['residual_after']))
+        except (KeyError, TypeError, ValueError) as exc:
+            raise ValueError(f'incomplete drift correction {d!r}: {exc}') from exc
+        if len(lengths) != 3 or not np.all(np.isfinite(values)):
+            raise ValueError(f'invalid drift correction {d!r}')
+        return correction
+
+
+def position_residuals(residuals: np.ndarray) -> np.ndarray:
+    """|(dx, dy)| [m] of residuals (M, 3)."""
+    return np.hypot(residuals[:, 0], residuals[:, 1])
+
+
+def fit_correction(lengths: tuple[float, float, float], joints: np.ndarray,
+                   measured: np.ndarray, predicted: np.ndarray) -> Correction:
+    """The correction that brings ``predicted`` (M, 3) deflections at joints (M, 4) to the
+    ``measured`` ones, by noise-weighted ridge least squares (module docstring)."""
+    joints = np.atleast_2d(np.asarray(joints, dtype=float))
+    measured = np.atleast_2d(np.asarray(measured, dtype=float))
+    predicted = np.atleast_2d(np.asarray(predicted, dtype=float))
+    if len(joints) < 1 or measured.shape != predicted.shape or measured.shape != (
+            len(joints), 3):
+        raise ValueError('a correction needs joints (M, 4) and deflections (M, 3), M >= 1')
+    f = features(lengths, joints, predicted) / NOISE[None, :, None]
+    r = (measured - predicted) / NOISE
+    a = np.concatenate([f.reshape(-1, len(PARAMETERS)), np.diag(1.0 / PRIOR)])
+    b = np.concatenate([r.reshape(-1), np.zeros(len(PARAMETERS))])
+    p = np.linalg.lstsq(a, b, rcond=None)[0]
+    before = position_residuals(measured - predicted)
+    after = position_residuals(measured - predicted - features(lengths, joints, predicted) @ p)
+    return Correction(p, tuple(float(v) for v in lengths), len(joints),
+                      float(np.median(before)), float(np.median(after)))

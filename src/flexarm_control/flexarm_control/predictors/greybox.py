@@ -1,0 +1,154 @@
+"""Physics-informed grey-box predictor: the arm's gravity-moment structure with unknown
+compliances, identified from the samples, plus an optional learned residual.
+
+Each compliant element turns or bends by (its compliance) × (the gravity moment about it,
+:mod:`flexarm_control.gravity_moments`: Table 3 masses and the payload, on the rigid pose),
+propagated to the tip through the kinematic chain of :mod:`.kinematic` (with its kinematic
+errors): joint1 and the joint-2 guide turn everything about joint1 (moments M1, M2); the No.2
+arm bends — shifts joint3 sideways and turns it — by M2; joint3 turns and the third arm bends
+by M3; joint4 turns and the fourth arm bends by M4 (tip shift, tip angle).
+Backlash makes a joint's turn jump where its moment changes sign: one dead-band term per joint
+element (J1, guide, J3, J4), a turn × tanh(M / ``dead_band``). The deflection is linear in the
+19 element terms and nearly so in the 7 kinematic errors: nonlinear least squares from zero
+(:func:`.kinematic.solve`) with a ridge ``ridge`` on the terms in their effect units (each
+compliance × the RMS of its moment over the samples, rad or m). One compliance per element:
+the sign dependence of Table 5 matters only where a moment changes sign, like the backlash.
+
+``residual`` 'gp': a Gaussian process (:mod:`.gp`, kernel ``residual_kernel``) learns what
+the structure leaves (camera errors, friction, what the moments miss); training chooses
+'none' or 'gp' by cross-validation. The payload [kg] enters the moments, so with
+``payload_input`` the structure carries over to payloads not in the data; without it the
+moments take ``payload``. The masses and geometry used are kept in the metadata
+(``greybox.arm``) with the identified compliances: a saved model is self-contained.
+"""
+from __future__ import annotations
+
+from collections.abc import Mapping
+from typing import Any, ClassVar
+
+import numpy as np
+
+from flexarm_control.gravity_moments import ArmMasses
+from flexarm_control.predictors.base import Predictor, restore
+from flexarm_control.predictors.gp import KERNELS, GpPredictor
+from flexarm_control.predictors.kinematic import (
+    KINEMATIC,
+    PARAMETERS,
+    perturbed_pose,
+    solve,
+    weighted,
+)
+
+# (name, moment: index into gravity_moments.ELEMENTS, dead band?, slot): slots 0-3 turn at
+# joint1, joint3, joint4 and the tip frame; 4-6 shift joint3, joint4 and the tip sideways.
+TERMS = (('joint1', 0, False, 0), ('guide2', 1, False, 0), ('arm2_deflection', 1, False, 4),
+         ('arm2_angle', 1, False, 1), ('joint3', 2, False, 1), ('arm3_deflection', 2, False, 5),
+         ('arm3_angle', 2, False, 2), ('joint4', 3, False, 2), ('arm4_deflection', 3, False, 6),
+         ('arm4_angle', 3, False, 3), ('joint1_play', 0, True, 0), ('guide2_play', 1, True, 0),
+         ('joint3_play', 2, True, 1), ('joint4_play', 3, True, 2))
+_MOMENT = np.array([t[1] for t in TERMS])
+_PLAY = np.array([t[2] for t in TERMS])
+_SLOTS = np.eye(7)[[t[3] for t in TERMS]]       # (terms, 7): term -> slot
+RESIDUALS = ('none', 'gp')
+
+
+def load_arm() -> ArmMasses:
+    """The arm of config/arm.yaml and config/sim.yaml ``plant``."""
+    from flexarm_control.params import load_config
+
+    return ArmMasses.from_config(load_config('arm.yaml', 'sim.yaml'))
+
+
+class GreyboxPredictor(Predictor):
+    """Compliances × gravity moments through the kinematic chain, plus an optional GP."""
+
+    kind: ClassVar[str] = 'greybox'
+    defaults: ClassVar[dict[str, Any]] = {
+        'ridge': 1e-8, 'dead_band': 0.5, 'payload': 0.0, 'residual': 'gp',
+        'residual_kernel': 'matern32', 'residual_restarts': 0, 'seed': 0,
+        'payload_input': False}
+    cv_choices: ClassVar[dict[str, list[Any]]] = {'residual': list(RESIDUALS)}
+    physical: ClassVar[bool] = True
+
+    def _check_settings(self) -> None:
+        s = self.settings
+        if s['ridge'] < 0 or s['dead_band'] <= 0 or s['payload'] < 0:
+            raise ValueError("greybox needs 'ridge' >= 0, 'dead_band' > 0 and 'payload' >= 0")
+        if s['residual'] not in RESIDUALS:
+            raise ValueError(f"greybox 'residual' must be one of {list(RESIDUALS)}, "
+                             f"got {s['residual']!r}")
+        if s['residual_kernel'] not in KERNELS or s['residual_restarts'] < 0:
+            raise ValueError(f"greybox 'residual_kernel' must be one of {sorted(KERNELS)} "
+                             "and 'residual_restarts' >= 0")
+
+    def _features(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
+        """Per sample (N, terms): the moment of each compliance term [N·m], tanh of it for a
+        dead-band term."""
+        moments = self._arm.moments(joints, self.settings['payload'] if payload is None
+                                    else payload)[:, _MOMENT]
+        return np.where(_PLAY, np.tanh(moments / self.settings['dead_band']), moments)
+
+    def _structure(self, joints: np.ndarray, features: np.ndarray, kinematic: np.ndarray,
+                   compliance: np.ndarray) -> np.ndarray:
+        """Deflection (N, 3) of the structure with these parameters."""
+        slots = (features * compliance) @ _SLOTS
+        geometry = {'link3': self._arm.link3, 'link4': self._arm.link4,
+                    'offset': self._arm.offset}
+        return (perturbed_pose(geometry, joints, kinematic, slots[:, :4], slots[:, 4:])
+                - perturbed_pose(geometry, joints, np.zeros(KINEMATIC)))
+
+    def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
+                      deflections: np.ndarray) -> None:
+        self._arm = load_arm()
+        features = self._features(joints, payload)
+        scale = np.sqrt(np.mean(features ** 2, axis=0))
+        scale = np.where(scale > 0, scale, 1.0)     # a term without moment stays at 0
+
+        def split(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+            return p[:KINEMATIC], p[KINEMATIC:] / scale
+
+        p = solve(lambda p: weighted(self._structure(joints, features, *split(p)) - deflections),
+                  KINEMATIC + len(TERMS), self.settings['ridge'])
+        self._kinematic, self._compliance = split(p)
+        self._residual: GpPredictor | None = None
+        if self.settings['residual'] == 'gp':
+            left = deflections - self._structure(joints, features, self._kinematic,
+                                                 self._compliance)
+            self._residual = GpPredictor({
+                'kernel': self.settings['residual_kernel'], 'seed': self.settings['seed'],
+                'restarts': self.settings['residual_restarts'],
+                'payload_input': self.settings['payload_input']}).fit(joints, left, payload)
+        self.metadata['greybox'] = {
+            'arm': self._arm.as_dict(),
+            'kinematic': dict(zip(PARAMETERS, self._kinematic.tolist())),
+            'compliance': {t[0]: float(c) for t, c in zip(TERMS, self._compliance)},
+            'residual': None if self._residual is None else self._residual.metadata}
+
+    def _predict_physical(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
+        y = self._structure(joints, self._features(joints, payload), self._kinematic,
+                            self._compliance)
+        return y if self._residual is None else y + self._residual.predict(joints, payload)
+
+    def position_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                     ) -> np.ndarray | float:
+        """The residual GP's (:meth:`.GpPredictor.position_std`); 0 without one."""
+        if self._residual is None:
+            return super().position_std(joints, payload)
+        return self._residual.position_std(joints, payload)
+
+    def _state(self) -> dict[str, np.ndarray]:
+        state = {'kinematic': self._kinematic, 'compliance': self._compliance}
+        if self._residual is not None:
+            state.update({f'residual.{k}': v for k, v in self._residual._state().items()})
+        return state
+
+    def _restore(self, state: Mapping[str, np.ndarray]) -> None:
+        meta = self.metadata['greybox']
+        self._arm = ArmMasses.from_dict(meta['arm'])
+        self._kinematic = np.asarray(state['kinematic'], dtype=float).reshape(KINEMATIC)
+        self._compliance = np.asarray(state['compliance'], dtype=float).reshape(len(TERMS))
+        self._residual = None if meta['residual'] is None else restore(
+            GpPredictor, meta['residual'], {
+                'support': state['support'],
+                **{k[len('residual.'):]: v for k, v in state.items()
+                   if k.startswith('residual.')}})

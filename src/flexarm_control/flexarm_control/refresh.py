@@ -1,0 +1,42 @@
+"""A model refresh: where to measure, and the refreshed model (pure; issue 18 part 2).
+
+:func:`refresh_poses` plans the few learning poses of a refresh: half of them (rounded up)
+where the model health saw its largest residuals (:meth:`ModelHealth.worst_joints`), the rest
+space-filling over the stale region grown by the coverage margin, so the correction is pinned
+down where goals missed and across the region. :func:`refreshed` fits the
+:class:`~flexarm_control.drift_correction.Correction` to the samples taken there and returns the
+corrected model under a new version.
+"""
+from __future__ import annotations
+
+import numpy as np
+
+from flexarm_control.drift_correction import fit_correction
+from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.predictors import Predictor
+from flexarm_control.sampling import Region, sample_poses
+
+
+def refresh_poses(geometry: ArmGeometry, region: Region, worst: np.ndarray, count: int,
+                  seed: int = 0) -> np.ndarray:
+    """Joints (count, 4): up to ceil(count / 2) of ``worst`` (k, 4), then Sobol poses of
+    ``region`` (pass it grown by the coverage margin)."""
+    if count < 1:
+        raise ValueError('a refresh needs at least 1 sample')
+    chosen = np.asarray(worst, dtype=float).reshape(-1, 4)[:(count + 1) // 2]
+    rest = count - len(chosen)
+    if rest == 0:
+        return chosen
+    return np.concatenate([chosen, sample_poses(geometry, region, rest, 'sobol', seed)[1]])
+
+
+def refreshed(predictor: Predictor, geometry: ArmGeometry, joints: np.ndarray,
+              deflections: np.ndarray, payload: np.ndarray, version: str) -> Predictor:
+    """``predictor`` corrected to the measured ``deflections`` (M, 3) at ``joints`` (M, 4)
+    carrying ``payload`` (M,) [kg], as ``version``."""
+    joints = np.asarray(joints, dtype=float)
+    predicted = predictor.predict(
+        joints, np.asarray(payload, dtype=float) if predictor.settings['payload_input'] else None)
+    correction = fit_correction((geometry.link3, geometry.link4, geometry.offset), joints,
+                                deflections, predicted)
+    return predictor.corrected(correction, version)

@@ -1,0 +1,128 @@
+"""Node-level: the payload the graph declares reaches the simulator, the samples, the model and
+the compensator; a change nobody declared is caught by the model health and mended by a
+refresh."""
+import math
+import time
+
+import numpy as np
+import pytest
+import rclpy
+from rclpy.context import Context
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+
+from flexarm_control import topics
+from flexarm_control.client import FlexarmClient
+from flexarm_control.dataset import load_dataset
+from flexarm_control.predictors import load_predictor
+from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
+from flexarm_msgs.msg import ModelHealth
+
+pytestmark = pytest.mark.node
+Result = MoveToPose.Result
+# Payload changes on, every other error source off: the behaviour must not hang on noise.
+PAYLOAD_ONLY = {'error_sources': {'enabled': True, **{
+    source: {'enabled': source == 'payload'}
+    for source in ('repeatability', 'hysteresis', 'thermal', 'camera', 'payload')}}}
+TARGET = (1.30, -0.20, math.radians(-61))          # Table 10, B6
+GOALS = [(1.10, -0.30, math.radians(-70)), (1.20, -0.40, math.radians(-85)),
+         (1.25, -0.25, math.radians(-65)), (1.05, -0.45, math.radians(-90))]
+
+
+@pytest.fixture
+def graph(launch, domain_id, tmp_path):
+    launch('flexarm_sim', real_time_factor=10.0, **PAYLOAD_ONLY)
+    launch('flexarm_vision')
+    launch('flexarm_learner', data_directory=str(tmp_path / 'data'),
+           model_directory=str(tmp_path / 'models'))
+    launch('flexarm_compensator')
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    client = FlexarmClient('test_client', context=context)
+    health: list[ModelHealth] = []
+    latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+    client.create_subscription(ModelHealth, topics.MODEL_HEALTH, health.append, latched)
+    try:
+        client.wait_until_ready(timeout=30.0)
+        yield client, health
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+def wait_until(client: FlexarmClient, condition, timeout: float, what: str):
+    deadline = time.monotonic() + timeout
+    while not condition():
+        assert time.monotonic() < deadline, f'no {what} within {timeout} s'
+        client.spin_once(0.05)
+
+
+def train_on(client: FlexarmClient, dataset: str) -> str:
+    trained = client.train('gp', dataset=dataset, timeout=120)
+    assert trained.success, trained.message
+    client.wait_for_model(trained.model_version, timeout=20)
+    return trained.model_path
+
+
+def test_a_declared_payload_is_learned_and_used(graph):
+    client, _ = graph
+    for kg in (0.0, 5.0):
+        client.set_payload(kg)
+        wait_until(client, lambda: client.node_parameter('flexarm_sim', 'plant.payload') == kg,
+                   10.0, f'simulator following /payload {kg} kg')
+        result = client.collect(10, region='B', dataset='p', seed=int(kg), timeout=180)
+        assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
+    _, _, payload = load_dataset(result.dataset_path).arrays()
+    assert sorted(set(payload)) == [0.0, 5.0]
+    model = load_predictor(train_on(client, 'p'))
+    assert model.settings['payload_input']                  # two payloads: an input
+
+    def planned_sag(kg: float, extrapolate: bool = True):    # 20 samples: the GP is unsure
+        client.set_payload(kg)
+        wait_until(client, lambda: client.node_parameter('flexarm_sim', 'plant.payload') == kg,
+                   10.0, f'payload {kg} kg')
+        return client.move_to(*TARGET, mode='predictive', dry_run=True, timeout=60,
+                              allow_extrapolation=extrapolate)
+
+    light, middle, heavy = (planned_sag(kg) for kg in (0.0, 2.5, 5.0))
+    sags = [r.predicted_deflection.y for r in (light, middle, heavy)]
+    assert sags[0] > sags[1] > sags[2], sags                 # more payload, more sag
+    assert 'payload' not in middle.error_string              # inside the trained payloads
+    moved = client.move_to(*TARGET, mode='predictive', timeout=120,   # at 5 kg, learned
+                           allow_extrapolation=True)
+    rigid = client.move_to(*TARGET, mode='rigid', timeout=120)
+    assert moved.error_code == Result.SUCCESSFUL, moved.error_string
+    assert moved.position_error < rigid.position_error / 4
+    beyond = planned_sag(12.0, extrapolate=False)            # far beyond: refused or warned
+    assert (beyond.error_code == Result.OUTSIDE_LEARNED_DATA
+            or 'outside the payloads' in beyond.error_string), beyond.error_string
+
+
+def test_an_undeclared_change_is_caught_and_refreshed(graph):
+    client, health = graph
+    result = client.collect(12, region='B', dataset='d', seed=5, timeout=180)
+    assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
+    train_on(client, 'd')
+    for target in GOALS[:3]:
+        assert client.move_to(*target, mode='predictive', timeout=120).measured
+    wait_until(client, lambda: health and health[-1].regions, 10.0, 'model health')
+    assert not health[-1].stale, health[-1].summary
+    client.set_node_parameter('flexarm_sim', 'plant.payload', 2.0)    # nobody declares it
+    for target in GOALS:
+        warned = client.move_to(*target, mode='predictive', timeout=120)
+    assert 'stale in region B' in warned.error_string, warned.error_string
+    wait_until(client, lambda: health[-1].stale, 10.0, 'a stale model health')
+    stale_version = health[-1].model_version
+    refresh = client.refresh(timeout=300)
+    assert refresh.error_code == RefreshModel.Result.SUCCESSFUL, refresh.error_string
+    assert refresh.collected == 8 and refresh.residual_after < refresh.residual_before / 3
+    assert refresh.dataset_path.endswith('d-refresh.jsonl')
+    client.wait_for_model(refresh.model.version, timeout=20)
+    wait_until(client, lambda: health[-1].model_version == refresh.model.version, 10.0,
+               'the health of the refreshed model')
+    assert refresh.model.version != stale_version and not health[-1].stale
+    mended = client.move_to(*GOALS[0], mode='predictive', timeout=120)
+    assert mended.error_code == Result.SUCCESSFUL and 'stale' not in mended.error_string
+    assert mended.position_error < 0.5e-3 < warned.position_error
+    nothing = client.refresh(timeout=60)                     # nothing stale now
+    assert nothing.error_code == RefreshModel.Result.INVALID_GOAL
+    assert 'no stale region' in nothing.error_string

@@ -217,6 +217,12 @@ def test_status_model_list_use_and_dry_run(launch, domain_id, tmp_path, write_da
     assert status['active_model']['dataset'] == 'good', status
     assert status['payload_kg']['learner'] == 0, status
     assert 'model driving the arm (compensator): v2 rbf, dataset good, 20 samples' in out
+    assert 'model health: no measured goal yet' in out
+
+    assert main(['payload', '2.5', *domain]) == Exit.OK
+    assert 'payload: 2.5 kg (declared now)' in capsys.readouterr().out
+    assert main(['refresh', *domain]) == Exit.FAILED        # nothing stale: nothing moves
+    assert 'no stale region' in capsys.readouterr().err
 
     assert main(['model', 'list', '--models', str(models)]) == Exit.OK
     listed = capsys.readouterr().out

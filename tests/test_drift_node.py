@@ -4,7 +4,6 @@ refresh."""
 import math
 import time
 
-import numpy as np
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -56,6 +55,13 @@ def wait_until(client: FlexarmClient, condition, timeout: float, what: str):
         client.spin_once(0.05)
 
 
+def follow(client: FlexarmClient, kg: float) -> None:
+    """Declare the payload; wait until the simulator carries it."""
+    client.set_payload(kg)
+    wait_until(client, lambda: client.node_parameter('flexarm_sim', 'plant.payload') == kg,
+               10.0, f'the simulator following /payload {kg} kg')
+
+
 def train_on(client: FlexarmClient, dataset: str) -> str:
     trained = client.train('gp', dataset=dataset, timeout=120)
     assert trained.success, trained.message
@@ -66,9 +72,7 @@ def train_on(client: FlexarmClient, dataset: str) -> str:
 def test_a_declared_payload_is_learned_and_used(graph):
     client, _ = graph
     for kg in (0.0, 5.0):
-        client.set_payload(kg)
-        wait_until(client, lambda: client.node_parameter('flexarm_sim', 'plant.payload') == kg,
-                   10.0, f'simulator following /payload {kg} kg')
+        follow(client, kg)
         result = client.collect(10, region='B', dataset='p', seed=int(kg), timeout=180)
         assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
     _, _, payload = load_dataset(result.dataset_path).arrays()
@@ -77,9 +81,7 @@ def test_a_declared_payload_is_learned_and_used(graph):
     assert model.settings['payload_input']                  # two payloads: an input
 
     def planned_sag(kg: float, extrapolate: bool = True):    # 20 samples: the GP is unsure
-        client.set_payload(kg)
-        wait_until(client, lambda: client.node_parameter('flexarm_sim', 'plant.payload') == kg,
-                   10.0, f'payload {kg} kg')
+        follow(client, kg)
         return client.move_to(*TARGET, mode='predictive', dry_run=True, timeout=60,
                               allow_extrapolation=extrapolate)
 

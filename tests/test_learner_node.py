@@ -171,7 +171,7 @@ def test_an_outlier_is_excluded_and_reported(bare_learner, write_dataset):
     assert trained.metrics.samples == 29 and trained.metrics.selected_settings
     assert 0 < trained.metrics.max_slope < 0.5
     model = load_predictor(trained.model_path)
-    assert model.kind == 'gp' and model.metadata['metrics']['excluded_samples'] == [11]
+    assert model.kind == 'auto' and model.metadata['metrics']['excluded_samples'] == [11]
 
 
 def test_models_carry_provenance_and_can_be_rolled_back(bare_learner):

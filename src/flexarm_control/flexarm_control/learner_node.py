@@ -145,10 +145,13 @@ def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
 
 
 def _warm_up() -> None:
-    """Worker start: one compute thread (the graph needs the other core), torch imported."""
+    """Worker start: one compute thread (the graph needs the other core), torch and the GP
+    imported (else an active collection's first choices come late)."""
+    import sklearn.gaussian_process  # noqa: F401
     import torch
     from threadpoolctl import threadpool_limits
 
+    import flexarm_control.active_sampling  # noqa: F401
     import flexarm_control.training  # noqa: F401
 
     threadpool_limits(1)
@@ -336,6 +339,7 @@ class LearnerNode(Node):
         chosen from the samples ``taken`` so far, in the training worker while the arm moves."""
         start = self._arm.positions()
         if strategy == 'active':
+            self._choose(int)   # starts the worker (seconds) during the first, fixed poses
             return ActivePoses(
                 self._geometry, region, count, seed,
                 lambda: (np.array([s.joints for s in taken]).reshape(-1, 4),

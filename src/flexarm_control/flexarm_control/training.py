@@ -82,7 +82,7 @@ class Screening:
 
 
 DEFAULT_SCREENING = Screening()
-NO_SCREENING = Screening(max_outlier_fraction=0.0)   # no sample excluded, no check of the slope
+NO_SCREENING = Screening(max_outlier_fraction=0.0)   # excludes no sample
 
 
 @dataclass(frozen=True)

@@ -1,5 +1,7 @@
 """Active learning poses: the most uncertain reachable candidate of the grown region, each
 chosen from the samples before it; deterministic for a seed."""
+from concurrent.futures import Future
+
 import numpy as np
 import pytest
 
@@ -48,7 +50,7 @@ def test_picks_the_most_uncertain_free_candidate(world):
     free[20] = False
     pending = np.zeros((0, 4))
     chosen = choose(candidates, free, measured, plant.deflection(measured), pending,
-                    START, geometry.velocity, SETTINGS, seed=0)
+                    START, geometry.velocity, ActiveSettings(near_best=1.0), seed=0)
     gp = make_predictor('gp', dict(SETTINGS.model, seed=0)).fit(measured,
                                                                 plant.deflection(measured))
     std = gp.position_std(candidates)
@@ -64,8 +66,8 @@ def test_near_best_takes_the_nearest_of_the_uncertain(world):
     free = np.arange(len(candidates)) >= 6
     args = (candidates, free, measured, plant.deflection(measured), np.zeros((0, 4)),
             candidates[5], geometry.velocity)
-    most = choose(*args, ActiveSettings(initial=4, pool=48), seed=0)
-    near = choose(*args, ActiveSettings(initial=4, pool=48, near_best=0.01), seed=0)
+    most = choose(*args, ActiveSettings(near_best=1.0), seed=0)
+    near = choose(*args, ActiveSettings(near_best=0.01), seed=0)
     travel = np.max(np.abs(candidates - candidates[5]) / geometry.velocity, axis=1)
     assert near == int(np.flatnonzero(free)[np.argmin(travel[free])])
     assert travel[near] <= travel[most]
@@ -105,3 +107,16 @@ def test_settings_checked():
         ActiveSettings(initial=1)
     with pytest.raises(ValueError):
         ActiveSettings(near_best=0.0)
+
+
+def test_a_choice_not_ready_is_not_waited_for(world):
+    """A worker that never answers: the space-filling candidates, in order, and no wait."""
+    geometry, plant, region = world
+    joints = []
+    poses = ActivePoses(geometry, region, 7, 0, lambda: (np.array(joints).reshape(-1, 4),
+                                                          plant.deflection(np.array(joints))),
+                        START, lambda *_: Future(), SETTINGS)
+    for q in poses:
+        joints.append(q)
+    _, pool = sample_poses(geometry, region, SETTINGS.pool, 'sobol', seed=0)
+    np.testing.assert_array_equal(np.sort(np.array(joints), axis=0), np.sort(pool[:7], axis=0))

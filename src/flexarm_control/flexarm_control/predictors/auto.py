@@ -1,13 +1,17 @@
 """``auto``: the kind that fits the dataset best, chosen by grouped cross-validation.
 
-No single kind wins everywhere (issue 18: on 40 camera-measured samples the GP is best where
-the deflection is smooth, region A; the grey-box where backlash flips inside the region, B),
-so ``auto`` cross-validates every setting candidate of each of its ``kinds``
-(:func:`flexarm_control.training.fit_robust`, held-out poses grouped, the trimmed RMS score)
-and keeps the single best one, fitted on all samples. It picks rather than averages: an
-ensemble weighted by the same scores was no better on held-out truth, and a single model keeps
-the GP's position std meaning what it says. The MLP is not among the default kinds: its
-cross-validation costs 10× the others' together and it never came out best.
+No single kind wins everywhere (issue 18): the grey-box where the arm follows its structure
+(on the simulated arm, every region and size), the GP where something the structure lacks
+dominates (paper region with friction, 40 samples: on the worst seed), kinematic calibration
+alone where the arm is stiff and only miscalibrated. So ``auto`` cross-validates every setting
+candidate of each of its ``kinds`` (:func:`flexarm_control.training.fit_robust`: held-out poses
+grouped, the trimmed RMS score) and keeps the single best one, fitted on all samples. It picks
+rather than averages: the mean of the grey-box and GP predictions missed the held-out truth by
+more than the choice in all six cases on the mean over seeds, five on the worst seed (regions
+A, B, paper × 20, 40 samples, 3 seeds, with friction, thermal strain and noise), and one model
+keeps the GP's position std meaningful. The MLP is not among the default kinds: it more than
+doubles the training time (40 samples, one thread: 2.8 s → 6-7 s) and never scored best in
+regions A, B or paper; add it to ``kinds`` to let it compete.
 
 The model is an :class:`AutoPredictor` that predicts with the chosen one; the metadata's
 ``auto`` entry says which (``chosen``, its ``settings``), the score of every kind (``scores``:

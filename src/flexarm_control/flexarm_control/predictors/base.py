@@ -35,7 +35,10 @@ nothing executable in it). Entry ``metadata`` is a JSON string::
 entry ``support`` holds the normalised training inputs, and the kind's arrays are entries
 ``<kind>.<name>`` (MLP: its weights; RBF: the normalised
 training set, the model is rebuilt on load; GP: the normalised training set and the fitted
-kernel hyperparameters per output). A refreshed model (:meth:`Predictor.corrected`) also has
+kernel hyperparameters per output; kinematic: its parameters; greybox: its kinematic errors and
+compliances, and the residual GP's arrays as ``residual.<name>``; auto: the chosen model's
+arrays; the physical kinds keep the geometry and masses they used in their metadata entry
+``<kind>``). A refreshed model (:meth:`Predictor.corrected`) also has
 ``corrections``, a list of :class:`~flexarm_control.drift_correction.Correction` dicts added to
 its prediction in order. ``version`` defaults to the UTC fit time, so it sorts in
 training order; the learner may overwrite it before saving. Saving writes a temporary file in

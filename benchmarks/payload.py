@@ -1,0 +1,116 @@
+"""Payload-aware prediction: a model trained on samples at 0 and 5 kg, asked at 2.5 kg (never
+seen).
+
+Offline, in the realistic world of benchmarks/error_budget.py (every error source on, camera
+calibrated against the reference; the learner's collection loop on the static simulated arm).
+Per region (A, B) and seed: ``--samples`` learning samples at 0 kg, the arm picks up a 5 kg
+tool, as many again at 5 kg (other Sobol poses), both with the payload recorded; the learner's
+training with the payload as a model input (``payload_input``), as the learner does for a
+dataset of several payloads. The model is judged against the plant's TRUE deflection at
+``--held-out`` random poses of the region carrying 0, 2.5 and 5 kg, each reached as every move
+is (its approach leg takes up the friction the same way): max and p95 position error
+(mm) per payload, pooled over seeds. ``ratio`` = the 2.5 kg max error / the larger of the
+trained payloads' max errors (target ≤ 1.5), per region and worst over seeds.
+
+    python benchmarks/payload.py [--samples 20] [--seeds 3] [--kind gp] [--json]
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import time
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calibration
+
+from flexarm_control.collection import Collector
+from flexarm_control.kinematics import forward
+from flexarm_control.sampling import regions_from_dict, sample_poses, travel_order
+from flexarm_control.training import Screening, fit_robust
+
+PAYLOADS = (0.0, 2.5, 5.0)      # [kg] asked; 0 and 5 trained
+TRAINED = (0.0, 5.0)
+
+
+def run(job: tuple[str, int, int, int, int, str]) -> dict[str, Any]:
+    region_name, region_index, seed, samples, held_out, kind = job
+    started = time.perf_counter()
+    c = config()
+    rig = Rig(c, set(SOURCES) - {'payload'}, 0.0, seed=100 * seed + region_index)
+    learner = c['learner']
+    regions = regions_from_dict(learner['regions'])
+    rig.correction = reference_calibration(rig, regions[region_name])['correction']
+    collector = Collector(CalibratedMotion(rig), rig.geometry, learner['measurement_retries'],
+                          clock=lambda: rig.arm.time)
+    grown = regions[region_name].grown(np.asarray(learner['coverage_margin']))
+    collected = []
+    for k, kg in enumerate(TRAINED):
+        rig.arm.set_payload(kg)
+        _, poses = sample_poses(rig.geometry, grown, samples, 'sobol',
+                                seed=100 * seed + 10 * region_index + k)
+        poses = poses[travel_order(poses, rig.arm.positions(), rig.geometry.velocity)]
+        collector.collect(poses, kg, collected.append)
+    predictor, metrics = fit_robust(
+        kind, {'payload_input': True}, np.array([s.joints for s in collected]),
+        np.array([s.deflection for s in collected]), np.array([s.payload for s in collected]),
+        folds=learner['validation_folds'], geometry=rig.geometry,
+        screening=Screening.from_dict(learner['training']))
+    _, joints = sample_poses(rig.geometry, regions[region_name], held_out, 'random',
+                             seed=9000 + 100 * seed + region_index)
+    errors = {}
+    for kg in PAYLOADS:
+        rig.arm.set_payload(kg)
+        truth = []
+        for q in joints:       # reached as every move is (the approach leg: the friction)
+            rig.motion.move_to(q)
+            truth.append(rig.arm.truth() - forward(rig.geometry, rig.arm.positions()))
+        miss = predictor.predict(joints, np.full(len(joints), kg)) - np.array(truth)
+        errors[kg] = (1e3 * np.hypot(miss[:, 0], miss[:, 1])).tolist()
+    return {'region': region_name, 'seed': seed, 'samples': len(collected),
+            'excluded': len(metrics.excluded_samples), 'errors': errors,
+            'ratio': max(errors[2.5]) / max(max(errors[kg]) for kg in TRAINED),
+            'wall_s': time.perf_counter() - started}
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--samples', type=int, default=20, help='learning samples per payload')
+    parser.add_argument('--held-out', type=int, default=200)
+    parser.add_argument('--seeds', type=int, default=3)
+    parser.add_argument('--regions', default='A,B')
+    parser.add_argument('--kind', help='predictor kind (default: the learner\'s default_kind)')
+    parser.add_argument('--workers', type=int, default=2)
+    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    args = parser.parse_args()
+    kind = args.kind or config()['learner']['default_kind']
+    regions = args.regions.split(',')
+    jobs = [(region, i, seed, args.samples, args.held_out, kind)
+            for i, region in enumerate(regions) for seed in range(args.seeds)]
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = list(pool.map(run, jobs))
+    out: dict[str, Any] = {'kind': kind, 'samples_per_payload': args.samples,
+                           'seeds': args.seeds, 'held_out': args.held_out, 'regions': {}}
+    print(f'{kind}: max / p95 position error [mm] at   0 kg          2.5 kg (unseen)   5 kg'
+          '          ratio (worst seed)')
+    for region in regions:
+        mine = [r for r in rows if r['region'] == region]
+        figures = {}
+        for kg in PAYLOADS:
+            e = np.concatenate([r['errors'][kg] for r in mine])
+            figures[f'{kg:g}kg'] = {'max_mm': float(e.max()),
+                                    'p95_mm': float(np.percentile(e, 95))}
+        ratio = max(r['ratio'] for r in mine)
+        out['regions'][region] = {'payloads': figures, 'ratio': ratio,
+                                  'ratios': [r['ratio'] for r in mine]}
+        print(f'region {region}:' + ''.join(
+            f"      {figures[f'{kg:g}kg']['max_mm']:6.3f} / {figures[f'{kg:g}kg']['p95_mm']:.3f}"
+            for kg in PAYLOADS) + f'      {ratio:.2f}', flush=True)
+    out['ratio'] = max(r['ratio'] for r in out['regions'].values())
+    if args.json:
+        print(json.dumps(out))
+
+
+if __name__ == '__main__':
+    main()

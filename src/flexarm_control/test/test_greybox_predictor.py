@@ -1,0 +1,126 @@
+"""The grey-box predictor: compliances recovered from a known truth, payloads it never saw,
+the residual GP, self-contained model files."""
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from flexarm_control.gravity_moments import ArmMasses
+from flexarm_control.predictors import greybox, kinematic, load_predictor, make_predictor
+
+LOWER = np.array([-0.6, 0.3, -1.6, -1.0])
+UPPER = np.array([0.3, 0.8, 0.0, 1.0])
+KINEMATIC = np.array([1.7e-4, 5e-4, -2.6e-4, 3.5e-4, 3e-4, -4e-4, 2e-4])
+# [rad/(N·m), m/(N·m)]: about half of Table 5's, as the simulated arm
+COMPLIANCE = {'joint1': 1e-5, 'guide2': 1.5e-5, 'joint3': 4e-5, 'arm3_deflection': 3.5e-5,
+              'joint4': 2.4e-4, 'arm4_deflection': 3.4e-4, 'arm4_angle': 8e-4}
+
+
+def random_joints(n: int, seed: int) -> np.ndarray:
+    return LOWER + (UPPER - LOWER) * np.random.default_rng(seed).random((n, 4))
+
+
+def truth(joints: np.ndarray, payload: np.ndarray | float = 0.0) -> np.ndarray:
+    """Deflection of an arm with COMPLIANCE and KINEMATIC errors, written out here."""
+    arm = greybox.load_arm()
+    m1, m2, m3, m4 = arm.moments(joints, payload).T
+    c = COMPLIANCE
+    turns = np.column_stack([c['joint1'] * m1 + c['guide2'] * m2, c['joint3'] * m3,
+                             c['joint4'] * m4, c['arm4_angle'] * m4])
+    shifts = np.column_stack([np.zeros(len(m1)), c['arm3_deflection'] * m3,
+                              c['arm4_deflection'] * m4])
+    geometry = {'link3': arm.link3, 'link4': arm.link4, 'offset': arm.offset}
+    return (kinematic.perturbed_pose(geometry, joints, KINEMATIC, turns, shifts)
+            - kinematic.perturbed_pose(geometry, joints, np.zeros(kinematic.KINEMATIC)))
+
+
+def test_moments_follow_the_masses() -> None:
+    arm = greybox.load_arm()
+    stretched = np.array([0.0, 0.6, 0.0, 0.0])     # arm horizontal along +x
+    m = arm.moments(stretched, 0.0)
+    assert np.all(m < 0) and m[0] < m[1] < m[2] < m[3]   # the farther out, the less load
+    lever = np.array([1.4, 1.4, 0.8, 0.4])   # [m] tip beyond joint1, the guide, joint3, joint4
+    np.testing.assert_allclose(arm.moments(stretched, 1.0) - m, -9.80665 * lever, atol=1e-12)
+    hanging = np.array([-np.pi / 2, 0.6, 0.0, 0.0])   # pointing down: no moment at joint4
+    assert abs(arm.moments(hanging, 2.0)[3]) < 1e-9
+    assert ArmMasses.from_dict(arm.as_dict()) == arm
+
+
+def test_recovers_the_compliances_and_predicts_an_unseen_payload() -> None:
+    joints = random_joints(40, seed=1)
+    payload = np.random.default_rng(2).choice([0.0, 1.0, 2.0], 40)
+    model = make_predictor('greybox', {'residual': 'none', 'payload_input': True}).fit(
+        joints, truth(joints, payload), payload)
+    found = model.metadata['greybox']['compliance']
+    for name in ('joint3', 'joint4', 'arm4_deflection', 'arm4_angle'):
+        assert found[name] == pytest.approx(COMPLIANCE[name], rel=0.02), name
+    query = random_joints(200, seed=3)
+    heavy = truth(query, 5.0)
+    assert np.abs(heavy - truth(query, 0.0))[:, 1].max() > 0.01        # 5 kg: > 10 mm more
+    assert np.abs(model.predict(query, 5.0) - heavy).max() < 2e-6
+    with pytest.raises(ValueError, match='payload'):
+        model.predict(query)
+
+
+def test_without_payload_input_the_moments_take_the_configured_payload() -> None:
+    joints = random_joints(30, seed=4)
+    model = make_predictor('greybox', {'residual': 'none', 'payload': 2.0}).fit(
+        joints, truth(joints, 2.0))
+    query = random_joints(100, seed=5)
+    assert np.abs(model.predict(query) - truth(query, 2.0)).max() < 1e-6
+
+
+@pytest.fixture(scope='module')
+def with_residual() -> greybox.GreyboxPredictor:
+    """Fitted on the truth plus a bump the structure cannot explain."""
+    joints = random_joints(40, seed=6)
+    return make_predictor('greybox').fit(joints, truth(joints) + bump(joints))
+
+
+def bump(joints: np.ndarray) -> np.ndarray:
+    return 1e-4 * np.column_stack([np.sin(3 * joints[:, 0]), np.cos(2 * joints[:, 2]),
+                                   np.zeros(len(joints))])
+
+
+def test_the_residual_gp_learns_what_the_structure_leaves(
+        with_residual: greybox.GreyboxPredictor) -> None:
+    joints = random_joints(40, seed=6)
+    plain = make_predictor('greybox', {'residual': 'none'}).fit(joints, truth(joints)
+                                                                 + bump(joints))
+    query = random_joints(200, seed=7)
+    target = truth(query) + bump(query)
+    assert (np.abs(with_residual.predict(query) - target).mean()
+            < 0.5 * np.abs(plain.predict(query) - target).mean())
+    assert with_residual.position_std(query).shape == (200,)
+    assert 0 < with_residual.position_std(query[0]) < 1e-4
+    assert plain.position_std(query[0]) == 0.0
+
+
+def test_saved_model_is_self_contained(with_residual: greybox.GreyboxPredictor,
+                                      tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    path = tmp_path / 'greybox.npz'
+    with_residual.save(path)
+
+    def no_config() -> ArmMasses:
+        raise AssertionError('a saved model must not read the config')
+
+    monkeypatch.setattr(greybox, 'load_arm', no_config)
+    loaded = load_predictor(path)
+    assert type(loaded) is greybox.GreyboxPredictor
+    assert loaded.metadata == with_residual.metadata
+    assert loaded.metadata['greybox']['arm']['masses']['end_effector'] == 4.81
+    query = random_joints(50, seed=8)
+    np.testing.assert_allclose(loaded.predict(query), with_residual.predict(query),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(loaded.position_std(query), with_residual.position_std(query),
+                               rtol=1e-9)
+
+
+@pytest.mark.parametrize('settings, match', [
+    ({'residual': 'mlp'}, 'residual'), ({'dead_band': 0.0}, 'dead_band'),
+    ({'residual_kernel': 'cubic'}, 'residual_kernel'), ({'payload': -1.0}, 'payload')])
+def test_bad_settings(settings: dict, match: str) -> None:
+    with pytest.raises(ValueError, match=match):
+        make_predictor('greybox', settings)

@@ -12,8 +12,6 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from flexarm_control.model_store import read_current
-
 pytestmark = pytest.mark.node
 
 
@@ -59,17 +57,6 @@ def test_a_learner_killed_after_training_leaves_no_worker(learner, wait_for):
     os.kill(pid, signal.SIGKILL)                  # the learner only, not its process group
     wait_for(lambda: not any(alive(w) for w in workers), 5.0,
              f'the learner\'s children {sorted(workers)} to die with it')
-
-
-def test_a_model_the_compensator_cannot_run_never_becomes_current(learner):
-    _, client, models = learner
-    good = client.train('rbf', dataset='good', timeout=60)
-    assert good.success, good.message
-    refused = client.train('mlp', {'hidden': [10], 'payload_input': True}, dataset='good',
-                           timeout=60)
-    assert not refused.success and 'payload' in refused.message, refused.message
-    time.sleep(0.5)
-    assert read_current(models)['version'] == good.model_version
 
 
 def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_path):

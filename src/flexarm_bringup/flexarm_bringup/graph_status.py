@@ -246,7 +246,7 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     learner, active = status['learner_model'], status['active_model']
     if learner is not None and (active is None or learner['version'] != active['version']):
         lines.append(model_line('model announced by the learner (NOT in use)', learner))
-    lines.append(_health_line(status['model_health']))
+    lines.append(_health_line(status.get('model_health')))
     payload = status['payload_kg']
     known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
     lines.append('payload: ' + (', '.join(known) or 'unknown'))

@@ -14,7 +14,8 @@ first n poses of the strategy's sequence (Sobol order for sobol, the order chose
 active) and judges it on ``--held-out`` poses uniform in the region's box against the plant's
 TRUE deflection there (approached from below as every move is, at the campaign's end
 temperature). Errors: position |(dx, dy)| mm and |dφ| deg, max and 95th percentile over the
-held-out poses; ``samples_for_1mm``: the smallest n of the grid from which the max position
+held-out poses (NaN, and counted in ``refused``, where training refused the data: the user
+gets no model); ``samples_for_1mm``: the smallest n of the grid from which the max position
 error stays below 1 mm for every seed (null: never); ``samples_for_1mm`` and ``curves`` of the
 first of ``--kinds`` at the top level, of every kind under ``by_kind``. ``offline``: per
 strategy, the travel between consecutive poses at the Table 1 speeds (the first leg, from the
@@ -36,6 +37,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import math
 import tempfile
 import time
 from concurrent.futures import ProcessPoolExecutor
@@ -133,9 +135,15 @@ def campaign(job: tuple[str, str, int, int, tuple[int, ...], tuple[str, ...], in
         curves[kind] = []
         for n in counts:
             use = rank < n
-            predictor, _ = fit_robust(kind, {}, joints[use], deflections[use],
-                                      folds=learner['validation_folds'],
-                                      geometry=rig.geometry, screening=screening)
+            try:
+                predictor, _ = fit_robust(kind, {}, joints[use], deflections[use],
+                                          folds=learner['validation_folds'],
+                                          geometry=rig.geometry, screening=screening)
+            except ValueError as exc:      # training refused: the user gets no model (NaN)
+                curves[kind].append({'samples': n, 'measured': int(use.sum()),
+                                     'refused': str(exc), **dict.fromkeys(
+                                         ('max_mm', 'p95_mm', 'max_deg', 'p95_deg'), math.nan)})
+                continue
             err = np.abs(predictor.predict(test_q) - truth)
             position = 1e3 * np.hypot(err[:, 0], err[:, 1])
             angle = np.degrees(err[:, 2])
@@ -183,7 +191,8 @@ def summary(rows: list[dict[str, Any]], kinds: tuple[str, ...]) -> dict[str, Any
                 points = []
                 for i, p in enumerate(runs[0]['curves'][kind]):
                     per_seed = [r['curves'][kind][i] for r in runs]
-                    points.append({'samples': p['samples'], **{
+                    points.append({'samples': p['samples'],
+                                   'refused': sum('refused' in q for q in per_seed), **{
                         f'{stat}_{key}': float(fn([q[key] for q in per_seed]))
                         for key in ('max_mm', 'p95_mm', 'max_deg', 'p95_deg')
                         for stat, fn in (('worst', np.max), ('mean', np.mean))}})

@@ -62,8 +62,8 @@ def follow(client: FlexarmClient, kg: float) -> None:
                10.0, f'the simulator following /payload {kg} kg')
 
 
-def train_on(client: FlexarmClient, dataset: str) -> str:
-    trained = client.train('gp', dataset=dataset, timeout=120)
+def train_on(client: FlexarmClient, dataset: str, kind: str = '') -> str:
+    trained = client.train(kind, dataset=dataset, timeout=120)
     assert trained.success, trained.message
     client.wait_for_model(trained.model_version, timeout=20)
     return trained.model_path
@@ -77,7 +77,7 @@ def test_a_declared_payload_is_learned_and_used(graph):
         assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
     _, _, payload = load_dataset(result.dataset_path).arrays()
     assert sorted(set(payload)) == [0.0, 5.0]
-    model = load_predictor(train_on(client, 'p'))
+    model = load_predictor(train_on(client, 'p', 'gp'))
     assert model.settings['payload_input']                  # two payloads: an input
 
     def planned_sag(kg: float, extrapolate: bool = True):    # 20 samples: the GP is unsure
@@ -103,7 +103,7 @@ def test_an_undeclared_change_is_caught_and_refreshed(graph):
     client, health = graph
     result = client.collect(12, region='B', dataset='d', seed=5, timeout=180)
     assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
-    train_on(client, 'd')
+    train_on(client, 'd')      # the default kind: healthy well below the stale threshold
     for target in GOALS[:3]:
         assert client.move_to(*target, mode='predictive', timeout=120).measured
     wait_until(client, lambda: health and health[-1].regions, 10.0, 'model health')

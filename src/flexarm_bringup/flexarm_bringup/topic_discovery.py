@@ -1,0 +1,175 @@
+"""Raw subscriptions to graph topics as their publishers appear: what the recorder and the
+Foxglove server share.
+
+:class:`TopicSelection` says which topics are wanted (names, or ``fnmatch`` patterns such as
+``*``); :class:`RawTopicSubscriber` looks for publishers of them every discovery period and
+subscribes to each once found, raw (serialized CDR, nothing decoded), with its type from the
+graph and a QoS that matches all its publishers, as ``ros2 bag record`` does: reliable if they
+all are, transient local if they all are (so latched topics such as /learner/model and
+/camera/camera_info are received even if published before), keep last ``queue_depth``.
+
+Decisions: a pattern never takes /camera/image_raw (~9 MB/s at 30 Hz): the images come only
+when named or asked for; nor hidden topics (actions' ``_action/*``), as ``ros2 topic list``
+hides them. A topic whose type cannot be loaded (no Python class, no ``.msg`` file) is left
+out once, with an error in the log. :func:`spin_until_signalled` runs such a node: the signal
+handlers only set a flag, because shutting the context down from a handler while the
+executor is inside a wait or a raw take crashed the process (SIGSEGV) now and then.
+"""
+from __future__ import annotations
+
+import importlib
+import signal
+import threading
+from collections.abc import Callable, Iterable, Sequence
+from dataclasses import dataclass
+from fnmatch import fnmatchcase
+from typing import Any
+
+import rclpy
+from rclpy.clock import Clock, ClockType
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.node import Node
+from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.signals import SignalHandlerOptions
+from rclpy.topic_endpoint_info import TopicEndpointInfo
+
+from flexarm_control import topics
+
+# A handler of one topic's raw messages: (serialized message, message info).
+RawHandler = Callable[[bytes, Any], None]
+# Called once per topic found: returns its handler; FileNotFoundError or ValueError (no
+# .msg file, not a message type) leaves the topic out.
+Prepare = Callable[[str, Sequence[TopicEndpointInfo]], RawHandler]
+_WILDCARDS = frozenset('*?[')
+
+
+@dataclass(frozen=True)
+class TopicSelection:
+    """Wanted topics: exact names and ``fnmatch`` patterns; /camera/image_raw only if named
+    or if ``images``."""
+
+    patterns: tuple[str, ...]
+    images: bool = False
+
+    def select(self, names: Iterable[str]) -> list[str]:
+        """The wanted ones of ``names`` (the graph's topics), in their order; named topics
+        first, found in the graph or not."""
+        named = [p for p in self.patterns if not _WILDCARDS & set(p)]
+        wildcards = [p for p in self.patterns if _WILDCARDS & set(p)]
+        chosen = [*named, *([topics.CAMERA_IMAGE] if self.images else [])]
+        chosen += [n for n in names if n != topics.CAMERA_IMAGE and not is_hidden(n)
+                   and any(fnmatchcase(n, w) for w in wildcards)]
+        return list(dict.fromkeys(chosen))
+
+
+def is_hidden(name: str) -> bool:
+    """A hidden ROS name: one of its parts starts with ``_`` (e.g. actions' ``_action/*``)."""
+    return any(part.startswith('_') for part in name.split('/'))
+
+
+def message_class(type_name: str) -> type:
+    """The Python message class of ``pkg/msg/Type``."""
+    package, _, name = type_name.split('/')
+    return getattr(importlib.import_module(f'{package}.msg'), name)
+
+
+def request_qos(publishers: Sequence[TopicEndpointInfo], depth: int) -> QoSProfile:
+    """A subscription QoS compatible with all publishers that keeps what they offer."""
+    offered = [p.qos_profile for p in publishers]
+    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
+    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
+    return QoSProfile(
+        history=HistoryPolicy.KEEP_LAST, depth=depth,
+        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
+        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+
+
+class RawTopicSubscriber:
+    """Subscribes ``node`` raw to the selected topics as their publishers are discovered.
+
+    ``prepare(topic, publishers)`` is called once per topic, when it is found, and gives the
+    handler of its messages; ``purpose`` ('recording', 'serving') words the log. With
+    ``active``, a found topic is subscribed only while ``active(topic)`` holds (checked each
+    discovery pass) and unsubscribed when it stops holding; without it, always.
+    """
+
+    def __init__(self, node: Node, selection: TopicSelection, prepare: Prepare, purpose: str,
+                 period: float, queue_depth: int, image_queue_depth: int,
+                 active: Callable[[str], bool] | None = None) -> None:
+        self._node, self._selection, self._prepare = node, selection, prepare
+        self._purpose, self._active = purpose, active
+        self._queue_depth, self._image_queue_depth = queue_depth, image_queue_depth
+        self._found: dict[str, tuple[type, RawHandler]] = {}
+        self.subscriptions: dict[str, Any] = {}
+        self.left_out: set[str] = set()
+        node.create_timer(period, self.discover, clock=Clock(clock_type=ClockType.STEADY_TIME))
+        self.discover()
+
+    def discover(self) -> None:
+        """Prepare every selected topic that has publishers, then (un)subscribe as wanted."""
+        names = [name for name, _ in self._node.get_topic_names_and_types()]
+        for topic in self._selection.select(names):
+            if topic in self.left_out:
+                continue
+            if topic not in self._found and not self._find(topic):
+                continue
+            wanted = self._active is None or self._active(topic)
+            if wanted and topic not in self.subscriptions:
+                self._subscribe(topic)
+            elif not wanted and topic in self.subscriptions:
+                self._node.destroy_subscription(self.subscriptions.pop(topic))
+
+    def _find(self, topic: str) -> bool:
+        """Whether the topic has publishers and was prepared (else it is left out)."""
+        publishers = self._node.get_publishers_info_by_topic(topic)
+        if not publishers:
+            return False
+        type_name = publishers[0].topic_type
+        try:
+            self._found[topic] = (message_class(type_name), self._prepare(topic, publishers))
+        except (ImportError, AttributeError, FileNotFoundError, ValueError) as err:
+            self.left_out.add(topic)
+            self._node.get_logger().error(f'not {self._purpose} {topic}: {err}')
+            return False
+        self._node.get_logger().info(f'{self._purpose} {topic} ({type_name})')
+        return True
+
+    def _subscribe(self, topic: str) -> None:
+        publishers = self._node.get_publishers_info_by_topic(topic)
+        if not publishers:          # gone meanwhile: next pass
+            return
+        message_type, handler = self._found[topic]
+        depth = (self._image_queue_depth if topic == topics.CAMERA_IMAGE
+                 else self._queue_depth)
+        self.subscriptions[topic] = self._node.create_subscription(
+            message_type, topic, handler, request_qos(publishers, depth), raw=True)
+
+
+def spin_until_signalled(make_node: Callable[[], Node], args: list[str] | None = None,
+                         finish: Callable[[SingleThreadedExecutor, Any], None] | None = None,
+                         ) -> None:
+    """Make the node, spin it until SIGINT/SIGTERM, call ``finish(executor, node)`` (still
+    spinnable), then destroy the node and shut rclpy down."""
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    stop = threading.Event()
+    for sig in (signal.SIGINT, signal.SIGTERM):
+        signal.signal(sig, lambda *_: stop.set())
+    try:
+        node = make_node()
+    except BaseException:
+        rclpy.try_shutdown()
+        raise
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    try:
+        while not stop.is_set() and rclpy.ok():
+            executor.spin_once(timeout_sec=0.1)
+        if finish is not None:
+            finish(executor, node)
+    except (KeyboardInterrupt, ExternalShutdownException):
+        pass
+    finally:
+        executor.remove_node(node)
+        node.destroy_node()
+        executor.shutdown(timeout_sec=1.0)
+        rclpy.try_shutdown()

@@ -1,0 +1,41 @@
+"""Which topics the recorder and the Foxglove server take, and the classes they load."""
+from __future__ import annotations
+
+import pytest
+
+from flexarm_bringup.topic_discovery import TopicSelection, message_class
+from flexarm_control import topics
+
+GRAPH = ['/clock', topics.CAMERA_IMAGE, topics.CAMERA_INFO, topics.TIP_POSE, '/tf',
+         '/move_to_pose/_action/status', '/scene/markers', '/rosout']
+
+
+def test_a_wildcard_takes_every_topic_but_the_images_and_the_hidden_ones() -> None:
+    assert TopicSelection(('*',)).select(GRAPH) == [
+        '/clock', topics.CAMERA_INFO, topics.TIP_POSE, '/tf', '/scene/markers', '/rosout']
+    assert TopicSelection(('/move_to_pose/_action/status',)).select([]) == [
+        '/move_to_pose/_action/status']
+
+
+def test_the_images_come_when_asked_for_or_named() -> None:
+    assert topics.CAMERA_IMAGE in TopicSelection(('*',), images=True).select(GRAPH)
+    assert TopicSelection((topics.CAMERA_IMAGE,)).select(GRAPH) == [topics.CAMERA_IMAGE]
+
+
+def test_named_topics_are_wanted_before_they_appear_and_patterns_match_names() -> None:
+    selection = TopicSelection((topics.MODEL, '/scene/*', topics.TIP_POSE))
+    assert selection.select(GRAPH) == [topics.MODEL, topics.TIP_POSE, '/scene/markers']
+    assert selection.select([]) == [topics.MODEL, topics.TIP_POSE]
+    assert TopicSelection((topics.TIP_POSE,), images=True).select([]) == [
+        topics.TIP_POSE, topics.CAMERA_IMAGE]
+    assert TopicSelection(('/t?',)).select(GRAPH) == ['/tf']
+
+
+def test_message_class_loads_a_message_and_fails_as_the_subscriber_expects() -> None:
+    from flexarm_msgs.msg import TipPose
+
+    assert message_class('flexarm_msgs/msg/TipPose') is TipPose
+    with pytest.raises(ImportError):
+        message_class('no_such_msgs/msg/Thing')
+    with pytest.raises(AttributeError):
+        message_class('flexarm_msgs/msg/NoSuchThing')

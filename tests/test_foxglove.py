@@ -1,0 +1,208 @@
+"""Live view in Foxglove: the channels the server offers, the shipped layout, the `flexarm up
+--foxglove` flag, and (node level) `flexarm up --foxglove PORT` serving /tip_pose to a
+WebSocket client of the Foxglove protocol."""
+from __future__ import annotations
+
+import json
+import math
+import os
+import shutil
+import signal
+import socket
+import struct
+import subprocess
+import sys
+import time
+from collections.abc import Iterator
+from pathlib import Path
+from typing import Any
+
+import pytest
+from rclpy.serialization import deserialize_message, serialize_message
+from websockets.sync.client import ClientConnection, connect
+
+from flexarm_bringup.bag_schema import message_definition
+from flexarm_bringup.cli import _foxglove_text, build_parser, main
+from flexarm_bringup.outcome_text import Exit
+from flexarm_control import topics
+from flexarm_control.params import config_path
+from flexarm_control.paths import RUNS_DIR
+from flexarm_msgs.msg import PlanarPose, TipPose
+
+# The SDK's name of the protocol first; foxglove.websocket.v1 is its former name.
+SUBPROTOCOLS = ['foxglove.sdk.v1', 'foxglove.websocket.v1']
+MESSAGE_DATA = 1          # opcode of a binary message data frame
+TIP_POSE_TYPE = 'flexarm_msgs/msg/TipPose'
+# The graph's names (flexarm_control.topics): what a layout may name.
+GRAPH_NAMES = {v for v in vars(topics).values() if isinstance(v, str) and v.startswith('/')}
+
+
+def _free_port() -> int:
+    with socket.socket() as s:
+        s.bind(('127.0.0.1', 0))
+        return s.getsockname()[1]
+
+
+def _client(port: int) -> ClientConnection:
+    return connect(f'ws://127.0.0.1:{port}', subprotocols=SUBPROTOCOLS, open_timeout=10.0)
+
+
+def _advertised(ws: ClientConnection, topic: str, timeout: float) -> dict[str, Any]:
+    """The channel of ``topic`` once the server has advertised it."""
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        frame = ws.recv(timeout=max(deadline - time.monotonic(), 0.01))
+        if isinstance(frame, str):
+            message = json.loads(frame)
+            for channel in message.get('channels', []) if message['op'] == 'advertise' else []:
+                if channel['topic'] == topic:
+                    return channel
+    pytest.fail(f'{topic} not advertised within {timeout} s')
+
+
+def _message_data(ws: ClientConnection, channel_id: int, timeout: float) -> tuple[int, bytes]:
+    """Subscribe to a channel; (log time [ns], payload) of its first message data frame."""
+    ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [{'id': 7,
+                                                               'channelId': channel_id}]}))
+    deadline = time.monotonic() + timeout
+    while time.monotonic() < deadline:
+        frame = ws.recv(timeout=max(deadline - time.monotonic(), 0.01))
+        if isinstance(frame, bytes) and frame[0] == MESSAGE_DATA:
+            _, subscription, log_time = struct.unpack_from('<BIQ', frame)
+            assert subscription == 7
+            return log_time, frame[13:]
+    pytest.fail(f'no message on channel {channel_id} within {timeout} s')
+
+
+def test_a_channel_carries_cdr_with_the_full_ros2msg_schema() -> None:
+    import foxglove
+
+    from flexarm_bringup.foxglove_node import ros2_channel
+
+    context = foxglove.Context()
+    server = foxglove.start_server(host='127.0.0.1', port=0, context=context)
+    try:
+        channel = ros2_channel(topics.TIP_POSE, TIP_POSE_TYPE, context)
+        with _client(server.port) as ws:
+            assert ws.subprotocol == 'foxglove.sdk.v1'
+            advertised = _advertised(ws, topics.TIP_POSE, 5.0)
+            assert (advertised['encoding'], advertised['schemaName'],
+                    advertised['schemaEncoding']) == ('cdr', TIP_POSE_TYPE, 'ros2msg')
+            assert advertised['schema'] == message_definition(TIP_POSE_TYPE)
+            assert 'MSG: flexarm_msgs/PlanarPose' in advertised['schema']
+            sent = serialize_message(TipPose(pose=PlanarPose(x=1.45, y=-0.15), valid=True))
+            deadline = time.monotonic() + 5.0
+            ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
+                {'id': 7, 'channelId': advertised['id']}]}))
+            while not channel.has_sinks() and time.monotonic() < deadline:
+                time.sleep(0.01)
+            channel.log(sent, log_time=123)
+            frame = ws.recv(timeout=5.0)
+    finally:
+        server.stop()
+    assert frame[0] == MESSAGE_DATA and struct.unpack_from('<IQ', frame, 1) == (7, 123)
+    assert frame[13:] == sent
+
+
+def test_unknown_types_have_no_channel() -> None:
+    import foxglove
+
+    from flexarm_bringup.foxglove_node import ros2_channel
+
+    with pytest.raises(FileNotFoundError):
+        ros2_channel('/x', 'no_such_msgs/msg/Thing', foxglove.Context())
+
+
+def _panels(layout: Any) -> Iterator[str]:
+    """Panel ids of a layout tree (a panel id, or a split of two trees)."""
+    if isinstance(layout, str):
+        yield layout
+    else:
+        yield from _panels(layout['first'])
+        yield from _panels(layout['second'])
+
+
+def test_layout_opens_the_graphs_topics_in_its_four_panels() -> None:
+    layout = json.loads(config_path('foxglove_layout.json').read_text(encoding='utf-8'))
+    panels = layout['configById']
+    assert sorted(_panels(layout['layout'])) == sorted(panels)
+    by_type = {panel_id.split('!')[0]: config for panel_id, config in panels.items()}
+    assert set(by_type) == {'3D', 'Plot', 'Image', 'DiagnosticSummary'}
+
+    three_d = by_type['3D']
+    assert three_d['followTf'] == 'base_link'
+    [urdf] = [layer for layer in three_d['layers'].values()
+              if layer['layerId'] == 'foxglove.Urdf']
+    assert (urdf['sourceType'], urdf['topic']) == ('topic', topics.ROBOT_DESCRIPTION)
+    assert {topics.TF, topics.TF_STATIC, topics.SCENE_MARKERS} <= set(three_d['topics'])
+    plotted = {path['value'].split('.')[0] for path in by_type['Plot']['paths']}
+    assert plotted == {topics.OUTCOMES}
+    assert 'position_error' in by_type['Plot']['paths'][0]['value']
+    assert by_type['Image']['imageMode']['imageTopic'] == topics.CAMERA_IMAGE
+    assert by_type['DiagnosticSummary']['topicToRender'] == topics.DIAGNOSTICS
+
+    named = {*three_d['topics'], urdf['topic'], *plotted,
+             by_type['Image']['imageMode']['imageTopic'],
+             by_type['DiagnosticSummary']['topicToRender']}
+    assert named <= GRAPH_NAMES, named - GRAPH_NAMES
+
+
+def test_foxglove_flag_port_defaults_to_the_config_and_is_checked(capsys) -> None:
+    parse = build_parser().parse_args
+    assert parse(['up']).foxglove is None
+    assert parse(['up', '--foxglove']).foxglove == 0
+    assert parse(['up', '--foxglove', '9001', '--rtf', '2']).foxglove == 9001
+    assert 'ws://127.0.0.1:8765 ' in _foxglove_text(0)
+    assert 'ws://127.0.0.1:9001 ' in _foxglove_text(9001)
+    assert 'foxglove_layout.json' in _foxglove_text(0)
+    assert main(['up', '--foxglove', '70000']) == Exit.USAGE
+    assert 'must be a TCP port 1..65535' in capsys.readouterr().err
+
+
+def _served(ros_node: Any, topic: str) -> bool:
+    """Whether the Foxglove node subscribes to ``topic``."""
+    return any(s.node_name == 'flexarm_foxglove'
+               for s in ros_node.get_subscriptions_info_by_topic(topic))
+
+
+@pytest.mark.node
+def test_up_with_foxglove_serves_tip_pose_to_a_websocket_client(
+        domain_id: int, tmp_path: Path, ros_node: Any, wait_for: Any) -> None:
+    """Also: the node subscribes to a topic only while a client watches its channel."""
+    port, name = _free_port(), f'test-foxglove-{domain_id}-{os.getpid()}'
+    log_path = tmp_path / 'up.log'
+    with open(log_path, 'wb') as log:
+        up = subprocess.Popen(
+            [sys.executable, '-m', 'flexarm_bringup.cli', 'up', '--foxglove', str(port),
+             '--domain-id', str(domain_id), '--name', name, '--timeout', '90'],
+            stdout=log, stderr=subprocess.STDOUT, env={**os.environ, 'PYTHONUNBUFFERED': '1'})
+    try:
+        deadline = time.monotonic() + 120.0
+        while 'Foxglove: ' not in log_path.read_text(errors='replace'):
+            if up.poll() is not None or time.monotonic() > deadline:
+                pytest.fail(f'flexarm up did not get ready: {log_path.read_text()}')
+            time.sleep(0.1)
+        assert f'ws://127.0.0.1:{port} ' in log_path.read_text()
+        with _client(port) as ws:
+            channel = _advertised(ws, topics.TIP_POSE, 30.0)
+            assert (channel['encoding'], channel['schemaName']) == ('cdr', TIP_POSE_TYPE)
+            assert not _served(ros_node, topics.TIP_POSE)
+            log_time, payload = _message_data(ws, channel['id'], 30.0)
+            wait_for(lambda: _served(ros_node, topics.TIP_POSE), 10.0,
+                     'the graph to show the Foxglove node subscribed to /tip_pose')
+        wait_for(lambda: not _served(ros_node, topics.TIP_POSE), 10.0,
+                 'the Foxglove node to unsubscribe once its client left')
+    finally:
+        up.send_signal(signal.SIGINT)
+        try:
+            code = up.wait(timeout=30.0)
+        except subprocess.TimeoutExpired:
+            up.kill()
+            code = up.wait(timeout=10.0)
+        shutil.rmtree(RUNS_DIR / name, ignore_errors=True)
+    assert code == 0, log_path.read_text()
+    tip = deserialize_message(payload, TipPose)
+    assert tip.header.frame_id == 'base_link'
+    assert abs(log_time - time.time_ns()) < 120 * 10**9
+    if tip.valid:
+        assert 0.3 < tip.pose.x < 3.0 and math.isfinite(tip.pose.phi)

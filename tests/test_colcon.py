@@ -1,0 +1,100 @@
+"""src/ is a ROS 2 workspace too (README "Building with colcon"): ``colcon build`` builds every
+package into a temporary workspace, installs each node executable under
+``lib/<package>/`` (where ``ros2 run`` looks), registers each package in the ament index with
+its package.xml, and the install space imports as ``install/setup.sh`` sets it up.
+
+colcon runs once for the module, from the venv, with the venv's bin first on PATH (flexarm_msgs'
+CMakeLists finds the ROS prefix through that Python) and nothing of an outer ROS environment;
+flexarm_msgs' rosidl build takes most of its 1-3 minutes on two cores.
+"""
+from __future__ import annotations
+
+import os
+import re
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+pytestmark = [pytest.mark.colcon, pytest.mark.timeout(900)]
+SRC = Path(__file__).resolve().parents[1] / 'src'
+PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / 'package.xml').exists())
+# Executables that are not `<package>/<name>_node.py` modules with a main().
+OTHER_EXECUTABLES = {'flexarm_sim': {'fake_controller'}, 'flexarm_bringup': {'flexarm'}}
+OUTER_ROS = ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH', 'COLCON_PREFIX_PATH', 'PYTHONPATH',
+             'LD_LIBRARY_PATH', 'VIRTUAL_ENV', '_ROS_WHEELS_BOOTSTRAP_COMPLETE',
+             'COLCON_DEFAULTS_FILE')
+
+
+def expected_executables(package: str) -> set[str]:
+    """The package's node modules with a main(), and its other executables."""
+    nodes = {path.stem for path in (SRC / package / package).glob('*_node.py')
+             if re.search(r'^def main\(', path.read_text(encoding='utf-8'), re.MULTILINE)}
+    return nodes | OTHER_EXECUTABLES.get(package, set())
+
+
+def workspace_env(root: Path) -> dict[str, str]:
+    """This environment less any outer ROS/colcon setup, with the venv's bin first on PATH."""
+    env = {k: v for k, v in os.environ.items() if k not in OUTER_ROS}
+    env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
+    env['COLCON_HOME'] = str(root / 'colcon_home')    # no user defaults (e.g. symlink-install)
+    return env
+
+
+@pytest.fixture(scope='module')
+def workspace(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The root of a workspace that colcon built src/ into (build/, install/, log/)."""
+    root = tmp_path_factory.mktemp('colcon')
+    colcon = Path(sys.executable).parent / 'colcon'
+    run = subprocess.run(
+        [str(colcon), '--log-base', str(root / 'log'), 'build', '--base-paths', str(SRC),
+         '--build-base', str(root / 'build'), '--install-base', str(root / 'install'),
+         '--event-handlers', 'console_direct-', 'desktop_notification-', 'terminal_title-'],
+        cwd=root, env=workspace_env(root), capture_output=True, text=True, timeout=840)
+    assert run.returncode == 0, run.stdout[-4000:] + run.stderr[-4000:]
+    return root
+
+
+def test_colcon_builds_every_package(workspace):
+    built = {p.name for p in (workspace / 'install').iterdir() if p.is_dir()}
+    assert built == set(PACKAGES)
+    assert {'flexarm_msgs', 'flexarm_control', 'flexarm_description', 'flexarm_bringup'} <= built
+
+
+@pytest.mark.parametrize('package', PACKAGES)
+def test_a_package_is_in_the_ament_index_with_its_manifest(workspace, package):
+    prefix = workspace / 'install' / package
+    assert (prefix / 'share/ament_index/resource_index/packages' / package).is_file()
+    manifest = prefix / 'share' / package / 'package.xml'
+    assert manifest.read_bytes() == (SRC / package / 'package.xml').read_bytes()
+
+
+@pytest.mark.parametrize('package', [p for p in PACKAGES if p != 'flexarm_msgs'])
+def test_node_executables_are_installed_under_lib_package(workspace, package):
+    expected = expected_executables(package)
+    assert expected, f'{package} has no executable to install'
+    lib = workspace / 'install' / package / 'lib' / package
+    installed = {p.name for p in lib.iterdir() if p.is_file() and os.access(p, os.X_OK)}
+    assert installed == expected
+
+
+def test_the_install_space_imports_and_runs_as_its_setup_script_sets_it_up(workspace):
+    install = workspace / 'install'
+    site = Path('lib', f'python{sys.version_info.major}.{sys.version_info.minor}',
+                'site-packages')
+    assert (install / 'flexarm_msgs' / site / 'flexarm_msgs' / 'msg' / '__init__.py').is_file()
+    code = ('import flexarm_bringup.cli, flexarm_control.kinematics, flexarm_msgs.msg\n'
+            'from rclpy.serialization import serialize_message\n'
+            'assert serialize_message(flexarm_msgs.msg.PlanarPose(x=1.5))\n'
+            'for m in (flexarm_msgs, flexarm_control, flexarm_bringup):\n'
+            '    print(m.__file__)\n')
+    flexarm = install / 'flexarm_bringup/lib/flexarm_bringup/flexarm'
+    run = subprocess.run(
+        ['sh', '-c', f'. "{install}/setup.sh" && python -c "$0" && "{flexarm}" --help', code],
+        cwd=workspace, env=workspace_env(workspace), capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stdout + run.stderr
+    lines = run.stdout.splitlines()
+    assert lines[:3] == [str(install / p / site / p / '__init__.py')
+                         for p in ('flexarm_msgs', 'flexarm_control', 'flexarm_bringup')]
+    assert lines[3].startswith('usage: flexarm')

@@ -2,9 +2,10 @@
 # Set up (or bring up to date) the flexarm environment in .venv:
 #   1. a Python 3.11 venv,
 #   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
-#   3. the flexarm_msgs interfaces (ament_cmake + rosidl, built into the venv prefix),
+#   3. the interfaces: tf2_msgs (vendor/, no wheel exists) and flexarm_msgs (ament_cmake +
+#      rosidl, built into the venv prefix),
 #   4. the Python packages flexarm_control, flexarm_bridge, flexarm_vision, flexarm_sim,
-#      flexarm_bringup (editable).
+#      flexarm_description, flexarm_bringup (editable).
 # Each step is skipped when its inputs did not change since it last succeeded, so a re-run
 # takes about a second. Usage: scripts/setup.sh [--force]
 set -euo pipefail
@@ -59,13 +60,19 @@ install_requirements() {
   pip install -r "$root/requirements.txt"
 }
 
+install_tf2_msgs() {
+  log "building tf2_msgs (about 30 s)"
+  pip install --no-build-isolation --force-reinstall --no-deps "$root/vendor/tf2_msgs"
+}
+
 install_msgs() {
   log "building flexarm_msgs (about 30 s)"
   pip install --no-build-isolation --force-reinstall --no-deps "$root/src/flexarm_msgs"
 }
 
 # The Python packages, lowest layer first (each imports only those before it).
-packages=(flexarm_control flexarm_bridge flexarm_vision flexarm_sim flexarm_bringup)
+packages=(flexarm_control flexarm_bridge flexarm_vision flexarm_sim flexarm_description
+  flexarm_bringup)
 
 install_packages() {
   log "installing ${packages[*]} (editable)"
@@ -82,8 +89,14 @@ install_packages() {
 
 [ -x "$venv/bin/python" ] || { rm -rf "$stamps"; create_venv; }
 step requirements "$(digest requirements.txt)" install_requirements
+tf2_files=$(cd "$root" && find vendor/tf2_msgs -type f -not -path "*/build/*" | sort)
+# shellcheck disable=SC2086
+step tf2_msgs "$(digest requirements.txt $tf2_files)" install_tf2_msgs
 msgs_files=$(cd "$root" && find src/flexarm_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
 step msgs "$(digest requirements.txt $msgs_files)" install_msgs
-step packages "$(digest src/flexarm_{control,bridge,vision,sim,bringup}/{pyproject.toml,package.xml})" \
-  install_packages
+package_files=()
+for pkg in "${packages[@]}"; do
+  package_files+=("src/$pkg/pyproject.toml" "src/$pkg/package.xml")
+done
+step packages "$(digest "${package_files[@]}")" install_packages

@@ -12,6 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 import rclpy
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from link_proxy import TO_CONTROLLER, LinkProxy
 from rclpy.context import Context
 from sensor_msgs.msg import JointState
@@ -97,13 +98,26 @@ def test_link_cut_mid_move_recovers_only_on_a_fresh_command(bridged, wait_for):
 
 def test_unreachable_controller_is_reported_and_retried(launch, ros_node, domain_id, wait_for):
     port = 47000 + 2 * domain_id
+    health: dict[str, DiagnosticStatus] = {}
+    ros_node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, lambda m: health.update(
+        {s.name: s for s in m.status}), 10)
     bridge = launch('flexarm_bridge', robot='bridge', port=port, use_sim_time=False,
                     retry_max=0.5)
     wait_for(lambda: 'unreachable' in bridge.log_path.read_text(), 30.0, 'the error')
+    link, pc = 'flexarm_bridge: controller link', 'flexarm_fake_controller: link'
+
+    def level(name: str) -> bytes | None:
+        return health[name].level if name in health else None
+
+    wait_for(lambda: level(link) == DiagnosticStatus.ERROR, 10.0, 'link ERROR on /diagnostics')
+    assert 'unreachable' in health[link].message
+    assert health[link].hardware_id == f'127.0.0.1:{port}'
     heard = []
     ros_node.create_subscription(JointState, topics.JOINT_STATES, heard.append, 10)
     launch('flexarm_fake_controller', robot='bridge', port=port)
     wait_for(lambda: heard, 30.0, 'joint states once the controller is up')
+    wait_for(lambda: level(link) == DiagnosticStatus.OK and level(pc) == DiagnosticStatus.OK,
+             10.0, 'both ends of the link OK on /diagnostics')
 
 
 def test_a_controller_that_drops_every_connection_is_not_hammered(launch, domain_id,

@@ -12,16 +12,19 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 import rclpy
+from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
 from rclpy.executors import MultiThreadedExecutor
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient, GoalFailed, GoalRejected
 from flexarm_control.compensator_node import EXECUTOR_THREADS, CompensatorNode
+from flexarm_control.health_report import ERROR, WARN
 from flexarm_control.kinematics import ArmGeometry, forward, inverse
 from flexarm_control.params import config_path, load_config
 from flexarm_control.predictors import make_predictor
@@ -94,6 +97,19 @@ def test_rigid_and_predictive_goals_succeed(graph):
     assert predictive.compensation_iterations >= 1
     assert abs(predictive.predicted_deflection.y) > 5e-3
     assert 0 < predictive.data_distance < 1.5                   # inside the learned region
+    # rviz / Foxglove see the goal: its target and the commanded x*, latched, in base_link.
+    latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+    poses: dict[str, PoseStamped] = {}
+    for name in (topics.TARGET_POSE, topics.COMMANDED_POSE):
+        client.create_subscription(PoseStamped, name,
+                                   lambda m, n=name: poses.__setitem__(n, m), latched)
+    spin_for(client, 1.0)
+    target, commanded = poses[topics.TARGET_POSE].pose, poses[topics.COMMANDED_POSE].pose
+    assert poses[topics.TARGET_POSE].header.frame_id == 'base_link'
+    assert (target.position.x, target.position.y, target.position.z) == pytest.approx(
+        (TARGET[0], 0.0, TARGET[1]))
+    assert commanded.position.x == pytest.approx(predictive.commanded_pose.x)
+    assert commanded.position.z == pytest.approx(predictive.commanded_pose.y)
 
 
 def test_a_goal_beyond_the_learned_data_is_refused_or_warned(graph):
@@ -325,6 +341,9 @@ def test_unusable_models_are_refused_and_the_previous_one_kept(in_process, model
     for version, path in enumerate((empty, truncated, tmp_path / 'missing.model'), start=100):
         node._on_model(ModelInfo(version=str(version), kind='rbf', path=str(path)))
         assert node._model is good and good[1].version == str(model_path)
+    model = node.statuses()[0]          # /diagnostics: the previous model kept, with a warning
+    assert model.name == 'flexarm_compensator: model' and model.level == WARN
+    assert 'could not be loaded' in model.message
 
 
 def test_an_announcement_older_than_the_model_in_use_is_ignored(in_process, model_path):
@@ -431,4 +450,7 @@ def test_no_model_says_why_an_announced_one_was_not_loaded(in_process, tmp_path)
     assert result.error_code == Result.NO_MODEL
     assert 'the model version 7 from' in result.error_string
     assert 'could not be loaded' in result.error_string, result.error_string
+    model, _, goals = node.statuses()   # /diagnostics: no model where one was announced
+    assert model.level == ERROR and 'the model version 7 from' in model.message
+    assert dict(goals.values)['goals failed'] == '1' and goals.message.startswith('idle')
 

@@ -31,7 +31,8 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
     try:
         graph.wait_ready(60.0)
         assert set(graph.nodes) == {'flexarm_sim', 'flexarm_vision', 'flexarm_learner',
-                                    'flexarm_compensator', 'flexarm_recorder'}
+                                    'flexarm_compensator', 'flexarm_state_publisher',
+                                    'flexarm_scene', 'flexarm_recorder'}
         assert all((tmp_path / 'run' / f'{name}.log').exists() for name in graph.nodes)
 
         vision = graph.nodes['flexarm_vision']          # restart: true in graph.yaml

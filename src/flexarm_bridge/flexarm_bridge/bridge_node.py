@@ -21,6 +21,10 @@ Link handling (a background thread does all socket I/O; ROS callbacks never bloc
   the bridge refuses to start for a controller that is not on a loopback address.
 * malformed frames → rejected and logged; the link survives, unless ``max_errors``
   consecutive frames are rejected, then it is reset.
+
+Health on ``/diagnostics`` (hardware id: the controller's ``host:port``): :func:`link_status`,
+and the commands' :class:`~flexarm_control.health_report.CommandLog` (rejected: refused by the
+checks, dropped without a link, or refused by the controller's ACK after forwarding).
 """
 from __future__ import annotations
 
@@ -35,9 +39,28 @@ from std_msgs.msg import Float64MultiArray
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import PC, LinkAuth, site_key_for
 from flexarm_control import topics
+from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.health_report import ERROR, OK, WARN, CommandLog, Status, status
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
+
+
+def link_status(node: str, controller: str, linked: bool, down_for: float, last_error: str,
+                connects: int, retry_max: float) -> Status:
+    """``<node>: controller link``: OK while linked (the controller's HELLO accepted); WARN
+    while reconnecting, i.e. down for at most ``retry_max`` (the longest backoff); ERROR once
+    down longer (or not linked that long after start): commands are dropped meanwhile."""
+    values = {'controller': controller, 'linked': linked,
+              'down for [s]': 0.0 if linked else round(down_for, 1),
+              'reconnects': max(connects - 1, 0), 'last error': last_error}
+    if linked:
+        return status(node, 'controller link', OK, f'linked to {controller}', values, controller)
+    if down_for <= retry_max:
+        return status(node, 'controller link', WARN, f'reconnecting to {controller}'
+                      + (f' ({last_error})' if last_error else ''), values, controller)
+    return status(node, 'controller link', ERROR, f'link down for {down_for:.0f} s: '
+                  f'{last_error or "no HELLO from the controller"}', values, controller)
 
 
 class BridgeNode(Node):
@@ -67,19 +90,34 @@ class BridgeNode(Node):
         self._lock = threading.Lock()         # guards _linked, _seq and every send
         self._linked: socket.socket | None = None    # connected and its HELLO accepted
         self._seq = 0
+        self._commands = CommandLog()
+        self._down_since: float | None = time.monotonic()   # None while linked
+        self._connects = 0            # HELLOs accepted
+        self._last_error = ''         # why the link last failed
         self._running = True
         threading.Thread(target=self._link_loop, daemon=True).start()
+        self._diagnostics = DiagnosticsPublisher(self, self.statuses)
+
+    def statuses(self) -> list[Status]:
+        """The node's health (module docstring): controller link, commands."""
+        controller, down_since = f'{self._host}:{self._port}', self._down_since
+        return [link_status(self.get_name(), controller, down_since is None,
+                            0.0 if down_since is None else time.monotonic() - down_since,
+                            self._last_error, self._connects, self._retry_max),
+                self._commands.status(self.get_name(), controller)]
 
     # --- PC -> controller --------------------------------------------------------------------
     def _on_command(self, msg: Float64MultiArray) -> None:
         values = list(msg.data)
         reason = command_error(values, self._geometry)
         if reason is not None:
+            self._commands.record(reason)
             self.get_logger().error(f'joint command rejected, not forwarded: {reason}')
             return
         with self._lock:
             sent = self._linked is not None and self._send(self._linked, proto.JOINT_COMMAND,
                                                            positions=values)
+        self._commands.record(None if sent else 'dropped: no link to the controller')
         if not sent:
             self.get_logger().error('joint command dropped: no link to the controller '
                                     '(send a fresh command once it is back)')
@@ -105,6 +143,7 @@ class BridgeNode(Node):
             try:
                 sock = socket.create_connection((self._host, self._port), timeout=2.0)
             except OSError as exc:
+                self._last_error = f'unreachable ({exc})'
                 self.get_logger().error(
                     f'controller {self._host}:{self._port} unreachable ({exc}); retrying in '
                     f'{delay:.1f} s', throttle_duration_sec=5.0)
@@ -120,8 +159,10 @@ class BridgeNode(Node):
             sock.close()
             if not self._running:
                 break
+            self._last_error = reason
             if accepted:
                 delay = self._retry_min
+                self._down_since = time.monotonic()
             self.get_logger().error(f'link to the controller lost: {reason}; commands are not '
                                     f'forwarded until it is back; reconnecting in {delay:.1f} s',
                                     throttle_duration_sec=5.0)
@@ -180,6 +221,7 @@ class BridgeNode(Node):
                     self._auth.start_session(frame.fields['nonce'])
                     self._send(sock, proto.AUTH, nonce=self._auth.nonce)
                 self._linked = sock
+                self._down_since, self._connects = None, self._connects + 1
             self.get_logger().info('controller HELLO accepted'
                                    + ('' if self._auth is None else ', link authenticated')
                                    + ': forwarding fresh commands')
@@ -193,6 +235,8 @@ class BridgeNode(Node):
             msg.header.frame_id = 'base_link'
             self._pub.publish(msg)
         elif frame.type == proto.ACK and frame.fields['code'] != proto.OK:
+            self._commands.record(f'controller refused command {frame.fields["acked"]} '
+                                  f'(code {frame.fields["code"]})')
             self.get_logger().error(f'controller refused command {frame.fields["acked"]} '
                                     f'(code {frame.fields["code"]})')
         elif frame.type == proto.ERROR:

@@ -1,9 +1,18 @@
-"""Read flexarm bags (MCAP, rosbag2 layout): summary info and the trials' error export.
+"""Read flexarm bags (MCAP, rosbag2 layout): summary info, the trials' error export and the
+figures of :mod:`flexarm_bringup.plots` the bag's content allows.
 
 Bags are read with the ``mcap`` readers and decoded with ``mcap_ros2``, independently of
 the writer. A bag whose recorder was killed has no summary or footer: it is read linearly
 up to its last complete record (:func:`read_messages`), so every chunk written before the
 kill is still there.
+
+Learning samples (``/learner/samples``) belong to the model announced next on
+``/learner/model`` (a collection, then its training); a model announced without new samples
+before it (a rollback, a restart) is passed over. Each such model is drawn in the smallest
+working region whose box, grown by the learner's coverage margin, holds 80 % of its samples;
+the last one per region wins. The bag records each goal's final error only: the per-move
+errors of CLOSED_LOOP goals come from the action feedback, which is not recorded, so
+``iterations.png`` is written by ``flexarm demo``/``benchmark`` only.
 """
 from __future__ import annotations
 
@@ -14,6 +23,7 @@ from collections.abc import Iterable, Iterator, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
+import numpy as np
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Channel, Message, Schema
@@ -23,7 +33,9 @@ from mcap_ros2.decoder import DecoderFactory
 from flexarm_bringup.outcome_text import code_names
 from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
-from flexarm_control.kinematics import wrap_angle
+from flexarm_control.kinematics import ArmGeometry, wrap_angle
+from flexarm_control.params import load_config
+from flexarm_control.sampling import Region, regions_from_dict
 from flexarm_msgs.action import MoveToPose
 
 if TYPE_CHECKING:
@@ -33,6 +45,8 @@ MCAP_MAGIC = b'\x89MCAP0\r\n'
 MODE_NAMES = {getattr(MoveToPose.Goal, name): name.removeprefix('MODE_').lower()
               for name in dir(MoveToPose.Goal) if name.startswith('MODE_')}
 ERROR_NAMES = code_names(MoveToPose.Result)
+# goals whose reached pose is an accuracy: the paper comparison draws them
+ACCURACY_CODES = (MoveToPose.Result.SUCCESSFUL, MoveToPose.Result.TOLERANCE_NOT_MET)
 CSV_FIELDS = (
     'trial', 'mode', 'mode_name', 'error_code', 'error_name', 'succeeded', 'reason',
     'model_version', 'iterations', 'stamp_s', 'data_distance', 'prediction_std_mm',
@@ -249,6 +263,104 @@ def export_trials(path: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
     png_path = out_dir / f'{file.stem}_trials.png'
     plot_trials(rows, png_path, title=file.stem)
     return csv_path, png_path
+
+
+def _target_name(trial: str, index: int) -> str:
+    """The target of a trial named ``<prefix>/<target>/<mode>``, else the trial's name (or
+    ``goal <index>`` for an unnamed goal)."""
+    parts = trial.split('/')
+    return parts[-2] if len(parts) >= 3 else (trial or f'goal {index}')
+
+
+def _xyphi(pose: Any) -> list[float]:
+    return [pose.x, pose.y, pose.phi]
+
+
+def _region_of(poses: np.ndarray, regions: dict[str, Region], margin: np.ndarray,
+               share: float = 0.8) -> str | None:
+    """The smallest region whose box grown by ``margin`` holds ``share`` of ``poses`` (N, 3)."""
+    holding = []
+    for name, region in regions.items():
+        grown = region.grown(margin)
+        inside = np.all((poses >= grown.lower) & (poses <= grown.upper), axis=1)
+        if inside.mean() >= share:
+            holding.append((float(np.prod((region.upper - region.lower)[:2])), name))
+    return min(holding)[1] if holding else None
+
+
+def export_figures(path: str | Path, out_dir: str | Path) -> list[Path]:
+    """Write the figures a bag allows and the deflections behind them (module docstring):
+    ``<bag>_errors.png`` (goals at the paper's targets), ``<bag>_deflection_field.png``,
+    ``<bag>_prediction.png`` and ``<bag>_deflections.csv``. Returns the paths written."""
+    from flexarm_bringup import plots
+
+    file = mcap_path(path)
+    outcomes, truths, samples, models = [], [], [], []
+    for topic, msg, _ in read_decoded(file, (topics.OUTCOMES, topics.TIP_POSE_TRUTH,
+                                             topics.SAMPLES, topics.MODEL)):
+        if topic == topics.MODEL:
+            models.append((len(samples), msg))
+        else:
+            {topics.OUTCOMES: outcomes, topics.TIP_POSE_TRUTH: truths,
+             topics.SAMPLES: samples}[topic].append(msg)
+    geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
+    learner = load_config('learner.yaml', node_name='flexarm_learner')
+    regions = regions_from_dict(learner['regions'])
+    margin = np.asarray(learner['coverage_margin'], dtype=float)
+    learned: dict[str, tuple[Any, list[Any]]] = {}
+    start = 0
+    for end, info in models:
+        chosen, start = samples[start:end], end
+        region = _region_of(np.array([_xyphi(s.rigid_pose) for s in chosen]), regions,
+                            margin) if chosen else None
+        if region is not None:
+            learned[region] = (info, chosen)
+    out_dir = Path(out_dir)
+    out_dir.mkdir(parents=True, exist_ok=True)
+    written: list[Path] = []
+    panels, sets = [], []
+    for name, (info, chosen) in learned.items():
+        region = regions[name]
+        predict, note = plots.model_predict(info.path)
+        payload = np.array([s.payload for s in chosen])
+        deflections = plots.sample_deflections(
+            name, geometry, np.array([s.joint_positions for s in chosen]),
+            np.array([_xyphi(s.deflection) for s in chosen]), payload, predict)
+        goals = [(i, o) for i, o in enumerate(outcomes)
+                 if np.all((np.array(_xyphi(o.target)) >= region.lower)
+                           & (np.array(_xyphi(o.target)) <= region.upper))]
+        targets = {_target_name(o.trial, i): np.array(_xyphi(o.target)) for i, o in goals}
+        panels.append(plots.field_panel(region, geometry, deflections, predict,
+                                        float(np.median(payload)), targets, note=note))
+        held_out = [(i, o) for i, o in goals if o.mode == MoveToPose.Goal.MODE_PREDICTIVE
+                    and o.measured and o.iterations > 0]
+        sets += [deflections, plots.goal_deflections(
+            name, [o.trial or f'goal {i}' for i, o in held_out],
+            [_xyphi(o.commanded_pose) for _, o in held_out],
+            [_xyphi(o.measured_pose) for _, o in held_out],
+            [_xyphi(o.predicted_deflection) for _, o in held_out])]
+    if panels:
+        written += [
+            plots.save_figure(plots.field_figure(panels, file.stem),
+                              out_dir / f'{file.stem}_deflection_field.png'),
+            plots.save_figure(plots.prediction_figure(sets, file.stem),
+                              out_dir / f'{file.stem}_prediction.png'),
+            plots.write_csv(out_dir / f'{file.stem}_deflections.csv',
+                            plots.DEFLECTION_CSV_FIELDS, plots.deflection_rows(sets))]
+    paper_goals = []
+    for i, row in enumerate(trial_rows(outcomes, truths)):
+        source = 'truth' if 'truth_position_error_mm' in row else 'measured'
+        if f'{source}_position_error_mm' in row and row['error_code'] in ACCURACY_CODES:
+            paper_goals.append({
+                'target': _target_name(row['trial'], i), 'mode': row['mode_name'],
+                'position_error': row[f'{source}_position_error_mm'] * 1e-3,
+                'angle_error': math.radians(row[f'{source}_angle_error_deg']),
+                'succeeded': row['succeeded']})
+    if any(g['target'] in plots.paper_errors() for g in paper_goals):
+        written.append(plots.save_figure(
+            plots.paper_figure(paper_goals, plots.closed_loop_tolerance(), file.stem),
+            out_dir / f'{file.stem}_errors.png'))
+    return written
 
 
 def _error_series(rows: Sequence[dict[str, Any]], quantity: str

@@ -518,7 +518,12 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
                                          'flexarm_fake_controller': simulated | link,
                                          'flexarm_bridge': link}
     if args.record:
-        params['flexarm_recorder'] = {'bag_name': args.record}
+        params['flexarm_recorder'] = {'bag_name': args.record,
+                                      'record_images': args.record_images}
+    if args.foxglove:
+        params['flexarm_foxglove'] = {'port': args.foxglove}
+    optional = (('flexarm_recorder',) if args.record else ()) + (
+        ('flexarm_foxglove',) if args.foxglove is not None else ())
     discovery = args.discovery.upper()
     if discovery != 'LOCALHOST':
         os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
@@ -526,8 +531,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
               'domain can command this arm (these DDS wheels have no security)', flush=True)
     with reserved_domain(args.domain_id) as domain:
         graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
-                      optional=('flexarm_recorder',) if args.record else (),
-                      discovery=discovery)
+                      optional=optional, discovery=discovery)
         started, ready = time.monotonic(), None
         print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain}; logs in '
               f'{graph.run_dir}', flush=True)
@@ -538,6 +542,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
                   'flexarm move 1450 -150 -45. Ctrl-C stops everything.', flush=True)
             print(_starting_model(domain), flush=True)
+            if args.foxglove is not None:
+                print(_foxglove_text(args.foxglove), flush=True)
             while True:
                 time.sleep(0.5)
                 graph.check()
@@ -547,6 +553,15 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             codes = graph.stop()
             print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
     return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
+
+
+def _foxglove_text(port: int) -> str:
+    """Where Foxglove connects (``port`` 0: config/foxglove.yaml's) and which layout."""
+    from flexarm_control.params import config_path, load_config
+
+    config = load_config('foxglove.yaml', node_name='flexarm_foxglove')
+    return (f'Foxglove: open a connection to ws://{config["host"]}:{port or config["port"]} '
+            f'(Foxglove WebSocket) and import the layout {config_path("foxglove_layout.json")}')
 
 
 def _starting_model(domain: int, listen: float = 3.0) -> str:
@@ -652,11 +667,11 @@ def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
 # --- files ------------------------------------------------------------------------------------
 @command
 def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
-    """Inspect a recorded bag (info) or export its trials as CSV + PNG (export)."""
+    """Inspect a recorded bag (info) or export its trials and figures as CSV + PNG (export)."""
     _check_bag(args.path)
     from mcap.exceptions import McapError
 
-    from flexarm_bringup.bag_tools import bag_info, export_trials, format_bag_info
+    from flexarm_bringup.bag_tools import bag_info, export_figures, export_trials, format_bag_info
 
     try:
         if args.action == 'info':
@@ -665,10 +680,12 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
             return {'ok': True, **info}
         out_dir = args.out or str(args.path).rstrip('/')
         csv_path, png_path = export_trials(args.path, out_dir)
+        files = export_figures(args.path, out_dir)
     except McapError as exc:
         raise Outcome(f'{args.path} is damaged: {exc}', Exit.FAILED) from None
-    print(f'trials: {csv_path}\nplot:   {png_path}')
-    return {'ok': True, 'csv': str(csv_path), 'png': str(png_path)}
+    print(f'trials: {csv_path}\nplot:   {png_path}' + ''.join(f'\nfile:   {p}' for p in files))
+    return {'ok': True, 'csv': str(csv_path), 'png': str(png_path),
+            'files': [str(p) for p in files]}
 
 
 @command
@@ -814,6 +831,7 @@ def _json_object(text: str) -> dict[str, Any]:
 _positive_int = _checked(int, lambda v: 0 < v <= UINT32_MAX, 'a whole number > 0')
 _natural = _checked(int, lambda v: 0 <= v <= UINT32_MAX, 'a whole number >= 0')
 _domain = _checked(int, lambda v: 0 <= v <= MAX_DOMAIN_ID, f'a ROS domain 0..{MAX_DOMAIN_ID}')
+_port = _checked(int, lambda v: 0 < v < 2 ** 16, 'a TCP port 1..65535')
 _finite = _checked(float, math.isfinite, 'a finite number')
 _non_negative = _checked(float, lambda v: math.isfinite(v) and v >= 0, 'a number >= 0')
 _positive = _checked(float, lambda v: math.isfinite(v) and v > 0, 'a number > 0')
@@ -935,6 +953,11 @@ def _up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--ideal', action='store_true', help=IDEAL_HELP)
     p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
     p.add_argument('--record', default='', metavar='NAME', help='record bags/NAME/NAME.mcap')
+    p.add_argument('--record-images', action='store_true',
+                   help='with --record: also record /camera/image_raw (~9 MB/s)')
+    p.add_argument('--foxglove', nargs='?', type=_port, const=0, default=None, metavar='PORT',
+                   help='serve the live graph to Foxglove at ws://HOST:PORT (config/'
+                        'foxglove.yaml: HOST 127.0.0.1, default PORT 8765)')
     p.add_argument('--rtf', type=_positive, default=1.0, help='simulator real-time factor')
     p.add_argument('--name', default='', help='run folder runs/NAME (default: up-DATE-TIME)')
     p.add_argument('--timeout', type=_positive, default=60.0, metavar='S',

@@ -13,7 +13,6 @@ compensator holds one model at a time, so the regions run in turn.
 from __future__ import annotations
 
 import contextlib
-import csv
 import json
 import math
 import threading
@@ -24,16 +23,25 @@ from pathlib import Path
 
 import numpy as np
 
+from flexarm_bringup.bag_tools import ACCURACY_CODES
 from flexarm_bringup.calibration import calibrate_tool
 from flexarm_bringup.supervisor import Graph
-from flexarm_bringup.trials import Trial, TruthMonitor, run_trials, summarise
+from flexarm_bringup.trials import (
+    MOVE_CSV_FIELDS,
+    TRIAL_CSV_FIELDS,
+    Trial,
+    TruthMonitor,
+    run_trials,
+    summarise,
+)
 from flexarm_control import topics
-from flexarm_control.kinematics import ArmGeometry
+from flexarm_control.dataset import load_dataset
+from flexarm_control.kinematics import ArmGeometry, pose_error
 from flexarm_control.modes import MODE_LABELS
 from flexarm_control.paper import TABLE_9, TABLE_10
 from flexarm_control.params import load_config
 from flexarm_control.paths import BAGS_DIR, RESULTS_DIR, RUNS_DIR
-from flexarm_control.sampling import random_targets, regions_from_dict
+from flexarm_control.sampling import Region, random_targets, regions_from_dict
 
 
 @dataclass
@@ -134,11 +142,13 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
             trained = client.train(settings.kind, dataset=region)
             if not trained.success:
                 raise RuntimeError(f'training on {region} failed: {trained.message}')
-            client.wait_for_model(trained.model_version)
+            model = client.wait_for_model(trained.model_version)
             m = trained.metrics
             learning[region] = {
                 'samples': collected.total, 'skipped': collected.skipped,
-                'model_version': trained.model_version, 'validation': m.validation,
+                'model_version': trained.model_version, 'model_path': model.path,
+                'dataset_path': str(run_dir / 'data' / f'{region}.jsonl'),
+                'validation': m.validation,
                 'max_error_x_mm': m.max_error_x * 1e3, 'max_error_y_mm': m.max_error_y * 1e3,
                 'max_error_phi_deg': math.degrees(m.max_error_phi),
                 'selected_settings': m.selected_settings,
@@ -161,7 +171,7 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
                'trials': [t.as_dict() for t in trials],
                'bag': str(BAGS_DIR / settings.name) if settings.record else None,
                'nodes_died': watchdog.dead}
-    write_results(summary, trials, out_dir)
+    write_results(summary, trials, out_dir, geometry, regions)
     summary['results'] = str(out_dir)
     return summary
 
@@ -246,47 +256,51 @@ def table_text(summary: dict) -> str:
     return '\n'.join(lines)
 
 
-def write_results(summary: dict, trials: list[Trial], out_dir: Path) -> None:
-    """summary.json, trials.csv, table.md and errors.png in ``out_dir`` (atomic renames)."""
-    import matplotlib
-    matplotlib.use('Agg')
-    import matplotlib.pyplot as plt
-
+def write_results(summary: dict, trials: list[Trial], out_dir: Path, geometry: ArmGeometry,
+                  regions: dict[str, Region]) -> None:
+    """The run's files in ``out_dir``, each written atomically: summary.json, table.md,
+    trials.csv (one row per goal), moves.csv (one row per measured move), deflections.csv
+    (learning samples and PREDICTIVE goals: measured and predicted deflection), and the
+    figures of :mod:`flexarm_bringup.plots` — errors.png (ours beside the paper),
+    deflection_field.png, prediction.png and iterations.png (CLOSED_LOOP goals)."""
+    from flexarm_bringup import plots
     from flexarm_control.atomic_file import atomic_write
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / 'summary.json', lambda f: f.write(
         json.dumps(summary, indent=1).encode()))
     atomic_write(out_dir / 'table.md', lambda f: f.write(table_text(summary).encode()))
-    rows = [t.as_dict() for t in trials]
-
-    def write_csv(f) -> None:
-        import io
-        text = io.StringIO()
-        writer = csv.DictWriter(text, fieldnames=list(rows[0]) if rows else ['name'])
-        writer.writeheader()
-        writer.writerows(rows)
-        f.write(text.getvalue().encode())
-    atomic_write(out_dir / 'trials.csv', write_csv)
-
-    fig, axes = plt.subplots(1, 2, figsize=(11, 4))
-    named = [t for t in trials if t.group != 'random']
-    names = sorted({t.name for t in named}, key=lambda n: (n[0], n))
-    width = 0.8 / len(MODE_LABELS)
-    for i, mode in enumerate(MODE_LABELS):
-        by_name = {t.name: t for t in named if t.mode == mode}
-        xs = [j + i * width for j, n in enumerate(names) if n in by_name]
-        axes[0].bar(xs, [by_name[n].position_error * 1e3 for n in names if n in by_name],
-                    width, label=mode)
-        axes[1].bar(xs, [math.degrees(by_name[n].angle_error) for n in names if n in by_name],
-                    width, label=mode)
-    for ax, unit in zip(axes, ('position error [mm]', 'angle error [deg]')):
-        ax.set_yscale('log')
-        ax.set_xticks([j + width for j in range(len(names))], names)
-        ax.set_ylabel(unit)
-        ax.grid(True, which='both', axis='y', alpha=0.3)
-    axes[0].legend()
-    fig.suptitle(f'{summary["name"]}: tip error against ground truth')
-    fig.tight_layout()
-    atomic_write(out_dir / 'errors.png', lambda f: fig.savefig(f, dpi=110, format='png'))
-    plt.close(fig)
+    plots.write_csv(out_dir / 'trials.csv', TRIAL_CSV_FIELDS, [t.csv_row() for t in trials])
+    plots.write_csv(out_dir / 'moves.csv', MOVE_CSV_FIELDS,
+                    [row for t in trials for row in t.move_rows()])
+    panels, sets = [], []
+    for name, learned in summary['learning'].items():
+        predict, note = plots.model_predict(learned['model_path'])
+        joints, deflections, payload = load_dataset(learned['dataset_path']).arrays()
+        samples = plots.sample_deflections(name, geometry, joints, deflections, payload,
+                                           predict)
+        chosen = [t for t in trials if t.region == name]
+        targets = {t.name: np.array(t.target) for t in chosen}
+        panels.append(plots.field_panel(regions[name], geometry, samples, predict,
+                                        float(np.median(payload)) if len(payload) else 0.0,
+                                        targets, note=note))
+        goals = [t for t in chosen if t.mode == 'predictive' and t.measured is not None]
+        sets += [samples, plots.goal_deflections(
+            name, [t.name for t in goals], [t.commanded for t in goals],
+            [t.measured for t in goals], [t.predicted_deflection for t in goals])]
+    plots.write_csv(out_dir / 'deflections.csv', plots.DEFLECTION_CSV_FIELDS,
+                    plots.deflection_rows(sets))
+    title, tolerance = summary['name'], plots.closed_loop_tolerance()
+    plots.save_figure(plots.paper_figure(
+        [{'target': t.name, 'mode': t.mode, 'position_error': t.position_error,
+          'angle_error': t.angle_error, 'succeeded': t.error_code == 0} for t in trials
+         if t.error_code in ACCURACY_CODES],
+        tolerance, title), out_dir / 'errors.png')
+    if panels:
+        plots.save_figure(plots.field_figure(panels, title), out_dir / 'deflection_field.png')
+        plots.save_figure(plots.prediction_figure(sets, title), out_dir / 'prediction.png')
+    moves = {t.name: [pose_error(t.target, pose)[0] for pose in t.moves]
+             for t in trials if t.mode == 'closed_loop' and t.moves}
+    if moves:
+        plots.save_figure(plots.iteration_figure(moves, tolerance[0], title),
+                          out_dir / 'iterations.png')

@@ -1,43 +1,49 @@
 """``flexarm_recorder``: record flexarm topics into an MCAP bag (rosbag2 layout).
 
 Writes ``<bag_directory>/<bag_name>/<bag_name>.mcap`` with :class:`BagWriter`: messages are
-taken raw (serialized CDR) from the wire, so nothing is decoded. Each wanted topic is
-subscribed once a publisher of it is discovered (checked every ``discovery_period``), with
-its type from the graph and a QoS that matches all its publishers, as ``ros2 bag record``
-does: reliable if they all are, transient local if they all are (so latched topics such as
-/learner/model and /camera/camera_info are recorded even if published before), keep last
-``queue_depth`` (deep enough for bursts while Python takes the messages one by one; the
-camera's own, smaller depth bounds the memory of queued images). Log times are wall-clock
-receive times (so a bag is ordered even before /clock runs); publish times are the
-publishers' source timestamps. Message stamps keep the graph's (sim) time.
+taken raw (serialized CDR) from the wire, so nothing is decoded. Each wanted topic (names or
+patterns, :mod:`flexarm_bringup.topic_discovery`) is subscribed once a publisher of it is
+discovered (checked every ``discovery_period``), with its type from the graph and a QoS that
+matches all its publishers (latched topics such as /learner/model are recorded even if
+published before), keep last ``queue_depth`` (deep enough for bursts while Python takes the
+messages one by one; the camera's own, smaller depth bounds the memory of queued images).
+Log times are wall-clock receive times (so a bag is ordered even before /clock runs);
+publish times are the publishers' source timestamps. Message stamps keep the graph's (sim)
+time.
 
 Decision: one bag per recorder run. ``flexarm up --record NAME`` records the whole session
 in one bag; a trial that wants a bag of its own starts (and stops) a recorder for itself.
 
 Chunks are flushed every ``flush_period`` (wall clock, also under sim time), so after a
 SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close the bag
-cleanly: the handlers only stop the spin loop, the bag is closed after spinning stops.
+cleanly: the handlers only stop the spin loop (:func:`spin_until_signalled`), the bag is
+closed after spinning stops.
+
+Health on ``/diagnostics``: :func:`recorder_status`.
 """
 from __future__ import annotations
 
-import importlib
-import signal
-import threading
 import time
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
-import rclpy
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
-from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
+from rclpy.qos import QoSProfile
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 from flexarm_bringup.bag_writer import DEFAULT_CHUNK_SIZE, BagWriter, duration_yaml
+from flexarm_bringup.topic_discovery import (
+    RawHandler,
+    RawTopicSubscriber,
+    TopicSelection,
+    spin_until_signalled,
+)
 from flexarm_control import topics
+from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.health_report import OK, WARN, Status, status
 from flexarm_control.node_params import declare
 from flexarm_control.paths import BAGS_DIR
 
@@ -45,18 +51,15 @@ DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded
 DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.CLOCK, topics.CAMERA_INFO,
                   topics.TIP_POSE, topics.TIP_POSE_TRUTH, topics.SAMPLES, topics.MODEL,
-                  topics.OUTCOMES]
+                  topics.ACTIVE_MODEL, topics.MODEL_HEALTH, topics.PAYLOAD, topics.OUTCOMES,
+                  topics.DIAGNOSTICS, topics.ROBOT_DESCRIPTION, topics.TF, topics.TF_STATIC,
+                  topics.TARGET_POSE, topics.COMMANDED_POSE, topics.MEASURED_TIP,
+                  topics.TRUE_TIP, topics.SCENE_MARKERS]
 
 
 def default_bag_name() -> str:
     """``flexarm_YYYYmmdd_HHMMSS`` of the local time now."""
     return time.strftime('flexarm_%Y%m%d_%H%M%S')
-
-
-def message_class(type_name: str) -> type:
-    """The Python message class of ``pkg/msg/Type``."""
-    package, _, name = type_name.split('/')
-    return getattr(importlib.import_module(f'{package}.msg'), name)
 
 
 def qos_profile_dict(qos: QoSProfile) -> dict[str, Any]:
@@ -74,15 +77,18 @@ def qos_profile_dict(qos: QoSProfile) -> dict[str, Any]:
     }
 
 
-def request_qos(publishers: Sequence[TopicEndpointInfo], depth: int) -> QoSProfile:
-    """A subscription QoS compatible with all publishers that keeps what they offer."""
-    offered = [p.qos_profile for p in publishers]
-    reliable = all(q.reliability == ReliabilityPolicy.RELIABLE for q in offered)
-    latched = all(q.durability == DurabilityPolicy.TRANSIENT_LOCAL for q in offered)
-    return QoSProfile(
-        history=HistoryPolicy.KEEP_LAST, depth=depth,
-        reliability=ReliabilityPolicy.RELIABLE if reliable else ReliabilityPolicy.BEST_EFFORT,
-        durability=DurabilityPolicy.TRANSIENT_LOCAL if latched else DurabilityPolicy.VOLATILE)
+def recorder_status(node: str, bag: str, recorded: Sequence[str], left_out: Sequence[str],
+                    messages: int) -> Status:
+    """``<node>: bag``: the bag's path, the topics recorded and the messages written; WARN
+    when a wanted topic is left out (its type cannot be loaded), else OK."""
+    values = {'bag': bag, 'topics recorded': len(recorded),
+              'recorded': ', '.join(recorded), 'left out': ', '.join(left_out),
+              'messages written': messages}
+    text = f'{messages} messages of {len(recorded)} topics to {bag}'
+    if left_out:
+        return status(node, 'bag', WARN, f'{text}; not recordable: {", ".join(left_out)}',
+                      values)
+    return status(node, 'bag', OK, text, values)
 
 
 class RecorderNode(Node):
@@ -94,59 +100,44 @@ class RecorderNode(Node):
                             'directory holding the bags')
         name = declare(self, 'bag_name', '',
                        'bag (sub-directory and file) name; empty: flexarm_YYYYmmdd_HHMMSS')
-        wanted = declare(self, 'topics', DEFAULT_TOPICS, 'topics to record')
+        wanted = declare(self, 'topics', DEFAULT_TOPICS,
+                         'topics to record: names or fnmatch patterns ("*": all)')
         record_images = declare(self, 'record_images', False,
                                 f'also record {topics.CAMERA_IMAGE}')
         discovery_period = declare(self, 'discovery_period', 0.5,
                                    'period of looking for publishers of wanted topics [s]')
         flush_period = declare(self, 'flush_period', 1.0,
                                'period of writing the chunk in progress to disk [s]')
-        self._queue_depth = declare(self, 'queue_depth', 1000,
-                                    'subscription history depth (keep last) of a topic')
-        self._image_queue_depth = declare(self, 'image_queue_depth', 30,
-                                          f'the same for {topics.CAMERA_IMAGE}')
+        queue_depth = declare(self, 'queue_depth', 1000,
+                              'subscription history depth (keep last) of a topic')
+        image_queue_depth = declare(self, 'image_queue_depth', 30,
+                                    f'the same for {topics.CAMERA_IMAGE}')
         chunk_size = declare(self, 'chunk_size', DEFAULT_CHUNK_SIZE,
                              'MCAP chunk size [bytes]')
-        self._wanted = list(dict.fromkeys(
-            [*wanted, *([topics.CAMERA_IMAGE] if record_images else [])]))
         self.writer = BagWriter(Path(directory) / (name or default_bag_name()),
                                 chunk_size=chunk_size)
-        self._subscribed: dict[str, Any] = {}
-        self._unrecordable: set[str] = set()        # no .msg file found for their type
-        wall = Clock(clock_type=ClockType.STEADY_TIME)
-        self.create_timer(discovery_period, self._discover, clock=wall)
-        self.create_timer(flush_period, self.writer.flush, clock=wall)
-        self.get_logger().info(f'recording {self._wanted} to {self.writer.path}')
-        self._discover()
+        self.create_timer(flush_period, self.writer.flush,
+                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+        selection = TopicSelection(tuple(wanted), record_images)
+        self.get_logger().info(f'recording {list(wanted)} (images: {record_images}) to '
+                               f'{self.writer.path}')
+        self.topics = RawTopicSubscriber(self, selection, self._add_topic, 'recording',
+                                         discovery_period, queue_depth, image_queue_depth)
+        self._diagnostics = DiagnosticsPublisher(self, lambda: [recorder_status(
+            self.get_name(), str(self.writer.path), sorted(self.topics.subscriptions),
+            sorted(self.topics.left_out), self.writer.message_count)])
 
-    def _discover(self) -> None:
-        for topic in self._wanted:
-            if topic in self._subscribed or topic in self._unrecordable:
-                continue
-            publishers = self.get_publishers_info_by_topic(topic)
-            if publishers:
-                self._subscribe(topic, publishers)
-
-    def _subscribe(self, topic: str, publishers: Sequence[TopicEndpointInfo]) -> None:
-        type_name = publishers[0].topic_type
+    def _add_topic(self, topic: str, publishers: Sequence[TopicEndpointInfo]) -> RawHandler:
+        """Add the topic to the bag; the handler that writes its messages."""
         type_hash = str(publishers[0].topic_type_hash)
-        try:
-            self.writer.add_topic(topic, type_name, [qos_profile_dict(p.qos_profile)
-                                                     for p in publishers],
-                                  type_hash=type_hash if type_hash.startswith('RIHS') else '')
-        except (FileNotFoundError, ValueError) as err:
-            self._unrecordable.add(topic)
-            self.get_logger().error(f'not recording {topic}: {err}')
-            return
+        self.writer.add_topic(topic, publishers[0].topic_type,
+                              [qos_profile_dict(p.qos_profile) for p in publishers],
+                              type_hash=type_hash if type_hash.startswith('RIHS') else '')
 
         def record(data: bytes, info: Any) -> None:
             self.writer.write(topic, data, time.time_ns(), info['source_timestamp'])
 
-        self._subscribed[topic] = self.create_subscription(
-            message_class(type_name), topic, record,
-            request_qos(publishers, self._image_queue_depth if topic == topics.CAMERA_IMAGE
-                        else self._queue_depth), raw=True)
-        self.get_logger().info(f'recording {topic} ({type_name})')
+        return record
 
     def destroy_node(self) -> None:
         """Close the bag (summary, rosbag2 metadata, metadata.yaml), then the node."""
@@ -168,29 +159,9 @@ def _drain(executor: SingleThreadedExecutor, node: RecorderNode) -> None:
 
 
 def main(args: list[str] | None = None) -> None:
-    """Spin until SIGINT/SIGTERM, then close the bag, destroy the node and shut rclpy down.
-
-    The signal handlers only set a flag: shutting the context down from a handler while the
-    executor is inside a wait or a raw take crashed the process (SIGSEGV) now and then.
-    """
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    node = RecorderNode()
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        _drain(executor, node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown(timeout_sec=1.0)
-        rclpy.try_shutdown()
+    """Spin until SIGINT/SIGTERM, write what already arrived, then close the bag, destroy
+    the node and shut rclpy down."""
+    spin_until_signalled(RecorderNode, args, finish=_drain)
 
 
 if __name__ == '__main__':

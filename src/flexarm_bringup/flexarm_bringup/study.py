@@ -23,8 +23,6 @@ from __future__ import annotations
 
 import argparse
 import copy
-import csv
-import io
 import json
 import math
 import sys
@@ -36,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from flexarm_bringup.plots import write_csv
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.paper import TABLE_7, TABLE_8
@@ -296,11 +295,11 @@ def write_study(result: Mapping[str, Any], out_dir: str | Path) -> dict[str, Pat
              'plot': out_dir / 'learning_curve.png'}
     rows = result['rows']
     atomic_write(paths['table'], lambda f: f.write(table_text(result).encode()))
-    text = io.StringIO()
-    writer = csv.DictWriter(text, fieldnames=list(Row.__dataclass_fields__))
-    writer.writeheader()
-    writer.writerows(rows)
-    atomic_write(paths['csv'], lambda f: f.write(text.getvalue().encode()))
+    seeds = [f'chosen_seed_{k}' for k in range(result['settings']['seeds'])]
+    write_csv(paths['csv'], [f for f in Row.__dataclass_fields__ if f != 'chosen'] + seeds,
+              [{**{k: v for k, v in r.items() if k != 'chosen'},
+                **dict(zip(seeds, r['chosen'].split('/') if r['chosen'] else []))}
+               for r in rows])
 
     fig, ax = plt.subplots(figsize=(7, 4.5))
     for kind in result['settings']['kinds']:

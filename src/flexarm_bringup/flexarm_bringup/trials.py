@@ -4,9 +4,15 @@ What ``flexarm demo`` and ``flexarm benchmark`` run. For every target and mode a
 goal goes to the compensator; when it returns (arm settled and measured), the simulator's
 ground-truth tip pose (``/sim/tip_pose_truth``, evaluation only — no control node reads it) is
 the judge. Trials are named ``<prefix>/<target>/<mode>`` so a bag's outcomes can be matched.
+
+The result holds only the last measurement of a goal; the tip measured after every move of a
+CLOSED_LOOP goal comes from the goal's feedback (phase ``measuring``, one per move), kept in
+:attr:`Trial.moves`. The last move is taken from the result as well, as its feedback may
+arrive after the result.
 """
 from __future__ import annotations
 
+import math
 import threading
 import time
 from collections.abc import Callable, Iterable
@@ -16,9 +22,24 @@ import numpy as np
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
-from flexarm_control.kinematics import pose_error
+from flexarm_control.kinematics import pose_error, wrap_angle
 from flexarm_control.modes import MODE_LABELS
-from flexarm_msgs.msg import TipPose
+from flexarm_msgs.action import MoveToPose
+from flexarm_msgs.msg import PlanarPose, TipPose
+
+TRIAL_CSV_FIELDS = (
+    'name', 'group', 'region', 'mode', 'error_code', 'error_string', 'iterations',
+    'compensation_iterations', 'data_distance', 'prediction_std_mm', 'seconds',
+    'target_x_mm', 'target_y_mm', 'target_phi_deg',
+    'commanded_x_mm', 'commanded_y_mm', 'commanded_phi_deg',
+    'predicted_dx_mm', 'predicted_dy_mm', 'predicted_dphi_deg',
+    'measured_x_mm', 'measured_y_mm', 'measured_phi_deg',
+    'measured_position_error_mm', 'measured_angle_error_deg',
+    'truth_x_mm', 'truth_y_mm', 'truth_phi_deg',
+    'truth_position_error_mm', 'truth_angle_error_deg')
+MOVE_CSV_FIELDS = (
+    'name', 'group', 'region', 'mode', 'move', 'measured_x_mm', 'measured_y_mm',
+    'measured_phi_deg', 'measured_position_error_mm', 'measured_angle_error_deg')
 
 
 @dataclass
@@ -39,9 +60,51 @@ class Trial:
     data_distance: float          # of the commanded joints from the learned data [spacings]
     prediction_std: float         # the model's std of the predicted tip position [m]
     seconds: float                # wall time of the goal
+    commanded: list[float]        # x* of the last move [m, m, rad]
+    predicted_deflection: list[float]   # the plan's predicted deflection [m, m, rad]
+    moves: list[list[float]]      # tip measured after each move [m, m, rad], in order
 
     def as_dict(self) -> dict:
         return asdict(self)
+
+    def csv_row(self) -> dict[str, float | int | str]:
+        """One row of :data:`TRIAL_CSV_FIELDS`: mm and deg, errors signed (pose minus target)
+        but the position error; cells of what is unknown are left out (empty)."""
+        row: dict[str, float | int | str] = {
+            'name': self.name, 'group': self.group, 'region': self.region, 'mode': self.mode,
+            'error_code': self.error_code, 'error_string': self.error_string,
+            'iterations': self.iterations,
+            'compensation_iterations': self.compensation_iterations,
+            'data_distance': self.data_distance, 'prediction_std_mm': self.prediction_std * 1e3,
+            'seconds': self.seconds, **_pose_cells('target', self.target),
+            **_pose_cells('commanded', self.commanded),
+            **_pose_cells('predicted', self.predicted_deflection, 'd')}
+        for prefix, pose in (('measured', self.measured), ('truth', self.reached)):
+            if pose is not None:
+                row.update(_pose_cells(prefix, pose), **_error_cells(prefix, pose, self.target))
+        return row
+
+    def move_rows(self) -> list[dict[str, float | int | str]]:
+        """One row of :data:`MOVE_CSV_FIELDS` per measured move."""
+        return [{'name': self.name, 'group': self.group, 'region': self.region,
+                 'mode': self.mode, 'move': i, **_pose_cells('measured', pose),
+                 **_error_cells('measured', pose, self.target)}
+                for i, pose in enumerate(self.moves, start=1)]
+
+
+def _pose_cells(prefix: str, pose: list[float], delta: str = '') -> dict[str, float]:
+    return {f'{prefix}_{delta}x_mm': pose[0] * 1e3, f'{prefix}_{delta}y_mm': pose[1] * 1e3,
+            f'{prefix}_{delta}phi_deg': math.degrees(pose[2])}
+
+
+def _error_cells(prefix: str, pose: list[float], target: list[float]) -> dict[str, float]:
+    return {f'{prefix}_position_error_mm': math.hypot(pose[0] - target[0],
+                                                      pose[1] - target[1]) * 1e3,
+            f'{prefix}_angle_error_deg': math.degrees(wrap_angle(pose[2] - target[2]))}
+
+
+def _xyphi(pose: PlanarPose) -> list[float]:
+    return [pose.x, pose.y, pose.phi]
 
 
 class TruthMonitor:
@@ -76,21 +139,29 @@ def run_trials(client: FlexarmClient, truth: TruthMonitor,
     for name, group, region, target in targets:
         for mode in modes:
             start = time.monotonic()
+            moves: dict[int, list[float]] = {}
+
+            def heard(fb: MoveToPose.Feedback, moves: dict[int, list[float]] = moves) -> None:
+                if fb.measured:
+                    moves[fb.iteration] = _xyphi(fb.measured_pose)
             result = client.move_to(*target, mode=mode, trial=f'{prefix}/{name}/{mode}',
-                                    timeout=timeout)
+                                    timeout=timeout, feedback=heard)
+            if result.measured:
+                moves[result.iterations] = _xyphi(result.measured_pose)
             reached = truth.after(time.monotonic(), client)
             position_error, angle_error = pose_error(target, reached)
             trial = Trial(
                 name=name, group=group, region=region, mode=mode, target=target.tolist(),
                 error_code=result.error_code, error_string=result.error_string,
                 reached=reached.tolist(),
-                measured=([result.measured_pose.x, result.measured_pose.y,
-                           result.measured_pose.phi] if result.measured else None),
+                measured=_xyphi(result.measured_pose) if result.measured else None,
                 position_error=position_error, angle_error=angle_error,
                 iterations=result.iterations,
                 compensation_iterations=result.compensation_iterations,
                 data_distance=result.data_distance, prediction_std=result.prediction_std,
-                seconds=time.monotonic() - start)
+                seconds=time.monotonic() - start, commanded=_xyphi(result.commanded_pose),
+                predicted_deflection=_xyphi(result.predicted_deflection),
+                moves=[moves[k] for k in sorted(moves)])
             trials.append(trial)
             on_trial(trial)
     return trials

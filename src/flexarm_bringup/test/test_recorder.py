@@ -15,6 +15,7 @@ from typing import Any
 import pytest
 import yaml
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray
 from mcap.exceptions import EndOfFile
 from mcap.reader import make_reader
 from mcap.records import Message
@@ -331,7 +332,8 @@ def _bag_count(bag: Path) -> int:
 
 def _start_and_publish(launch: Any, ros_node: Any, wait_for: Any,
                        bag_dir: Path) -> tuple[Any, Any]:
-    """Latch a model, start the recorder, publish N joint states and tip poses to it."""
+    """Latch a model, start the recorder of these three topics (not its own /diagnostics,
+    whose count depends on time), publish N joint states and tip poses to it."""
     from rclpy.qos import DurabilityPolicy, QoSProfile
 
     latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
@@ -339,7 +341,8 @@ def _start_and_publish(launch: Any, ros_node: Any, wait_for: Any,
     model_pub.publish(ModelInfo(version='v1', kind='mlp'))
     joint_pub = ros_node.create_publisher(JointState, topics.JOINT_STATES, 2 * N)
     tip_pub = ros_node.create_publisher(TipPose, topics.TIP_POSE, 2 * N)
-    recorder = launch('flexarm_recorder', bag_directory=str(bag_dir), bag_name='t')
+    recorder = launch('flexarm_recorder', bag_directory=str(bag_dir), bag_name='t',
+                      topics=[topics.JOINT_STATES, topics.TIP_POSE, topics.MODEL])
     wait_for(lambda: all(p.get_subscription_count() for p in (model_pub, joint_pub, tip_pub)),
              20.0, 'the recorder to subscribe to all three topics')
     for i in range(N):
@@ -353,7 +356,14 @@ def _start_and_publish(launch: Any, ros_node: Any, wait_for: Any,
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_recorder_closes_bag_with_every_message_on_signal(
         launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path, sig: int) -> None:
+    health: dict[str, str] = {}
+    ros_node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, lambda m: health.update(
+        {v.key: v.value for s in m.status if s.name == 'flexarm_recorder: bag'
+         for v in s.values}), 10)
     recorder, _ = _start_and_publish(launch, ros_node, wait_for, tmp_path)
+    wait_for(lambda: health.get('messages written') == str(2 * N + 1), 10.0,
+             'the messages written on /diagnostics')
+    assert health['topics recorded'] == '3' and health['bag'].endswith('t.mcap')
     recorder.signal(sig)
     assert recorder.process.wait(timeout=10.0) == 0, recorder.log_tail()
 

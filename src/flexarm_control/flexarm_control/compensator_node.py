@@ -13,9 +13,11 @@ model's std there. The algorithm lives in :mod:`flexarm_control.compensator`; th
 validates goals, maps ROS to those calls and their outcomes to error codes,
 reports feedback and results, and hot-reloads the predictor the learner announces on
 ``/learner/model`` and republishes the one it uses on the latched
-``/compensator/active_model``. An announcement stamped before the one in use is ignored: DDS
-may hand a late joiner the latched older announcement after a newer live one, and a roll back
-(``/learner/use_model``) is a new announcement with a new stamp.
+``/compensator/active_model``. For rviz and Foxglove it publishes each goal's target on
+``/scene/target_pose`` and every commanded x* on ``/scene/commanded_pose`` (PoseStamped in
+``base_link``, latched: :mod:`flexarm_control.plane`). An announcement stamped before the one
+in use is ignored: DDS may hand a late joiner the latched older announcement after a newer live
+one, and a roll back (``/learner/use_model``) is a new announcement with a new stamp.
 
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
 arriving together can both pass that check: execution decides, and the one that finds the
@@ -46,6 +48,9 @@ and answered with the plan; nothing moves.
 
 The executor has ``EXECUTOR_THREADS`` threads, so an executing goal (holding one thread until
 it ends) leaves threads for joint states, tip poses, cancel and new goals.
+
+Health on ``/diagnostics``: :func:`model_status`, :func:`model_health_status` and
+:func:`goals_status`.
 """
 from __future__ import annotations
 
@@ -56,6 +61,7 @@ from functools import partial
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
+from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
@@ -70,6 +76,7 @@ from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.compensator import Compensator, Plan
+from flexarm_control.diagnostics import DiagnosticsPublisher
 from flexarm_control.goal_execution import (
     CANCELED,
     CONTROLLER_TIMEOUT,
@@ -80,8 +87,10 @@ from flexarm_control.goal_execution import (
     GoalSpec,
     execute,
 )
+from flexarm_control.health_report import ERROR, OK, WARN, Status, status
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, forward, pose_error
 from flexarm_control.model_health import HealthSettings, ModelHealth
+from flexarm_control.model_health import RegionHealth as RegionReport
 from flexarm_control.model_store import payload_warning
 from flexarm_control.modes import Mode
 from flexarm_control.node_main import finish_goal, run
@@ -89,6 +98,7 @@ from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_control.sampling import regions_from_dict
+from flexarm_control.scene_msgs import pose_stamped
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
@@ -128,6 +138,58 @@ def goal_error(goal: Goal) -> str | None:
     return None
 
 
+def model_status(node: str, info: ModelInfo | None, load_error: str,
+                 payload: float | None) -> Status:
+    """``<node>: model`` in use: ERROR when an announced model could not be loaded and none
+    is in use (PREDICTIVE refuses every goal); WARN when one could not be loaded but the
+    previous one stays in use, or the model in use carries a warning (other payload or arm);
+    OK otherwise, also without any model (RIGID and CLOSED_LOOP need none)."""
+    values = {'version': info.version if info else '', 'kind': info.kind if info else '',
+              'dataset': info.dataset if info else '', 'warning': info.warning if info else '',
+              'payload [kg]': 'unknown' if payload is None else payload,
+              'load error': load_error}
+    if info is None:
+        if load_error:
+            return status(node, 'model', ERROR, load_error, values)
+        return status(node, 'model', OK, 'no model announced yet (RIGID and CLOSED_LOOP only)',
+                      values)
+    text = f'model {info.version} ({info.kind})'
+    problem = '; '.join(filter(None, [load_error, info.warning]))
+    if problem:
+        return status(node, 'model', WARN, f'{text}: {problem}', values)
+    return status(node, 'model', OK, f'{text} in use', values)
+
+
+def model_health_status(node: str, version: str, report: list[RegionReport],
+                        stale_residual: float, summary: str) -> Status:
+    """``<node>: model health``, the residuals of the model in use per working region: WARN
+    when it is stale in a region (refresh it or train anew), else OK."""
+    values: dict[str, str | int | float] = {'model': version,
+                                            'stale residual [mm]': stale_residual * 1e3}
+    for r in report:
+        values[f'{r.name} measurements'] = r.observations
+        values[f'{r.name} residual median [mm]'] = round(r.median_position * 1e3, 4)
+        values[f'{r.name} residual max [mm]'] = round(r.max_position * 1e3, 4)
+        values[f'{r.name} stale'] = r.stale
+    if summary:
+        return status(node, 'model health', WARN, summary, values)
+    if not version:
+        return status(node, 'model health', OK, 'no model in use', values)
+    seen = sum(r.observations for r in report)
+    return status(node, 'model health', OK, f'model {version} fits ({seen} recent '
+                  'measurements)' if seen else f'model {version}: not measured yet', values)
+
+
+def goals_status(node: str, counts: dict[str, int], executing: str) -> Status:
+    """``<node>: goals``: run, succeeded, failed and canceled since start, and the goal in
+    progress. Always OK: a goal that fails tells its client why in its result."""
+    run = sum(counts.values())
+    values = {'goals run': run, **{f'goals {k}': v for k, v in counts.items()},
+              'executing': executing}
+    return status(node, 'goals', OK, f'executing {executing}' if executing else
+                  f'idle, {run} goals run ({counts.get("succeeded", 0)} succeeded)', values)
+
+
 class CompensatorNode(Node):
 
     def __init__(self, context: Context | None = None) -> None:
@@ -163,6 +225,8 @@ class CompensatorNode(Node):
         self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)
         self._load_error = ''          # why the last announced model was not loaded
         self._busy = threading.Lock()
+        self._goal_counts = {'succeeded': 0, 'failed': 0, 'canceled': 0}
+        self._executing = ''           # the goal in progress: trial name and mode
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
         self._health_pub = self.create_publisher(HealthMsg, topics.MODEL_HEALTH, latched)
@@ -173,10 +237,24 @@ class CompensatorNode(Node):
         self.create_subscription(ModelInfo, topics.MODEL, self._on_model, latched,
                                  callback_group=self._group)
         self._outcomes = self.create_publisher(GoalOutcome, topics.OUTCOMES, 10)
+        self._target_pub = self.create_publisher(PoseStamped, topics.TARGET_POSE, latched)
+        self._commanded_pub = self.create_publisher(PoseStamped, topics.COMMANDED_POSE, latched)
         self._server = ActionServer(
             self, MoveToPose, topics.MOVE_TO_POSE, execute_callback=self._execute,
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
             callback_group=self._group)
+        self._diagnostics = DiagnosticsPublisher(self, self.statuses)
+
+    def statuses(self) -> list[Status]:
+        """The node's health (module docstring): model, model health, goals."""
+        name, model = self.get_name(), self._model
+        with self._health_lock:
+            health = model_health_status(
+                name, self._health.version, self._health.report(),
+                self._health.settings.stale_residual, self._health.summary())
+        return [model_status(name, model[1] if model else None, self._load_error,
+                             self._payload),
+                health, goals_status(name, dict(self._goal_counts), self._executing)]
 
     # --- model hot reload -------------------------------------------------------------------
     def _on_model(self, msg: ModelInfo) -> None:
@@ -252,6 +330,8 @@ class CompensatorNode(Node):
             result = Result(error_code=Result.INVALID_GOAL,
                             error_string='busy: another goal is executing (one at a time)')
         else:
+            mode = Mode(goal.mode).label if goal.mode < len(Mode) else f'mode {goal.mode}'
+            self._executing = f'{goal.trial or "(no trial name)"} ({mode})'
             try:
                 result = self._run(handle, goal)
             except Exception as exc:   # last resort: a reason for the client, never empty
@@ -259,8 +339,11 @@ class CompensatorNode(Node):
                 result = Result(error_code=Result.INVALID_GOAL,
                                 error_string=f'internal error: {type(exc).__name__}: {exc}')
             finally:
+                self._executing = ''
                 self._busy.release()
         finish_goal(handle, result.error_code, Result.CANCELED)
+        outcome = {Result.SUCCESSFUL: 'succeeded', Result.CANCELED: 'canceled'}
+        self._goal_counts[outcome.get(result.error_code, 'failed')] += 1
         if result.error_code not in (Result.SUCCESSFUL, Result.CANCELED):
             self.get_logger().warn(f'goal aborted ({result.error_code}): {result.error_string}')
         self._publish_outcome(goal, result)
@@ -294,6 +377,7 @@ class CompensatorNode(Node):
             goal.angle_tolerance or (self._ang_tol if closed else 0.0),
             goal.max_corrections or self._max_corrections)
 
+        self._target_pub.publish(pose_stamped(target, self.get_clock().now().to_msg()))
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         try:
             planned = plan_goal(self._compensator, mode, target, predictor, self._limits,
@@ -364,6 +448,8 @@ class CompensatorNode(Node):
             fb.measured, fb.measured_pose = True, planar(measured)
             fb.position_error, fb.angle_error = pose_error(target, measured)
         handle.publish_feedback(fb)
+        if phase != Feedback.PHASE_PLANNING:
+            self._commanded_pub.publish(pose_stamped(commanded, self.get_clock().now().to_msg()))
 
     def _publish_outcome(self, goal: Goal, result: Result) -> None:
         now = self.get_clock().now().to_msg()

@@ -48,6 +48,8 @@ dataset), as is one while a timed-out training job still occupies the worker. Ev
 gives an error code or message; nothing escapes a callback. The executor has
 ``EXECUTOR_THREADS`` threads, so a running collection and a training request (each holding one
 thread while it waits) leave threads for the joint states, tip poses and cancel requests.
+
+Health on ``/diagnostics``: :func:`learner_statuses` (activity, training, model).
 """
 from __future__ import annotations
 
@@ -77,6 +79,8 @@ from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.collection import Collected, Collector
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
+from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.health_report import ERROR, OK, WARN, Status, status
 from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.model_store import (
     DamagedRecord,
@@ -165,6 +169,44 @@ def dataset_name_error(name: str) -> str | None:
     return None
 
 
+def learner_statuses(node: str, progress: str, training: bool,
+                     dataset: tuple[str, int] | None, trained: tuple[bool, str] | None,
+                     announced: ModelInfo | None, announce_error: str) -> list[Status]:
+    """The learner's health:
+
+    * ``<node>: activity``, always OK: idle, the collection's or refresh's ``progress``
+      ("collecting k of n ...") and/or training; the dataset last collected into and its size.
+    * ``<node>: training``: the last training's outcome; WARN when it failed (no new model,
+      the previous one stays active), OK otherwise (also before any training).
+    * ``<node>: model``: the model last announced on /learner/model; ERROR when the current
+      model record could not be announced (damaged, unloadable: the compensator has none),
+      WARN when the model was made for another payload or arm (its warning), else OK.
+    """
+    doing = '; '.join(filter(None, [progress, 'training' if training else ''])) or 'idle'
+    activity = status(node, 'activity', OK, doing, {
+        'activity': doing, 'dataset': dataset[0] if dataset else '',
+        'dataset samples': dataset[1] if dataset else 0})
+    if trained is None:
+        training_status = status(node, 'training', OK, 'no training since start')
+    else:
+        succeeded, text = trained
+        training_status = status(node, 'training', OK if succeeded else WARN, text,
+                                 {'succeeded': succeeded})
+    values = {'version': announced.version if announced else '',
+              'kind': announced.kind if announced else '',
+              'dataset': announced.dataset if announced else '',
+              'warning': announced.warning if announced else ''}
+    if announce_error:
+        model = status(node, 'model', ERROR, f'no model announced: {announce_error}', values)
+    elif announced is None:
+        model = status(node, 'model', OK, 'no model yet: collect samples and train', values)
+    else:
+        model = status(node, 'model', WARN if announced.warning else OK,
+                       f'model v{announced.version} ({announced.kind}) announced'
+                       + (f': {announced.warning}' if announced.warning else ''), values)
+    return [activity, training_status, model]
+
+
 class LearnerNode(Node):
 
     def __init__(self) -> None:
@@ -231,7 +273,16 @@ class LearnerNode(Node):
         models = MutuallyExclusiveCallbackGroup()      # one model change at a time
         self.create_service(Train, topics.TRAIN, self._train, callback_group=models)
         self.create_service(UseModel, topics.USE_MODEL, self._use_model, callback_group=models)
+        self._progress = ''        # of the running collection or refresh
+        self._training = False
+        self._dataset: tuple[str, int] | None = None    # last collected into, its samples
+        self._trained: tuple[bool, str] | None = None   # last training: succeeded, outcome
+        self._announced: ModelInfo | None = None
+        self._announce_error = ''
         self._announce_current()
+        self._diagnostics = DiagnosticsPublisher(self, lambda: learner_statuses(
+            self.get_name(), self._progress, self._training, self._dataset, self._trained,
+            self._announced, self._announce_error))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """A new ``payload`` [kg]: stored with the next samples and published on /payload."""
@@ -281,6 +332,7 @@ class LearnerNode(Node):
                 result.error_code = Result.FAILED
                 result.error_string = f'collection failed: {type(exc).__name__}: {exc}'
             finally:
+                self._progress = ''
                 self._collecting.release()
         finish_goal(handle, result.error_code, Result.CANCELED)
         self.get_logger().info(f'collection ended ({result.error_code}): {result.collected} '
@@ -312,12 +364,15 @@ class LearnerNode(Node):
         cancel = lambda: handle.is_cancel_requested  # noqa: E731
 
         def progress(k: int, counts: Collected, sample: Sample | None) -> None:
+            self._progress = f'collecting {k} of {goal.count} into {path.stem}'
+            self._dataset = (path.stem, result.total + counts.collected)
             msg = self._sample_msg(sample) if sample is not None else DeflectionSample()
             if sample is not None:
                 self._sample_pub.publish(msg)
             handle.publish_feedback(Feedback(k=k, n=goal.count, skipped=counts.skipped,
                                              last_sample=msg))
 
+        self._progress = f'collecting 0 of {goal.count} into {path.stem}'
         with DatasetWriter(path) as writer:     # each sample on disk before the next move
             def store(sample: Sample) -> None:
                 writer.append(sample)
@@ -365,6 +420,7 @@ class LearnerNode(Node):
                 result.error_code = RefreshModel.Result.FAILED
                 result.error_string = f'refresh failed: {type(exc).__name__}: {exc}'
             finally:
+                self._progress = ''
                 self._collecting.release()
         finish_goal(handle, result.error_code, RefreshModel.Result.CANCELED)
         self.get_logger().info(f'refresh ended ({result.error_code}): {result.collected} '
@@ -425,6 +481,7 @@ class LearnerNode(Node):
             self._sample_pub.publish(self._sample_msg(sample))
 
         def progress(k: int, counts: Collected, sample: Sample | None) -> None:
+            self._progress = f'refreshing {k} of {len(plan)} into {path.stem}'
             handle.publish_feedback(RefreshModel.Feedback(k=k, n=len(plan)))
 
         with DatasetWriter(path) as writer:
@@ -444,7 +501,7 @@ class LearnerNode(Node):
         mended.save(model_path)
         info = self._model_info(str(version), model_path)
         write_current(self._model_dir, version, info.kind, info.path, info.dataset_hash)
-        self._model_pub.publish(info)
+        self._announce(info)
         correction = mended.corrections[-1]
         result.model = info
         result.residual_before = correction.residual_before
@@ -483,9 +540,13 @@ class LearnerNode(Node):
             make_predictor(kind, settings)      # unknown kind or bad settings: fail here
             if not path.exists():
                 raise ValueError(f'no dataset at {path}: collect samples first')
-            metrics, samples_hash, skipped = self._trainer.run(
-                train_and_save, kind, settings, str(path), self._folds, str(model_path),
-                self._geometry, self._screening, self._arm_id, timeout=self._train_timeout)
+            self._training = True
+            try:
+                metrics, samples_hash, skipped = self._trainer.run(
+                    train_and_save, kind, settings, str(path), self._folds, str(model_path),
+                    self._geometry, self._screening, self._arm_id, timeout=self._train_timeout)
+            finally:
+                self._training = False
             info = self._model_info(str(version), model_path)
             write_current(self._model_dir, version, kind, info.path, samples_hash)
         except (ValueError, RuntimeError, OSError, TimeoutError) as exc:
@@ -493,7 +554,8 @@ class LearnerNode(Node):
         except Exception as exc:   # last resort: a reason for the caller, never a crash
             self.get_logger().error(traceback.format_exc())
             return self._train_failed(response, f'{type(exc).__name__}: {exc}')
-        self._model_pub.publish(info)
+        self._announce(info)
+        self._trained = (True, f'model v{version}: {kind}, {metrics.samples} samples')
         response.success, response.model_version = True, info.version
         if skipped:
             response.message = (f'{len(skipped)} damaged record(s) of {path} skipped (lines '
@@ -512,6 +574,7 @@ class LearnerNode(Node):
 
     def _train_failed(self, response: Train.Response, reason: str) -> Train.Response:
         response.success, response.message = False, f'training failed: {reason}'
+        self._trained = (False, response.message)
         self.get_logger().error(response.message + '; the previous model stays active')
         return response
 
@@ -540,6 +603,11 @@ class LearnerNode(Node):
             self.get_logger().warn(f'model v{version}: {info.warning}')
         return info
 
+    def _announce(self, info: ModelInfo) -> None:
+        """Publish ``info`` on /learner/model (latched): the current model from now on."""
+        self._model_pub.publish(info)
+        self._announced, self._announce_error = info, ''
+
     def _use_model(self, request: UseModel.Request,
                    response: UseModel.Response) -> UseModel.Response:
         try:
@@ -551,7 +619,7 @@ class LearnerNode(Node):
             response.success, response.message = False, f'model not changed: {exc}'
             self.get_logger().error(response.message)
             return response
-        self._model_pub.publish(info)
+        self._announce(info)
         self.get_logger().info(f'model v{info.version} made current on request and announced')
         response.success, response.model = True, info
         return response
@@ -563,10 +631,11 @@ class LearnerNode(Node):
                 return
             info = self._model_info(current['version'], Path(current['path']))
         except (DamagedRecord, ValueError, OSError) as exc:
+            self._announce_error = str(exc)
             self.get_logger().error(f'no model announced: {exc}; train to make a new one, or '
                                     '`flexarm model use VERSION`')
             return
-        self._model_pub.publish(info)
+        self._announce(info)
         self.get_logger().info(f'announced the current model v{info.version} ({info.kind}, '
                                f'dataset {info.dataset or "unknown"})')
 

@@ -18,6 +18,17 @@ ACTIVE_MODEL = '/compensator/active_model'                  # flexarm_msgs/Model
 MODEL_HEALTH = '/compensator/model_health'                  # flexarm_msgs/ModelHealth, latched
 PAYLOAD = '/payload'                                        # std_msgs/Float64 [kg], latched
 
+# Visible in rviz and Foxglove (flexarm_description; the compensator publishes the goal poses).
+ROBOT_DESCRIPTION = '/robot_description'                    # std_msgs/String (URDF), latched
+TF = '/tf'                                                  # tf2_msgs/TFMessage
+TF_STATIC = '/tf_static'                                    # tf2_msgs/TFMessage, latched
+TARGET_POSE = '/scene/target_pose'                          # geometry_msgs/PoseStamped
+COMMANDED_POSE = '/scene/commanded_pose'                    # geometry_msgs/PoseStamped (x*)
+MEASURED_TIP = '/scene/measured_tip'                        # geometry_msgs/PoseStamped
+TRUE_TIP = '/scene/true_tip'                                # geometry_msgs/PoseStamped, sim
+SCENE_MARKERS = '/scene/markers'                            # visualization_msgs/MarkerArray
+DIAGNOSTICS = '/diagnostics'                                # diagnostic_msgs/DiagnosticArray
+
 MOVE_TO_POSE = '/move_to_pose'                              # flexarm_msgs/action/MoveToPose
 COLLECT_SAMPLES = '/collect_samples'                        # flexarm_msgs/action/CollectSamples
 TRAIN = '/train'                                            # flexarm_msgs/srv/Train

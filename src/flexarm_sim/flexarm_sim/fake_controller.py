@@ -10,6 +10,9 @@ only the authenticated protocol and executes nothing before the PC's AUTH. One P
 second connection gets an ERROR frame (code 5, busy) and is closed at once, never queued. On
 link loss (peer closed, or no frame for ``heartbeat_timeout``, which also ends a connection
 that does not authenticate) it holds the arm, as PROTOCOL.md requires of a controller.
+
+Health on ``/diagnostics``: the simulator's statuses, with the listening ``host:port`` as the
+controller's hardware id, and :func:`link_status`.
 """
 from __future__ import annotations
 
@@ -21,11 +24,28 @@ from builtin_interfaces.msg import Time as TimeMsg
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import CONTROLLER, LinkAuth, site_key_for
+from flexarm_control.health_report import OK, WARN, Status, status
 from flexarm_control.kinematics import JOINT_NAMES
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare
 from flexarm_sim.dynamics import ArmState
 from flexarm_sim.sim_node import SimNode
+
+
+def link_status(node: str, hardware_id: str, connected: bool, keyed: bool,
+                authenticated: bool) -> Status:
+    """``<node>: link`` to the PC: WARN without a PC (the arm is held, no command can come)
+    or while a keyed link waits for the PC's AUTH; OK when a PC is connected (and, with a
+    site key, authenticated)."""
+    values = {'PC connected': connected, 'authenticated link': keyed,
+              'authenticated': authenticated if keyed else 'n/a'}
+    if not connected:
+        return status(node, 'link', WARN, 'no PC connected: arm held', values, hardware_id)
+    if keyed and not authenticated:
+        return status(node, 'link', WARN, 'PC connected, waiting for its AUTH', values,
+                      hardware_id)
+    return status(node, 'link', OK, 'PC connected' + (', authenticated' if keyed else ''),
+                  values, hardware_id)
 
 
 class FakeController(SimNode):
@@ -45,6 +65,7 @@ class FakeController(SimNode):
         except ValueError as exc:
             self.get_logger().fatal(f'refusing to listen: {exc}')
             raise SystemExit(1) from None
+        self._hardware_id = f'{host}:{port}'
         self._client: socket.socket | None = None
         self._auth: LinkAuth | None = None        # of the current client, with a site key
         self._send_lock = threading.RLock()
@@ -55,6 +76,13 @@ class FakeController(SimNode):
         threading.Thread(target=self._serve, daemon=True).start()
         version = proto.VERSION if self._site_key is None else proto.AUTH_VERSION
         self.get_logger().info(f'controller protocol v{version} on {host}:{port}')
+
+    def statuses(self) -> list[Status]:
+        """The simulator's statuses and the link to the PC (module docstring)."""
+        auth = self._auth
+        return [*super().statuses(), link_status(
+            self.get_name(), self._hardware_id, self._client is not None,
+            self._site_key is not None, auth is not None and auth.established)]
 
     def _serve(self) -> None:
         """Accept connections: the first one is served, any other refused while it lasts."""

@@ -21,8 +21,13 @@ dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), count
 ticks so that stamps never drift or step back (:func:`tick_time`); the wall timer runs
 ``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it
 never skips steps; ``benchmarks/sim_node.py`` measures the achieved rate.
+
+Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
+:func:`controller_status` and the commands' :class:`~flexarm_control.health_report.CommandLog`.
 """
 from __future__ import annotations
+
+import time
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -35,6 +40,8 @@ from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64, Float64MultiArray, Header
 
 from flexarm_control import topics
+from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.health_report import OK, CommandLog, Status, status
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
@@ -48,13 +55,27 @@ from flexarm_vision.camera_model import CameraModel
 FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
 BASE_FRAME = 'base_link'
-CAMERA_FRAME = 'tip_camera'
+CAMERA_FRAME = 'tip_camera_optical_frame'   # flexarm_description's URDF
 
 
 def tick_time(tick: int, rate: float) -> tuple[int, int]:
     """(sec, nanosec) after ``tick`` ticks of ``rate`` Hz, in exact integer arithmetic."""
     numerator, denominator = float(rate).as_integer_ratio()
     return divmod(tick * 1_000_000_000 * denominator // numerator, 1_000_000_000)
+
+
+def controller_status(node: str, hardware_id: str, moving: bool, sim_time: float,
+                      factor: float, achieved: float, payload: float) -> Status:
+    """``<node>: controller``: the arm moving or still, the simulated time, the real-time
+    factor achieved since the last report and the one set, the payload. Always OK: the
+    simulator has no failure state, and running slower than its factor is how it meets a busy
+    CPU (it never skips steps), not a fault."""
+    return status(node, 'controller', OK, (
+        f'arm {"moving" if moving else "still"}, x{achieved:.2f} real time (set x{factor:g}), '
+        f'payload {payload:g} kg'), {
+        'arm': 'moving' if moving else 'still', 'sim time [s]': round(sim_time, 3),
+        'real-time factor': round(achieved, 3), 'real-time factor set': factor,
+        'payload [kg]': payload}, hardware_id)
 
 
 class SimNode(Node):
@@ -95,6 +116,9 @@ class SimNode(Node):
         # Every node on sim time handles each /clock message in Python: at 10x real time a
         # /clock per tick would be 1000 a second; 100 a second (10 ms wall) is plenty for waits.
         self._clock_every = max(1, round(self._js_rate * self._rtf / clock_rate))
+        self._commands = CommandLog()
+        self._hardware_id = ''      # the controller's: none for the simulator
+        self._reported = (time.monotonic(), 0)   # wall time and tick of the last report
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
@@ -107,6 +131,7 @@ class SimNode(Node):
         self.create_timer(self._dt / self._rtf, self._on_tick)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
+        self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._now)
         self.get_logger().info(
             f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
             f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
@@ -125,6 +150,7 @@ class SimNode(Node):
     def apply_command(self, values: list[float]) -> str | None:
         """Execute a joint command; the reason it was refused (arm not moved), or None."""
         reason = command_error(values, self._geometry)
+        self._commands.record(reason)
         if reason is not None:
             self.get_logger().error(f'joint command rejected, arm not moved: {reason}')
             return reason
@@ -134,6 +160,16 @@ class SimNode(Node):
     def hold(self) -> None:
         """Stop the arm where it is (e.g. when the link to the PC is lost)."""
         self._dynamics.hold()
+
+    def statuses(self) -> list[Status]:
+        """The node's health (module docstring): controller, commands."""
+        wall, tick = time.monotonic(), self._tick
+        achieved = (tick - self._reported[1]) * self._dt / max(wall - self._reported[0], 1e-9)
+        self._reported = (wall, tick)
+        return [controller_status(self.get_name(), self._hardware_id,
+                                  self._dynamics.state.is_moving, tick * self._dt, self._rtf,
+                                  achieved, self._dynamics.plant.payload),
+                self._commands.status(self.get_name(), self._hardware_id)]
 
     def _on_payload(self, msg: Float64) -> None:
         """The graph declares the payload: the arm carries it from now on (``plant.payload``

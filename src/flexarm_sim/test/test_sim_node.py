@@ -3,6 +3,7 @@ import math
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -17,7 +18,10 @@ START = [0.0, 0.6, -0.5, -0.5]
 @pytest.fixture
 def sim(launch, ros_node, wait_for):
     """The sim node at 10x real time, and what the test node hears from it."""
-    heard = {'joints': None, 'clock': None, 'truth': None}
+    heard = {'joints': None, 'clock': None, 'truth': None, 'health': {}}
+    ros_node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
+                                 lambda m: heard['health'].update(
+                                     {s.name: s for s in m.status}), 10)
     ros_node.create_subscription(JointState, topics.JOINT_STATES,
                                  lambda m: heard.__setitem__('joints', m), 10)
     ros_node.create_subscription(Clock, topics.CLOCK, lambda m: heard.__setitem__('clock', m), 10)
@@ -62,6 +66,13 @@ def test_bad_command_is_refused_and_nothing_moves(sim, wait_for, bad):
     wait_for(lambda: heard['clock'].clock.sec >= stamp + 2, 20.0, '2 s of sim time')
     np.testing.assert_allclose(positions(heard['joints']), START)
     assert not any(heard['joints'].velocity)
+    commands = 'flexarm_sim: commands'
+    wait_for(lambda: commands in heard['health'] and heard['health'][commands].level
+             == DiagnosticStatus.WARN, 10.0, 'the rejection on /diagnostics')
+    values = {v.key: v.value for v in heard['health'][commands].values}
+    assert values['commands rejected'] == '1' and values['commands accepted'] == '0'
+    assert heard['health'][commands].message.startswith('last command rejected: ')
+    assert heard['health']['flexarm_sim: controller'].level == DiagnosticStatus.OK
 
 
 @pytest.mark.parametrize('on', [True, False])

@@ -20,11 +20,13 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from typing import Any
 
+import cv2
 import numpy as np
 
 from flexarm_control.kinematics import wrap_angle
 
-UNDISTORT_ITERATIONS = 8
+# cv2.undistortPoints: fixed-point iterations until converged far below a pixel's 1e-6.
+UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-12)
 
 
 @dataclass(frozen=True)
@@ -128,18 +130,16 @@ class CameraModel:
                                 i.cy + i.fy * (yn * factor + shift_y)])
 
     def pixels_to_metric(self, pixels: np.ndarray) -> np.ndarray:
-        """Pixels (N, 2) -> camera metric points (N, 2) [m], undistorted (fixed point, as
-        OpenCV's undistortPoints)."""
+        """Pixels (N, 2) -> camera metric points (N, 2) [m], undistorted by OpenCV."""
         i = self.intrinsics
-        xd = (pixels[:, 0] - i.cx) / i.fx
-        yd = (pixels[:, 1] - i.cy) / i.fy
-        xn, yn = xd, yd
-        if any(i.distortion):
-            for _ in range(UNDISTORT_ITERATIONS):
-                shift_x, shift_y = self._tangential(xn, yn)
-                factor = self._radial(xn * xn + yn * yn)
-                xn, yn = (xd - shift_x) / factor, (yd - shift_y) / factor
-        return np.column_stack([xn * self.standoff, -yn * self.standoff])
+        pixels = np.asarray(pixels, dtype=np.float64).reshape(-1, 1, 2)
+        if not len(pixels):
+            return np.zeros((0, 2))
+        k = np.array([[i.fx, 0.0, i.cx], [0.0, i.fy, i.cy], [0.0, 0.0, 1.0]])
+        normalised = cv2.undistortPoints(pixels, k, np.asarray(i.distortion),
+                                         criteria=UNDISTORT_CRITERIA).reshape(-1, 2)
+        return np.column_stack([normalised[:, 0] * self.standoff,
+                                -normalised[:, 1] * self.standoff])
 
     def magnification(self, metric: np.ndarray) -> np.ndarray:
         """Area-equivalent local lens magnification at camera metric points (N, 2) (1 = none):

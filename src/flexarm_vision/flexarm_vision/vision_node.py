@@ -19,10 +19,15 @@ error in the tool frame, measured against a reference by ``flexarm calibrate``).
 comes from the site's calibration file (``tool_calibration_file``, written by ``flexarm
 calibrate``) when there is one, else zeros; ``flexarm calibrate`` also sets the parameter on
 the running node. A damaged file is reported and the node runs uncorrected.
+
+Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
+:func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds and
+:func:`camera_info_status`.
 """
 from __future__ import annotations
 
 import math
+import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -33,6 +38,17 @@ from rclpy.serialization import deserialize_message
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from flexarm_control import topics
+from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.health_report import (
+    ERROR,
+    OK,
+    STALE,
+    WARN,
+    RecentWindow,
+    Status,
+    WindowSummary,
+    status,
+)
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.paths import repo_path
@@ -46,6 +62,8 @@ from flexarm_vision.settling import SettleDetector, SettleSettings
 BASE_FRAME = 'base_link'
 DISTORTION_MODELS = ('plumb_bob', '')   # '' with an empty D: an ideal lens
 STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
+HEALTH_WINDOW = 10.0      # [s, wall] images the measurement health looks back on
+MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health warns
 
 
 def image_to_array(msg: Image) -> tuple[np.ndarray | None, str]:
@@ -76,6 +94,42 @@ def without_stamp(raw: bytes) -> bytes:
     return raw[STAMP_END:]
 
 
+def measurement_status(node: str, camera: str, window: WindowSummary, span: float,
+                       last_invalid: str) -> Status:
+    """``<node>: measurements`` over the images of the last ``span`` seconds: STALE without
+    an image; WARN when fewer than ``MIN_VALID_RATE`` of them gave a valid pose; OK
+    otherwise. Values: images, valid rate, median and max fit residual of the valid ones, the
+    last invalid image's reason."""
+    values = {'images': window.count, 'valid rate [%]': round(100 * window.valid_rate, 1),
+              'residual median [mm]': round(window.median * 1e3, 4),
+              'residual max [mm]': round(window.maximum * 1e3, 4),
+              'last invalid reason': last_invalid}
+    if not window.count:
+        return status(node, 'measurements', STALE, f'no image for {span:g} s', values, camera)
+    rate = f'{100 * window.valid_rate:.0f} % of {window.count} images valid'
+    if window.valid_rate < MIN_VALID_RATE:
+        return status(node, 'measurements', WARN, f'{rate}, last: {last_invalid}', values,
+                      camera)
+    return status(node, 'measurements', OK, f'{rate}, residual median '
+                  f'{window.median * 1e3:.4f} mm', values, camera)
+
+
+def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info: bool,
+                       problem: str) -> Status:
+    """``<node>: camera_info``: ERROR while the camera_info is refused (every image is then
+    invalid); OK otherwise, saying whether the intrinsics in use come from camera_info or from
+    config/camera.yaml (none came yet)."""
+    i = intrinsics
+    source = 'camera_info' if from_info else 'config/camera.yaml'
+    values = {'intrinsics from': source, 'size [px]': f'{i.width}x{i.height}',
+              'fx [px]': i.fx, 'fy [px]': i.fy, 'cx [px]': i.cx, 'cy [px]': i.cy,
+              'distortion (plumb_bob)': ', '.join(f'{d:g}' for d in i.distortion),
+              'refused': problem}
+    if problem:
+        return status(node, 'camera_info', ERROR, problem, values, camera)
+    return status(node, 'camera_info', OK, f'intrinsics from {source}', values, camera)
+
+
 class VisionNode(Node):
 
     def __init__(self) -> None:
@@ -93,6 +147,10 @@ class VisionNode(Node):
             'from every pose; default: tool_calibration_file'))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._info_problem = ''
+        self._info_used = False       # intrinsics from a camera_info (else config/camera.yaml)
+        self._recent = RecentWindow(HEALTH_WINDOW)    # fit residuals of the valid images
+        self._last_invalid = ''
+        self._camera_id = ''          # the frame id of the camera's images
         self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10)
         self.create_subscription(Image, topics.CAMERA_IMAGE, self._on_image,
                                  qos_profile_sensor_data)
@@ -104,6 +162,7 @@ class VisionNode(Node):
         self._last_joints = b''
         self.create_subscription(JointState, topics.JOINT_STATES, self._on_joints, 10,
                                  raw=True)
+        self._diagnostics = DiagnosticsPublisher(self, self.statuses)
         i = self._estimator.camera.intrinsics
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
                                f'a {self._estimator.plate.shape} hole plate')
@@ -123,6 +182,15 @@ class VisionNode(Node):
         self.get_logger().info(f'tool calibration from {path}: {record["correction"]}')
         return record['correction']
 
+    def statuses(self) -> list[Status]:
+        """The node's health (module docstring): measurements, camera_info."""
+        name = self.get_name()
+        return [measurement_status(name, self._camera_id,
+                                   self._recent.summary(time.monotonic()), HEALTH_WINDOW,
+                                   self._last_invalid),
+                camera_info_status(name, self._camera_id, self._estimator.camera.intrinsics,
+                                   self._info_used, self._info_problem)]
+
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         for param in params:
             if param.name == 'tool_correction':
@@ -138,6 +206,7 @@ class VisionNode(Node):
         if problem != self._info_problem and problem:
             self.get_logger().error(problem)
         self._info_problem = problem
+        self._info_used = self._info_used or intrinsics is not None
         if intrinsics is None or intrinsics == self._estimator.camera.intrinsics:
             return
         self._estimator = self._estimator.with_camera(
@@ -161,6 +230,10 @@ class VisionNode(Node):
             image, reason = None, self._info_problem
         estimate = (self._estimator.estimate(image) if image is not None
                     else Estimate(None, False, 0, 0.0, reason))
+        self._camera_id = msg.header.frame_id
+        self._recent.add(time.monotonic(), estimate.residual if estimate.valid else None)
+        if not estimate.valid:
+            self._last_invalid = estimate.status
         unsettled = self._settle.update_estimate(
             seconds(msg.header.stamp), estimate.pose if estimate.valid else None)
         out = TipPose(valid=estimate.valid, settled=estimate.valid and unsettled is None,

@@ -4,16 +4,24 @@ import math
 import numpy as np
 import pytest
 from builtin_interfaces.msg import Time
+from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 
 from flexarm_control import topics
+from flexarm_control.health_report import ERROR, OK, STALE, WARN, WindowSummary
 from flexarm_control.params import load_config
 from flexarm_msgs.msg import TipPose
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_model import Intrinsics
-from flexarm_vision.vision_node import image_to_array, info_intrinsics, without_stamp
+from flexarm_vision.vision_node import (
+    camera_info_status,
+    image_to_array,
+    info_intrinsics,
+    measurement_status,
+    without_stamp,
+)
 
 POSE = np.array([1.35, -0.25, -0.6])
 CAMERA = load_config('camera.yaml')
@@ -102,12 +110,41 @@ def test_joint_states_compare_without_their_stamp() -> None:
     assert without_stamp(raw(1, 0.1)) != without_stamp(raw(1, 0.1, velocity=0.2))
 
 
+def test_measurement_health_is_stale_without_images_and_warns_below_half_valid() -> None:
+    none = measurement_status('flexarm_vision', '', WindowSummary(0, 0, math.nan, math.nan),
+                              10.0, '')
+    assert none.level == STALE and none.message == 'no image for 10 s'
+    poor = measurement_status('flexarm_vision', 'tip_camera',
+                              WindowSummary(50, 20, 12e-6, 30e-6), 10.0, 'too dark')
+    assert poor.level == WARN and poor.message == '40 % of 50 images valid, last: too dark'
+    assert poor.hardware_id == 'tip_camera'
+    good = measurement_status('flexarm_vision', 'tip_camera',
+                              WindowSummary(50, 25, 12e-6, 30e-6), 10.0, 'too dark')
+    assert good.level == OK
+    assert good.message == '50 % of 50 images valid, residual median 0.0120 mm'
+    assert dict(good.values) == {'images': '50', 'valid rate [%]': '50',
+                                 'residual median [mm]': '0.012', 'residual max [mm]': '0.03',
+                                 'last invalid reason': 'too dark'}
+
+
+def test_camera_info_health_errs_while_refused() -> None:
+    i = CameraRenderer.from_dict(CAMERA).intrinsics
+    configured = camera_info_status('flexarm_vision', '', i, False, '')
+    assert configured.level == OK and configured.message == 'intrinsics from config/camera.yaml'
+    assert dict(configured.values)['fx [px]'] == f'{i.fx:.6g}'
+    refused = camera_info_status('flexarm_vision', '', i, True, "model 'equidistant' refused")
+    assert refused.level == ERROR and refused.message == "model 'equidistant' refused"
+
+
 @pytest.mark.node
 def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> None:
     renderer = CameraRenderer.from_dict(CAMERA)
     rng = np.random.default_rng(0)
     received: list[TipPose] = []
     ros_node.create_subscription(TipPose, topics.TIP_POSE, received.append, 10)
+    health: dict[str, DiagnosticStatus] = {}
+    ros_node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, lambda m: health.update(
+        {s.name: s for s in m.status}), 10)
     image_pub = ros_node.create_publisher(Image, topics.CAMERA_IMAGE, 5)
     info_pub = ros_node.create_publisher(CameraInfo, topics.CAMERA_INFO, 1)
     joints_pub = ros_node.create_publisher(JointState, topics.JOINT_STATES, 10)
@@ -141,6 +178,10 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
     assert math.hypot(msg.pose.x - POSE[0], msg.pose.y - POSE[1]) < 0.2e-3
     assert abs(math.degrees(msg.pose.phi - POSE[2])) < 0.01
     assert msg.holes_used >= 12 and 0 < msg.residual < 0.05e-3
+    measurements = 'flexarm_vision: measurements'
+    wait_for(lambda: measurements in health and health[measurements].level
+             == DiagnosticStatus.OK, 10.0, 'measurements OK on /diagnostics')
+    assert health['flexarm_vision: camera_info'].message == 'intrinsics from camera_info'
 
     black['on'] = True
     count = len(received)
@@ -168,6 +209,9 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
 
     msg = wait_for(info_refused, 10.0, 'an invalid /tip_pose for an unusable camera_info')
     assert not msg.valid and 'equidistant' in msg.status and math.isnan(msg.pose.x)
+    wait_for(lambda: health['flexarm_vision: camera_info'].level == DiagnosticStatus.ERROR,
+             10.0, 'camera_info ERROR on /diagnostics')
+    assert 'equidistant' in health['flexarm_vision: camera_info'].message
     camera['model'] = 'plumb_bob'
     count = len(received)
     wait_for(lambda: next((m for m in received[count:] if m.valid), None), 10.0,

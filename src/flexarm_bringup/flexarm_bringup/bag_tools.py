@@ -240,17 +240,27 @@ def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any]) -> list[dict[str,
     return rows
 
 
-def export_trials(path: str | Path, out_dir: str | Path) -> tuple[Path, Path]:
-    """Write ``<bag>_trials.csv`` and ``<bag>_trials.png`` of a bag's goal outcomes.
+def arm_topics(namespace: str, *names: str) -> dict[str, str]:
+    """The bag topics of ``names`` (:mod:`flexarm_control.topics`) of the arm in
+    ``namespace`` ('' for a graph without one): full name -> name."""
+    return {topics.absolute(name, namespace): name for name in names}
+
+
+def export_trials(path: str | Path, out_dir: str | Path, namespace: str = ''
+                  ) -> tuple[Path, Path]:
+    """Write ``<bag>_trials.csv`` and ``<bag>_trials.png`` of a bag's goal outcomes (of the
+    arm in ``namespace``).
 
     Returns their paths; ValueError when the bag holds no goal outcome.
     """
     file = mcap_path(path)
     outcomes, truths = [], []
-    for topic, msg, _ in read_decoded(file, (topics.OUTCOMES, topics.TIP_POSE_TRUTH)):
-        (outcomes if topic == topics.OUTCOMES else truths).append(msg)
+    names = arm_topics(namespace, topics.OUTCOMES, topics.TIP_POSE_TRUTH)
+    for topic, msg, _ in read_decoded(file, names):
+        (outcomes if names[topic] == topics.OUTCOMES else truths).append(msg)
     if not outcomes:
-        raise ValueError(f'{file} has no {topics.OUTCOMES} messages')
+        raise ValueError(f'{file} has no {topics.absolute(topics.OUTCOMES, namespace)} '
+                         'messages')
     rows = trial_rows(outcomes, truths)
     out_dir = Path(out_dir)
     out_dir.mkdir(parents=True, exist_ok=True)
@@ -288,7 +298,7 @@ def _region_of(poses: np.ndarray, regions: dict[str, Region], margin: np.ndarray
     return min(holding)[1] if holding else None
 
 
-def export_figures(path: str | Path, out_dir: str | Path) -> list[Path]:
+def export_figures(path: str | Path, out_dir: str | Path, namespace: str = '') -> list[Path]:
     """Write the figures a bag allows and the deflections behind them (module docstring):
     ``<bag>_errors.png`` (goals at the paper's targets), ``<bag>_deflection_field.png``,
     ``<bag>_prediction.png`` and ``<bag>_deflections.csv``. Returns the paths written."""
@@ -296,13 +306,14 @@ def export_figures(path: str | Path, out_dir: str | Path) -> list[Path]:
 
     file = mcap_path(path)
     outcomes, truths, samples, models = [], [], [], []
-    for topic, msg, _ in read_decoded(file, (topics.OUTCOMES, topics.TIP_POSE_TRUTH,
-                                             topics.SAMPLES, topics.MODEL)):
-        if topic == topics.MODEL:
+    names = arm_topics(namespace, topics.OUTCOMES, topics.TIP_POSE_TRUTH, topics.SAMPLES,
+                       topics.MODEL)
+    for topic, msg, _ in read_decoded(file, names):
+        if names[topic] == topics.MODEL:
             models.append((len(samples), msg))
         else:
             {topics.OUTCOMES: outcomes, topics.TIP_POSE_TRUTH: truths,
-             topics.SAMPLES: samples}[topic].append(msg)
+             topics.SAMPLES: samples}[names[topic]].append(msg)
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
     learner = load_config('learner.yaml', node_name='flexarm_learner')
     regions = regions_from_dict(learner['regions'])

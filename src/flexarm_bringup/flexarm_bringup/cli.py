@@ -204,7 +204,7 @@ def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
 
     from flexarm_control.client import init_client
 
-    client = init_client(args.domain_id)
+    client = init_client(args.domain_id, args.namespace)
     try:
         domain = client.context.get_domain_id()
         try:
@@ -511,7 +511,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
-    name = args.name or time.strftime('up-%Y%m%d-%H%M%S')
+    name = args.name or time.strftime('up-%Y%m%d-%H%M%S') + (
+        f'-{args.namespace.replace("/", "-")}' if args.namespace else '')
     simulated = {'real_time_factor': args.rtf, **_world(args)}
     link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
     params: dict[str, dict[str, Any]] = {'flexarm_sim': simulated,
@@ -530,18 +531,26 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
         print(f'DDS discovery widened to {discovery}: any host there that joins the ROS '
               'domain can command this arm (these DDS wheels have no security)', flush=True)
     with reserved_domain(args.domain_id) as domain:
-        graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
-                      optional=optional, discovery=discovery)
+        try:
+            graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
+                          optional=optional, discovery=discovery, namespace=args.namespace,
+                          only=args.only)
+        except ValueError as exc:
+            raise usage(str(exc)) from None
         started, ready = time.monotonic(), None
         print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain}; logs in '
               f'{graph.run_dir}', flush=True)
+        if graph.remote:
+            print(_remote_text(graph.remote, discovery), flush=True)
         try:
             graph.start()
             graph.wait_ready(args.timeout)
             ready = time.monotonic() - started
+            arm = f' --namespace {args.namespace}' if args.namespace else ''
             print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
-                  'flexarm move 1450 -150 -45. Ctrl-C stops everything.', flush=True)
-            print(_starting_model(domain), flush=True)
+                  f'flexarm move 1450 -150 -45{arm}. Ctrl-C stops '
+                  f'{"the nodes of this host" if graph.remote else "everything"}.', flush=True)
+            print(_starting_model(domain, args.namespace), flush=True)
             if args.foxglove is not None:
                 print(_foxglove_text(args.foxglove), flush=True)
             while True:
@@ -555,6 +564,15 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
 
 
+def _remote_text(remote: tuple[str, ...], discovery: str) -> str:
+    """What `up --only` expects from the other hosts, and whether DDS can reach them."""
+    text = f'the rest of the graph must run on other hosts: {", ".join(remote)}'
+    if discovery == 'LOCALHOST' and not os.environ.get('ROS_STATIC_PEERS'):
+        text += ('; but DDS discovery stays on this machine: use --discovery subnet or set '
+                 'ROS_STATIC_PEERS to the other hosts')
+    return text
+
+
 def _foxglove_text(port: int) -> str:
     """Where Foxglove connects (``port`` 0: config/foxglove.yaml's) and which layout."""
     from flexarm_control.params import config_path, load_config
@@ -564,7 +582,7 @@ def _foxglove_text(port: int) -> str:
             f'(Foxglove WebSocket) and import the layout {config_path("foxglove_layout.json")}')
 
 
-def _starting_model(domain: int, listen: float = 3.0) -> str:
+def _starting_model(domain: int, namespace: str = '', listen: float = 3.0) -> str:
     """Which model the compensator of a just-started graph runs (it loads the learner's
     current one within a moment of start-up)."""
     import time
@@ -577,7 +595,7 @@ def _starting_model(domain: int, listen: float = 3.0) -> str:
 
     context = Context()
     rclpy.init(context=context, domain_id=domain)
-    client = FlexarmClient('flexarm_up_model', context=context)
+    client = FlexarmClient('flexarm_up_model', context=context, namespace=namespace)
     try:
         end = time.monotonic() + listen
         while client.active_model is None and time.monotonic() < end:
@@ -679,8 +697,8 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
             print(format_bag_info(info))
             return {'ok': True, **info}
         out_dir = args.out or str(args.path).rstrip('/')
-        csv_path, png_path = export_trials(args.path, out_dir)
-        files = export_figures(args.path, out_dir)
+        csv_path, png_path = export_trials(args.path, out_dir, args.namespace)
+        files = export_figures(args.path, out_dir, args.namespace)
     except McapError as exc:
         raise Outcome(f'{args.path} is damaged: {exc}', Exit.FAILED) from None
     print(f'trials: {csv_path}\nplot:   {png_path}' + ''.join(f'\nfile:   {p}' for p in files))
@@ -696,14 +714,14 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_bringup.graph_status import query, status_text, supervisor_record
     from flexarm_control.client import init_client
 
-    client = init_client(args.domain_id)
+    client = init_client(args.domain_id, args.namespace)
     try:
         with _elapsed('asking the graph', args):
             status = query(client)
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
-    record = supervisor_record(RUNS_DIR, status['domain_id'])
+    record = supervisor_record(RUNS_DIR, status['domain_id'], args.namespace)
     print(status_text(status, record))
     status['supervisor'] = record
     if not any(status['nodes'].values()):
@@ -723,7 +741,7 @@ def _model_list(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_control.model_store import list_models
     from flexarm_control.predictors.base import read_model
 
-    directory = Path(args.models)
+    directory = Path(args.models) if args.models else MODELS_DIR / args.namespace
     entries = list_models(directory, lambda path: read_model(path)[0])
     if not entries:
         print(f'no models in {directory}: collect samples and `flexarm train`')
@@ -767,7 +785,7 @@ def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_bringup.calibration import calibrate_tool
     from flexarm_control.paths import CALIBRATION_DIR
 
-    path = Path(args.file) if args.file else CALIBRATION_DIR / 'tool_camera.json'
+    path = Path(args.file) if args.file else CALIBRATION_DIR / args.namespace / 'tool_camera.json'
     with _session(args, learner=False) as client:
         c, found, details = calibrate_tool(client, args.reference_topic, path, args.timeout)
     print(f'camera error in the tool frame: axial {mm(c.axial):.4f} mm, lateral '
@@ -854,6 +872,20 @@ def _graph_options(parser: argparse.ArgumentParser, wait: bool) -> None:
     if wait:
         parser.add_argument('--wait', type=_positive, default=30.0, metavar='S',
                             help='[s] to wait for the graph\'s servers to answer')
+        _namespace_option(parser)
+
+
+def _namespace_option(parser: argparse.ArgumentParser) -> None:
+    parser.add_argument('--namespace', type=_namespace, default='', metavar='NS',
+                        help='the arm\'s namespace (flexarm up --namespace NS; default none)')
+
+
+def _namespace(value: str) -> str:
+    name = value.strip('/')
+    if name and not all(part.isidentifier() for part in name.split('/')):
+        raise argparse.ArgumentTypeError(f'{value!r} is not a ROS namespace (letters, digits, '
+                                         '_ and / between names)')
+    return name
 
 
 def _calibrate_arguments(p: argparse.ArgumentParser) -> None:
@@ -950,6 +982,7 @@ def _world(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _up_arguments(p: argparse.ArgumentParser) -> None:
+    _namespace_option(p)
     p.add_argument('--ideal', action='store_true', help=IDEAL_HELP)
     p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
     p.add_argument('--record', default='', metavar='NAME', help='record bags/NAME/NAME.mcap')
@@ -967,6 +1000,10 @@ def _up_arguments(p: argparse.ArgumentParser) -> None:
                         'controller is not on this machine')
     p.add_argument('--discovery', choices=['localhost', 'subnet'], default='localhost',
                    help='DDS discovery range; subnet exposes the graph to the network')
+    p.add_argument('--only', type=lambda text: tuple(text.split(',')), default=(),
+                   metavar='NODES', help='start only these nodes of config/graph.yaml, comma-'
+                   'separated, flexarm_ prefix optional (e.g. sim,vision); the rest of the '
+                   'graph runs on other hosts of the domain (default: the whole graph)')
 
 
 def _experiment_arguments(p: argparse.ArgumentParser) -> None:
@@ -1000,14 +1037,16 @@ def _bag_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('action', choices=['info', 'export'])
     p.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
     p.add_argument('--out', default='', help='export folder (default: the bag folder)')
+    _namespace_option(p)
 
 
 def _model_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('action', choices=['list', 'use'])
     p.add_argument('version', nargs='?', default='', help='use: the model version to make '
                    'current again (roll back); the compensator switches to it')
-    p.add_argument('--models', default=str(MODELS_DIR), metavar='DIR',
-                   help="list: the learner's model directory")
+    p.add_argument('--models', default='', metavar='DIR',
+                   help="list: the learner's model directory (default: models/, models/NS "
+                        'with --namespace NS)')
 
 
 def _keygen_arguments(p: argparse.ArgumentParser) -> None:
@@ -1017,7 +1056,7 @@ def _keygen_arguments(p: argparse.ArgumentParser) -> None:
 # subcommand: (its arguments, graph options: None = none, True = with --wait, False = without)
 SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | None]] = {
     'up': (_up_arguments, False),
-    'status': (lambda p: None, False),
+    'status': (_namespace_option, False),
     'move': (_move_arguments, True),
     'collect': (_collect_arguments, True),
     'train': (_train_arguments, True),

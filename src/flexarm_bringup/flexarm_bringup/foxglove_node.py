@@ -78,7 +78,8 @@ class FoxgloveNode(Node):
         self.channels: dict[str, foxglove.Channel] = {}
         self.get_logger().info(f'Foxglove WebSocket server on ws://{host}:{self.server.port} '
                                f'serving {list(wanted)} (images: {images})')
-        self.topics = RawTopicSubscriber(self, TopicSelection(tuple(wanted), images),
+        selection = TopicSelection(tuple(wanted), images, self.get_namespace())
+        self.topics = RawTopicSubscriber(self, selection,
                                          self._add_channel, 'serving', discovery_period,
                                          queue_depth, image_queue_depth, self._watched)
 

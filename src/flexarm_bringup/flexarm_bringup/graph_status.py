@@ -4,7 +4,10 @@
 topics of the learner and the compensator, a second of ``/joint_states``, the payload and bag
 parameters); :func:`supervisor_record` finds the ``flexarm up`` that runs the domain (its run
 folder's ``graph.json``: node processes and restarts); :func:`status_text` formats the result
-for humans (mm and deg). Everything in the returned dict is SI and JSON-able.
+for humans (mm and deg). Everything in the returned dict is SI and JSON-able. A graph split
+over hosts (``flexarm up --only``) is seen as far as the client's discovery range reaches:
+the nodes of every host with ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (or ROS_STATIC_PEERS), and
+the supervisor record is this machine's, which names its own part and the remote one.
 """
 from __future__ import annotations
 
@@ -36,14 +39,17 @@ def graph_node_names() -> list[str]:
     return list(dict.fromkeys(names + list(load_optional())))
 
 
-def supervisor_record(runs_dir: Path, domain_id: int) -> dict[str, Any] | None:
-    """The graph record of the live supervisor of ``domain_id`` under ``runs_dir``, if any."""
+def supervisor_record(runs_dir: Path, domain_id: int, namespace: str = ''
+                      ) -> dict[str, Any] | None:
+    """The graph record of the live supervisor of ``domain_id`` (and the arm in
+    ``namespace``) under ``runs_dir``, if any."""
     for path in sorted(Path(runs_dir).glob(f'*/{RECORD}'), key=lambda p: p.stat().st_mtime,
                        reverse=True):
         try:
             record = json.loads(path.read_text())
             pid = int(record['supervisor_pid'])
-            if record['domain_id'] != domain_id:
+            if (record['domain_id'] != domain_id
+                    or record.get('namespace', '') != namespace.strip('/')):
                 continue
             os.kill(pid, 0)
         except (OSError, ValueError, KeyError, TypeError):
@@ -231,6 +237,9 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     else:
         lines.append(f'supervisor: pid {record["supervisor_pid"]}, robot {record["robot"]}, '
                      f'logs in {record["run_dir"]}')
+        if record.get('remote'):
+            lines.append(f'part of the graph: {", ".join(record["nodes"])} here; '
+                         f'{", ".join(record["remote"])} on other hosts')
     restarts = {} if record is None else {n: v['restarts'] for n, v in record['nodes'].items()}
     up = [n + (f' (restarted {restarts[n]}x)' if restarts.get(n) else '')
           for n, alive in status['nodes'].items() if alive]

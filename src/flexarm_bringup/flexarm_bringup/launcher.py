@@ -14,7 +14,7 @@ import subprocess
 import sys
 import threading
 import time
-from collections.abc import Iterable, Iterator, Mapping
+from collections.abc import Iterable, Iterator, Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import IO, Any
@@ -65,6 +65,19 @@ def load_optional(path: Path | None = None) -> dict[str, NodeSpec]:
     return {d['name']: NodeSpec.from_dict(d) for d in graph.get('optional') or ()}
 
 
+def select_nodes(names: Sequence[str], only: Iterable[str]) -> list[str]:
+    """The node names of ``names`` (in their order) that ``only`` asks for, each given by its
+    full name or without the ``flexarm_`` prefix (``sim``: ``flexarm_sim``); ValueError
+    naming what ``names`` does not hold, or if ``only`` names nothing."""
+    short = {name.removeprefix('flexarm_'): name for name in names}
+    wanted = [short.get(n, n) for n in (n.strip() for n in only) if n]
+    unknown = [n for n in wanted if n not in names]
+    if unknown or not wanted:
+        raise ValueError(f'unknown node(s) {", ".join(unknown) or "(none given)"}; the graph '
+                         f'has {", ".join(short)}')
+    return [name for name in names if name in wanted]
+
+
 def ros_env(domain_id: int, log_dir: Path | None = None,
             base: Mapping[str, str] | None = None,
             discovery: str = 'LOCALHOST') -> dict[str, str]:
@@ -86,14 +99,18 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     return env
 
 
-def node_command(spec: NodeSpec, overrides_file: Path | None = None) -> list[str]:
-    """Command line of a node: its module, name, its params files, then ``overrides_file``.
+def node_command(spec: NodeSpec, overrides_file: Path | None = None, namespace: str = ''
+                 ) -> list[str]:
+    """Command line of a node: its module, name (and ``namespace``: one arm's graph under
+    ``/<namespace>``), its params files, then ``overrides_file``.
 
     Per-run parameters go in a params file of their own, last, under the node's name: a
     ``-p name:=value`` would lose against a node-specific entry of config/ (rcl applies
     ``-p`` like a ``/**`` entry, and node-specific entries win).
     """
     cmd = [sys.executable, '-m', spec.module, '--ros-args', '-r', f'__node:={spec.name}']
+    if namespace.strip('/'):
+        cmd += ['-r', f'__ns:=/{namespace.strip("/")}']
     for name in spec.params_files:
         cmd += ['--params-file', str(config_path(name))]
     if overrides_file is not None:
@@ -107,7 +124,7 @@ def write_overrides(spec: NodeSpec, extra: Mapping[str, Any] | None, path: Path)
     if not parameters:
         return None
     path.parent.mkdir(parents=True, exist_ok=True)
-    path.write_text(yaml.safe_dump({spec.name: {'ros__parameters': parameters}}),
+    path.write_text(yaml.safe_dump({f'/**/{spec.name}': {'ros__parameters': parameters}}),
                     encoding='utf-8')
     return path
 
@@ -116,11 +133,12 @@ class NodeProcess:
     """A running node: its process, its log file, and a clean way to stop it."""
 
     def __init__(self, spec: NodeSpec, env: Mapping[str, str], log_path: Path,
-                 extra: Mapping[str, Any] | None = None) -> None:
+                 extra: Mapping[str, Any] | None = None, namespace: str = '') -> None:
         self.spec = spec
+        self.namespace = namespace.strip('/')
         self.log_path = log_path
         self._env = dict(env)
-        self._extra = dict(extra or {})
+        self.parameters = dict(extra or {})   # the caller's, over graph.yaml's
         self._log: IO[bytes] | None = None
         self.process: subprocess.Popen[bytes] | None = None
         self.restarts = 0
@@ -129,12 +147,12 @@ class NodeProcess:
     def start(self) -> None:
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(self.log_path, 'ab')
-        overrides = write_overrides(self.spec, self._extra,
+        overrides = write_overrides(self.spec, self.parameters,
                                     self.log_path.with_suffix('.params.yaml'))
         self.process = subprocess.Popen(
-            node_command(self.spec, overrides), env=self._env, stdin=subprocess.DEVNULL,
-            stdout=self._log, stderr=subprocess.STDOUT, start_new_session=True,
-            preexec_fn=_terminate_with_parent)
+            node_command(self.spec, overrides, self.namespace), env=self._env,
+            stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
+            start_new_session=True, preexec_fn=_terminate_with_parent)
 
     @property
     def returncode(self) -> int | None:

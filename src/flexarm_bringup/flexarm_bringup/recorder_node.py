@@ -118,7 +118,7 @@ class RecorderNode(Node):
                                 chunk_size=chunk_size)
         self.create_timer(flush_period, self.writer.flush,
                           clock=Clock(clock_type=ClockType.STEADY_TIME))
-        selection = TopicSelection(tuple(wanted), record_images)
+        selection = TopicSelection(tuple(wanted), record_images, self.get_namespace())
         self.get_logger().info(f'recording {list(wanted)} (images: {record_images}) to '
                                f'{self.writer.path}')
         self.topics = RawTopicSubscriber(self, selection, self._add_topic, 'recording',

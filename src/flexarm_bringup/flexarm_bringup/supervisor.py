@@ -16,6 +16,21 @@ graph.yaml says so (at most ``max_restarts`` times); the rest keeps running. :me
 shuts everything down (SIGINT, SIGTERM, SIGKILL) and removes stale Fast DDS shared-memory
 files. The run folder's ``graph.json`` (:data:`RECORD`) says which supervisor runs which
 node processes in which domain, and how often each was restarted (``flexarm status``).
+
+Several arms: a graph with a ``namespace`` runs every node under ``/<namespace>`` (its names are
+relative: :mod:`flexarm_control.topics`), with the learner's data and model folders and the
+tool calibration in a subfolder ``<namespace>`` of the configured ones, so arms of one domain
+share nothing but ``/clock`` and ``/diagnostics``. The domain lock and the name check are per
+namespace. The first arm's simulator owns ``/clock``; a graph that finds a ``/clock``
+publisher when it starts has its simulator follow it (``clock_source``, flexarm_sim).
+
+Several hosts: a graph with ``only`` starts just those nodes (``flexarm up --only sim,vision``)
+and leaves the rest of graph.yaml's (:attr:`Graph.remote`; optional nodes are never expected)
+to other hosts of the domain; DDS carries everything between them. It is ready when its own
+nodes, the remote ones (by name) and the whole graph's topics and servers are discovered; the
+name check at start and the supervision concern only its own nodes, and :meth:`Graph.stop`
+stops only those. The domain lock stays per machine: a graph is split over hosts, not over
+shells of one machine.
 """
 from __future__ import annotations
 
@@ -29,13 +44,25 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
+from flexarm_bringup.launcher import (
+    NodeProcess,
+    load_graph,
+    load_optional,
+    ros_env,
+    select_nodes,
+    stop_all,
+)
 from flexarm_control import topics
 from flexarm_control.atomic_file import atomic_write
+from flexarm_control.params import load_config
 
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
 LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock per graph
+# Per-arm folders (node, parameter) and the config file that names them.
+ARM_FOLDERS = (('flexarm_learner', 'data_directory'), ('flexarm_learner', 'model_directory'),
+               ('flexarm_vision', 'tool_calibration_file'))
+CONFIG_FILES = {'flexarm_learner': 'learner.yaml', 'flexarm_vision': 'vision.yaml'}
 # What "ready" means: (kind, name) pairs that must be discovered in the graph.
 READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
@@ -48,31 +75,39 @@ class Graph:
     def __init__(self, domain_id: int, run_dir: Path, robot: str = 'sim',
                  parameters: Mapping[str, Mapping[str, Any]] | None = None,
                  optional: tuple[str, ...] = (), max_restarts: int = 3,
-                 report: Callable[[str], None] = print, discovery: str = 'LOCALHOST') -> None:
+                 report: Callable[[str], None] = print, discovery: str = 'LOCALHOST',
+                 namespace: str = '', only: tuple[str, ...] = ()) -> None:
         specs = load_graph(robot)
         extra = load_optional()
+        here = select_nodes([*(s.name for s in specs), *extra], only) if only else []
+        optional = tuple(dict.fromkeys([*optional, *(n for n in here if n in extra)]))
         unknown = set(optional) - set(extra)
         if unknown:
             raise ValueError(f'unknown optional nodes {sorted(unknown)}; known: {sorted(extra)}')
         specs += [extra[name] for name in optional]
+        # ``only``: this host's part of the graph; the rest (never an optional node) is remote
+        self.remote = tuple(s.name for s in specs if here and s.name not in here
+                            and s.name not in optional)
         self.domain_id, self.run_dir, self.robot = domain_id, run_dir, robot
+        self.namespace = namespace.strip('/')
         self._lock: int | None = None      # file descriptor of the domain lock while started
         self.max_restarts, self._report = max_restarts, report
         env = ros_env(domain_id, run_dir / 'ros_log', discovery=discovery)
-        parameters = parameters or {}
+        parameters = arm_folders(parameters or {}, self.namespace)
         self.nodes = {spec.name: NodeProcess(spec, env, run_dir / f'{spec.name}.log',
-                                             parameters.get(spec.name))
-                      for spec in specs}
+                                             parameters.get(spec.name), self.namespace)
+                      for spec in specs if spec.name not in self.remote}
         self._discovery = contextlib.ExitStack()   # holds the probe of start() until ready
         self._started_probe: Any = None
 
     def start(self) -> None:
         """Start every node; RuntimeError, and nothing started, if another graph of this
         machine holds the domain or the domain already runs a node of one of their names."""
-        self._lock = _lock_domain(self.domain_id)
+        self._lock = _lock_domain(self.domain_id, self.namespace)
         try:
             self._started_probe = self._discovery.enter_context(self._probe())
             self._check_domain_free(self._started_probe)
+            self._choose_clock(self._started_probe)
         except BaseException:
             self._close_probe()
             self._release()
@@ -85,12 +120,21 @@ class Graph:
     def _check_domain_free(self, probe: Any) -> None:
         deadline = time.monotonic() + DISCOVERY_WAIT
         while time.monotonic() < deadline:
-            taken = sorted(set(probe.get_node_names()) & set(self.nodes))
+            taken = sorted(name for name, ns in probe.get_node_names_and_namespaces()
+                           if name in self.nodes and ns.strip('/') == self.namespace)
             if taken:
                 raise RuntimeError(
                     f'ROS domain {self.domain_id} already runs {", ".join(taken)}: another '
                     'flexarm graph? Stop it, or start this one with another domain id')
             time.sleep(0.1)
+
+    def _choose_clock(self, probe: Any) -> None:
+        """The simulator follows a ``/clock`` another arm's simulator already publishes."""
+        sim = self.nodes.get('flexarm_sim')
+        if (sim is not None and 'clock_source' not in sim.parameters
+                and probe.count_publishers(topics.CLOCK)):
+            sim.parameters['clock_source'] = 'follow'
+            self._report(f'ROS domain {self.domain_id} has a /clock: flexarm_sim follows it')
 
     def _close_probe(self) -> None:
         self._started_probe = None
@@ -103,7 +147,7 @@ class Graph:
 
     def _write_record(self) -> None:
         record = {'supervisor_pid': os.getpid(), 'domain_id': self.domain_id,
-                  'robot': self.robot,
+                  'robot': self.robot, 'namespace': self.namespace, 'remote': self.remote,
                   'nodes': {name: {'pid': node.process.pid if node.process else None,
                                    'restarts': node.restarts, 'exit_code': node.returncode}
                             for name, node in self.nodes.items()}}
@@ -117,7 +161,8 @@ class Graph:
 
         context = Context()
         rclpy.init(context=context, domain_id=self.domain_id)
-        node = rclpy.create_node('flexarm_supervisor', context=context)
+        node = rclpy.create_node('flexarm_supervisor', context=context,
+                                 namespace=f'/{self.namespace}' if self.namespace else '')
         try:
             yield node
         finally:
@@ -143,21 +188,34 @@ class Graph:
                                        f'{waited:.0f} s; missing {", ".join(missing)}')
                 if waited > timeout:
                     raise TimeoutError(f'graph not ready after {timeout:.0f} s: missing '
-                                       f'{", ".join(missing)}')
+                                       f'{", ".join(missing)}{self._remote_hint()}')
                 time.sleep(0.2)
         finally:
             self._close_probe()
 
     def _missing(self, node: Any) -> list[str]:
-        found_nodes = set(node.get_node_names())
+        ns = self.namespace
+        found_nodes = {name for name, space in node.get_node_names_and_namespaces()
+                       if space.strip('/') == ns}
         found_topics = {name for name, _ in node.get_topic_names_and_types()}
         found_services = {name for name, _ in node.get_service_names_and_types()}
         missing = [f'node {name}' for name in self.nodes if name not in found_nodes]
-        missing += [t for t in READY_TOPICS
-                   if t not in found_topics or not node.count_publishers(t)]
-        missing += [a for a in READY_ACTIONS if f'{a}/_action/send_goal' not in found_services]
-        missing += [s for s in READY_SERVICES if s not in found_services]
+        missing += [f'remote node {name}' for name in self.remote if name not in found_nodes]
+        missing += [t for t in (topics.absolute(t, ns) for t in READY_TOPICS)
+                    if t not in found_topics or not node.count_publishers(t)]
+        missing += [a for a in (topics.absolute(a, ns) for a in READY_ACTIONS)
+                    if f'{a}/_action/send_goal' not in found_services]
+        missing += [s for s in (topics.absolute(s, ns) for s in READY_SERVICES)
+                    if s not in found_services]
         return missing
+
+    def _remote_hint(self) -> str:
+        """What a partial graph needs from the other hosts, for a timeout's message."""
+        if not self.remote:
+            return ''
+        return (f' (this host runs only part of the graph: {", ".join(self.remote)} must run '
+                f'on other hosts in ROS_DOMAIN_ID={self.domain_id}, every host with '
+                '--discovery subnet or ROS_STATIC_PEERS naming the others)')
 
     def _restarted(self, names: list[str]) -> bool:
         """Whether :meth:`check` restarted all these dead nodes (it marks the others)."""
@@ -199,11 +257,29 @@ class Graph:
         self.stop()
 
 
-def _lock_domain(domain_id: int) -> int:
-    """An exclusive lock on ``domain_id`` for this process (a file descriptor, held until
-    closed, released by the kernel if the process dies); RuntimeError naming the holder."""
+def arm_folders(parameters: Mapping[str, Mapping[str, Any]], namespace: str
+                ) -> dict[str, dict[str, Any]]:
+    """``parameters`` with the per-arm folders of ``namespace`` (none for ''): the learner's
+    data and model folders and the vision node's tool calibration file, as configured (or as
+    given) with a ``<namespace>`` subfolder."""
+    result = {name: dict(values) for name, values in parameters.items()}
+    if not namespace:
+        return result
+    for node, name in ARM_FOLDERS:
+        configured = load_config(CONFIG_FILES[node], node_name=node)[name]
+        value = Path(str(result.get(node, {}).get(name, configured)))
+        result.setdefault(node, {})[name] = str(
+            value.parent / namespace / value.name if value.suffix else value / namespace)
+    return result
+
+
+def _lock_domain(domain_id: int, namespace: str = '') -> int:
+    """An exclusive lock on ``domain_id`` (and ``namespace``) for this process (a file
+    descriptor, held until closed, released by the kernel if the process dies); RuntimeError
+    naming the holder."""
     LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    fd = os.open(LOCK_DIR / f'{domain_id}.lock', os.O_RDWR | os.O_CREAT, 0o666)
+    name = f'{domain_id}-{namespace}.lock' if namespace else f'{domain_id}.lock'
+    fd = os.open(LOCK_DIR / name, os.O_RDWR | os.O_CREAT, 0o666)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:

@@ -45,19 +45,26 @@ _WILDCARDS = frozenset('*?[')
 
 @dataclass(frozen=True)
 class TopicSelection:
-    """Wanted topics: exact names and ``fnmatch`` patterns; /camera/image_raw only if named
-    or if ``images``."""
+    """Wanted topics: exact names and ``fnmatch`` patterns; the camera images only if named
+    or if ``images``. Relative names and patterns are taken in ``namespace`` (the node's: an
+    arm's recorder records that arm), absolute ones as they are."""
 
     patterns: tuple[str, ...]
     images: bool = False
+    namespace: str = ''
+
+    @property
+    def image_topic(self) -> str:
+        return topics.absolute(topics.CAMERA_IMAGE, self.namespace)
 
     def select(self, names: Iterable[str]) -> list[str]:
-        """The wanted ones of ``names`` (the graph's topics), in their order; named topics
-        first, found in the graph or not."""
-        named = [p for p in self.patterns if not _WILDCARDS & set(p)]
-        wildcards = [p for p in self.patterns if _WILDCARDS & set(p)]
-        chosen = [*named, *([topics.CAMERA_IMAGE] if self.images else [])]
-        chosen += [n for n in names if n != topics.CAMERA_IMAGE and not is_hidden(n)
+        """The wanted ones of ``names`` (the graph's topics, absolute), in their order; named
+        topics first, found in the graph or not."""
+        patterns = [topics.absolute(p, self.namespace) for p in self.patterns]
+        named = [p for p in patterns if not _WILDCARDS & set(p)]
+        wildcards = [p for p in patterns if _WILDCARDS & set(p)]
+        chosen = [*named, *([self.image_topic] if self.images else [])]
+        chosen += [n for n in names if n != self.image_topic and not is_hidden(n)
                    and any(fnmatchcase(n, w) for w in wildcards)]
         return list(dict.fromkeys(chosen))
 
@@ -139,7 +146,7 @@ class RawTopicSubscriber:
         if not publishers:          # gone meanwhile: next pass
             return
         message_type, handler = self._found[topic]
-        depth = (self._image_queue_depth if topic == topics.CAMERA_IMAGE
+        depth = (self._image_queue_depth if topic == self._selection.image_topic
                  else self._queue_depth)
         self.subscriptions[topic] = self._node.create_subscription(
             message_type, topic, handler, request_qos(publishers, depth), raw=True)

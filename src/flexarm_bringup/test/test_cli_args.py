@@ -45,6 +45,7 @@ BAD_INPUT = [
     (['study', '--seeds', '0'], 'argument --seeds: must be a whole number > 0'),
     (['demo', '--kind', 'svm'], 'unknown predictor kind "svm"'),
     (['up', '--link-key', '/nonexistent/site.key'], 'no key file /nonexistent/site.key'),
+    (['up', '--only', 'sim,camera'], 'unknown node(s) camera; the graph has sim, vision'),
     (['payload', '-1'], 'argument KG: must be a number >= 0'),
     (['collect', '5', '--payload', 'x'], 'argument --payload: must be a number >= 0'),
     (['refresh', '--region', 'Z'], 'unknown region "Z"'),

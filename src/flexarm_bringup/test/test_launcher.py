@@ -22,7 +22,7 @@ def test_node_command_names_the_node_and_its_params(tmp_path) -> None:
     assert cmd[5] == '__node:=n'
     files = [cmd[i + 1] for i, a in enumerate(cmd) if a == '--params-file']
     assert files == [str(config_path('arm.yaml')), str(overrides)]
-    assert yaml.safe_load(overrides.read_text()) == {'n': {'ros__parameters': {
+    assert yaml.safe_load(overrides.read_text()) == {'/**/n': {'ros__parameters': {
         'use_sim_time': True, 'rate': 3.0, 'topics': ['/a', '/b']}}}
     assert write_overrides(NodeSpec(name='m', module='x'), None, tmp_path / 'm.yaml') is None
 

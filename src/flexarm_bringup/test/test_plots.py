@@ -270,24 +270,25 @@ def test_bag_export_draws_the_samples_with_their_model_and_the_paper_targets(
         tmp_path: Path) -> None:
     bag = tmp_path / 'run'
     with BagWriter(bag) as writer:
-        for topic, kind in ((topics.SAMPLES, 'DeflectionSample'), (topics.MODEL, 'ModelInfo'),
-                            (topics.OUTCOMES, 'GoalOutcome'),
-                            (topics.TIP_POSE_TRUTH, 'TipPose')):
+        for topic, kind in ((topics.absolute(topics.SAMPLES), 'DeflectionSample'),
+                            (topics.absolute(topics.MODEL), 'ModelInfo'),
+                            (topics.absolute(topics.OUTCOMES), 'GoalOutcome'),
+                            (topics.absolute(topics.TIP_POSE_TRUTH), 'TipPose')):
             writer.add_topic(topic, f'flexarm_msgs/msg/{kind}')
         for name in ('A', 'B'):
             _, model = _learned(tmp_path, name)
             for q, d in zip(*samples_of(name)):
                 rigid = forward(GEOMETRY, q)
-                writer.write(topics.SAMPLES, serialize_message(DeflectionSample(
+                writer.write(topics.absolute(topics.SAMPLES), serialize_message(DeflectionSample(
                     joint_positions=q.tolist(), rigid_pose=_xyphi(rigid),
                     measured_pose=_xyphi(rigid + d), deflection=_xyphi(d))), 0)
-            writer.write(topics.MODEL, serialize_message(ModelInfo(
+            writer.write(topics.absolute(topics.MODEL), serialize_message(ModelInfo(
                 version=name, kind='rbf', path=str(model), dataset=name)), 0)
         for i, trial in enumerate(_trials()):
             truth = TipPose(pose=_xyphi(np.array(trial.reached)), valid=True)
             truth.header.stamp = _stamp(i + 0.5)
-            writer.write(topics.TIP_POSE_TRUTH, serialize_message(truth), 0)
-            writer.write(topics.OUTCOMES, serialize_message(GoalOutcome(
+            writer.write(topics.absolute(topics.TIP_POSE_TRUTH), serialize_message(truth), 0)
+            writer.write(topics.absolute(topics.OUTCOMES), serialize_message(GoalOutcome(
                 stamp=_stamp(i + 0.9), trial=f'run/{trial.name}/{trial.mode}',
                 mode=('rigid', 'predictive', 'closed_loop').index(trial.mode),
                 target=_xyphi(np.array(trial.target)), measured=True,

@@ -166,17 +166,20 @@ def _pose(x: float, y: float, phi: float) -> PlanarPose:
 
 
 def _write_outcome_bag(bag: Path, truths: list[tuple[float, PlanarPose]],
-                       outcomes: list[GoalOutcome]) -> None:
-    """A bag of ground-truth tip poses (stamped at ``t`` [s]) and goal outcomes."""
+                       outcomes: list[GoalOutcome], namespace: str = '') -> None:
+    """A bag of ground-truth tip poses (stamped at ``t`` [s]) and goal outcomes of the arm in
+    ``namespace``."""
+    truth, outcome_topic = (topics.absolute(t, namespace)
+                            for t in (topics.TIP_POSE_TRUTH, topics.OUTCOMES))
     with BagWriter(bag) as writer:
-        writer.add_topic(topics.TIP_POSE_TRUTH, 'flexarm_msgs/msg/TipPose')
-        writer.add_topic(topics.OUTCOMES, 'flexarm_msgs/msg/GoalOutcome')
+        writer.add_topic(truth, 'flexarm_msgs/msg/TipPose')
+        writer.add_topic(outcome_topic, 'flexarm_msgs/msg/GoalOutcome')
         for t, pose in truths:
             msg = TipPose(pose=pose, valid=True)
             msg.header.stamp = _stamp(int(t * 10**9))
-            writer.write(topics.TIP_POSE_TRUTH, serialize_message(msg), T0)
+            writer.write(truth, serialize_message(msg), T0)
         for outcome in outcomes:
-            writer.write(topics.OUTCOMES, serialize_message(outcome), T0)
+            writer.write(outcome_topic, serialize_message(outcome), T0)
 
 
 def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
@@ -188,9 +191,11 @@ def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
                     measured=True, position_error=0.0005, angle_error=0.01, iterations=1),
         GoalOutcome(stamp=_stamp(10**8), trial='t1', mode=0, target=_pose(0.5, 0.2, 0.0)),
     ]
-    _write_outcome_bag(tmp_path / 'run', truths, outcomes)
+    _write_outcome_bag(tmp_path / 'run', truths, outcomes, namespace='arm2')
+    with pytest.raises(ValueError, match='no /compensator/outcomes'):
+        export_trials(tmp_path / 'run', tmp_path / 'out')          # another arm's bag
 
-    csv_path, png_path = export_trials(tmp_path / 'run', tmp_path / 'out')
+    csv_path, png_path = export_trials(tmp_path / 'run', tmp_path / 'out', namespace='arm2')
     rows = list(csv.DictReader(csv_path.open()))
     assert [r['mode_name'] for r in rows] == ['predictive', 'rigid']
     first, second = rows
@@ -204,6 +209,9 @@ def test_export_trials_pairs_outcomes_with_last_truth(tmp_path: Path) -> None:
 
 
 Result = MoveToPose.Result
+# The names the recorder writes into bags: the full names of the topics.
+BAG_JOINTS, BAG_TIP, BAG_MODEL = (topics.absolute(t) for t in (
+    topics.JOINT_STATES, topics.TIP_POSE, topics.MODEL))
 # (trial, mode, error code, moves, reason, target, measured pose or None, truth); the truths
 # are stamped 1 s apart and each outcome 0.5 s after its own.
 MIXED_GOALS = [
@@ -372,16 +380,16 @@ def test_recorder_closes_bag_with_every_message_on_signal(
     for topic, type_name, msg in decoded:
         by_topic.setdefault(topic, []).append((type_name, msg))
     assert {t: len(v) for t, v in by_topic.items()} == \
-        {topics.JOINT_STATES: N, topics.TIP_POSE: N, topics.MODEL: 1}
-    assert [m.position[0] for _, m in by_topic[topics.JOINT_STATES]] == \
+        {BAG_JOINTS: N, BAG_TIP: N, BAG_MODEL: 1}
+    assert [m.position[0] for _, m in by_topic[BAG_JOINTS]] == \
         [float(i) for i in range(N)]
-    assert by_topic[topics.TIP_POSE][0][0] == 'flexarm_msgs/msg/TipPose'
-    assert by_topic[topics.MODEL][0][1].version == 'v1'
+    assert by_topic[BAG_TIP][0][0] == 'flexarm_msgs/msg/TipPose'
+    assert by_topic[BAG_MODEL][0][1].version == 'v1'
     with open(tmp_path / 't' / 't.mcap', 'rb') as f:
         channels = {c.topic: c for c in make_reader(f).get_summary().channels.values()}
-    [offered] = yaml.safe_load(channels[topics.MODEL].metadata['offered_qos_profiles'])
+    [offered] = yaml.safe_load(channels[BAG_MODEL].metadata['offered_qos_profiles'])
     assert (offered['reliability'], offered['durability']) == ('reliable', 'transient_local')
-    assert channels[topics.TIP_POSE].metadata['topic_type_hash'].startswith('RIHS01_')
+    assert channels[BAG_TIP].metadata['topic_type_hash'].startswith('RIHS01_')
     info = bag_info(tmp_path / 't')
     assert info['complete'] and info['rosbag2_metadata'] and info['message_count'] == 2 * N + 1
 
@@ -395,7 +403,7 @@ def test_messages_published_just_before_the_signal_are_recorded(
     recorder.signal(signal.SIGINT)
     assert recorder.process.wait(timeout=10.0) == 0, recorder.log_tail()
     positions = [m.position[0] for t, _, m in _decoded(tmp_path / 't' / 't.mcap')
-                 if t == topics.JOINT_STATES]
+                 if t == BAG_JOINTS]
     assert positions == [float(i) for i in range(N + 20)]
 
 
@@ -418,6 +426,6 @@ def test_recorder_bag_survives_sigkill_up_to_its_last_chunk(
     for schema, channel, message in read_messages(kept):
         decode = factory.decoder_for(channel.message_encoding, schema)
         by_topic.setdefault(channel.topic, []).append(decode(message.data))
-    positions = [m.position[0] for m in by_topic[topics.JOINT_STATES]]
+    positions = [m.position[0] for m in by_topic[BAG_JOINTS]]
     assert positions == [float(i) for i in range(len(positions))]
-    assert len(by_topic[topics.TIP_POSE]) == N and len(by_topic[topics.MODEL]) == 1
+    assert len(by_topic[BAG_TIP]) == N and len(by_topic[BAG_MODEL]) == 1

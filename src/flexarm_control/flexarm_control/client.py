@@ -134,10 +134,13 @@ class ServerWatch:
 
 
 class FlexarmClient(Node):
-    """Blocking client of the compensator and the learner."""
+    """Blocking client of the compensator and the learner (of the arm in ``namespace``, '' for
+    a graph without one: ``flexarm up --namespace``)."""
 
-    def __init__(self, node_name: str = 'flexarm_client', context: Context | None = None) -> None:
-        super().__init__(node_name, context=context)
+    def __init__(self, node_name: str = 'flexarm_client', context: Context | None = None,
+                 namespace: str = '') -> None:
+        super().__init__(node_name, context=context,
+                         namespace=f'/{namespace.strip("/")}' if namespace.strip('/') else '')
         # The Train client first: see _wait_responsive for why the order matters.
         self._train = self.create_client(Train, topics.TRAIN)
         self._use_model = self.create_client(UseModel, topics.USE_MODEL)
@@ -168,9 +171,10 @@ class FlexarmClient(Node):
         for name, wait in waits:
             if not wait(max(0.0, deadline - time.monotonic())):
                 raise TimeoutError(
-                    f'no flexarm graph in {domain} after {timeout:.3g} s ({name} not found): '
-                    'start one with `flexarm up`, or pass the domain of a running one '
-                    '(--domain-id)')
+                    f'no flexarm graph in {domain} after {timeout:.3g} s '
+                    f'({topics.absolute(name, self.get_namespace())} not found): start one '
+                    'with `flexarm up`, or pass the domain (--domain-id) and namespace '
+                    '(--namespace) of a running one')
         for wanted, client in ((compensator, self._move), (learner, self._collect)):
             if wanted:
                 try:
@@ -389,7 +393,8 @@ class FlexarmClient(Node):
         return future.result()
 
 
-def init_client(domain_id: int | None = None) -> FlexarmClient:
-    """Initialise rclpy (default context, SIGINT left to Python) and create a client node."""
+def init_client(domain_id: int | None = None, namespace: str = '') -> FlexarmClient:
+    """Initialise rclpy (default context, SIGINT left to Python) and create a client node (of
+    the arm in ``namespace``)."""
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.SignalHandlerOptions.NO)
-    return FlexarmClient()
+    return FlexarmClient(namespace=namespace)

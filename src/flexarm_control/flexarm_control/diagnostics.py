@@ -4,7 +4,9 @@ Every flexarm node publishes its statuses as one ``diagnostic_msgs/DiagnosticArr
 ``/diagnostics`` once a second of wall-clock time, also when the graph runs on the
 simulator's faster clock (the timer is on the steady clock), so rqt_robot_monitor and
 Foxglove's diagnostics panel see the graph's health at a steady rate. Stamps come from the
-node's clock (sim time under ``use_sim_time``) unless the node gives its own.
+node's clock (sim time under ``use_sim_time``) unless the node gives its own. ``/diagnostics``
+is global: a node in a namespace (one arm of several) names its statuses
+``<namespace>/<node>: <concern>``.
 """
 from __future__ import annotations
 
@@ -22,10 +24,12 @@ from flexarm_control.health_report import ERROR, Status, status
 PERIOD = 1.0                    # [s, wall] between two reports
 
 
-def diagnostic_array(statuses: Iterable[Status], stamp: TimeMsg) -> DiagnosticArray:
-    """The message of ``statuses``, stamped ``stamp``."""
+def diagnostic_array(statuses: Iterable[Status], stamp: TimeMsg, namespace: str = ''
+                     ) -> DiagnosticArray:
+    """The message of ``statuses``, stamped ``stamp``, their names in ``namespace``."""
+    prefix = f'{namespace.strip("/")}/' if namespace.strip('/') else ''
     msg = DiagnosticArray(status=[DiagnosticStatus(
-        level=bytes([s.level]), name=s.name, message=s.message, hardware_id=s.hardware_id,
+        level=bytes([s.level]), name=prefix + s.name, message=s.message, hardware_id=s.hardware_id,
         values=[KeyValue(key=key, value=value) for key, value in s.values])
         for s in statuses])
     msg.header.stamp = stamp
@@ -59,4 +63,5 @@ class DiagnosticsPublisher:
                                           throttle_duration_sec=60.0)
             statuses = [status(self._node.get_name(), 'diagnostics', ERROR,
                                f'report failed: {reason}')]
-        self._pub.publish(diagnostic_array(statuses, self._stamp()))
+        self._pub.publish(diagnostic_array(statuses, self._stamp(),
+                                           self._node.get_namespace()))

@@ -20,11 +20,13 @@ def config_path(name: str) -> Path:
 
 
 def load_node_params(path: str | Path, node_name: str) -> dict[str, Any]:
-    """Parameters that ``node_name`` gets from a params file: ``/**`` merged with its own."""
+    """Parameters that ``node_name`` gets from a params file: ``/**`` merged with its own
+    (``/**/<node_name>``, the key the files use so that it holds in any namespace, or
+    ``<node_name>``)."""
     with open(path, encoding='utf-8') as f:
         doc = yaml.safe_load(f) or {}
     merged: dict[str, Any] = {}
-    for key in ('/**', node_name, '/' + node_name):
+    for key in ('/**', f'/**/{node_name}', node_name, '/' + node_name):
         section = doc.get(key) or {}
         _deep_update(merged, section.get('ros__parameters') or {})
     return merged

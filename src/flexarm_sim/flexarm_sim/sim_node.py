@@ -22,6 +22,13 @@ ticks so that stamps never drift or step back (:func:`tick_time`); the wall time
 ``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it
 never skips steps; ``benchmarks/sim_node.py`` measures the achieved rate.
 
+Several arms in one ROS domain (``flexarm up --namespace``) share one ``/clock``: the simulator
+of the first arm owns it (``clock_source: own``); the simulators started later follow it
+(``follow``, chosen by the supervisor when it finds a ``/clock`` publisher): they publish no
+clock, start at the owner's time and step, each timer tick, until their time has caught up
+with the last ``/clock`` (at most ``FOLLOW_CATCH_UP`` steps a tick). Their stamps are therefore
+on the one clock every node of the domain waits on; if the owner stops, their time stops.
+
 Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
 :func:`controller_status` and the commands' :class:`~flexarm_control.health_report.CommandLog`.
 """
@@ -55,7 +62,16 @@ from flexarm_vision.camera_model import CameraModel
 FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
 BASE_FRAME = 'base_link'
+CLOCK_SOURCES = ('own', 'follow')
+FOLLOW_CATCH_UP = 20     # steps a timer tick at most, following /clock
 CAMERA_FRAME = 'tip_camera_optical_frame'   # flexarm_description's URDF
+
+
+def ticks_at(sec: int, nanosec: int, rate: float) -> int:
+    """The whole ticks of ``rate`` Hz up to the time (sec, nanosec): :func:`tick_time`'s
+    inverse (exact for the times it gives)."""
+    numerator, denominator = float(rate).as_integer_ratio()
+    return -(-((sec * 1_000_000_000 + nanosec) * numerator) // (1_000_000_000 * denominator))
 
 
 def tick_time(tick: int, rate: float) -> tuple[int, int]:
@@ -89,6 +105,13 @@ class SimNode(Node):
         clock_rate = declare(self, 'clock_rate', 100.0,
                              '[Hz, wall time] /clock publications (at most one per tick)')
         camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
+        clock_source = declare(self, 'clock_source', 'own',
+                               'own: publish /clock; follow: step to the /clock of another '
+                               "arm's simulator in the domain")
+        if clock_source not in CLOCK_SOURCES:
+            raise ValueError(f'clock_source must be one of {CLOCK_SOURCES}, not {clock_source!r}')
+        self._follow = clock_source == 'follow'
+        self._clock_tick: int | None = None     # following: the tick of the last /clock
         seed = declare(self, 'seed', 0, 'seed of the camera noise')
         initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
                           'joint1..joint4 at start [rad, m, rad, rad]')
@@ -121,7 +144,8 @@ class SimNode(Node):
         self._reported = (time.monotonic(), 0)   # wall time and tick of the last report
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-        self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
+        self._clock_pub = (None if self._follow else
+                           self.create_publisher(Clock, topics.CLOCK, 10))
         self._truth_pub = self.create_publisher(TipPose, topics.TIP_POSE_TRUTH, 10)
         self._image_pub = self.create_publisher(Image, topics.CAMERA_IMAGE, 5)
         self._info_pub = self.create_publisher(CameraInfo, topics.CAMERA_INFO, latched)
@@ -129,6 +153,8 @@ class SimNode(Node):
         self._camera_info = self._make_camera_info()
         self._info_pub.publish(self._camera_info)
         self.create_timer(self._dt / self._rtf, self._on_tick)
+        if self._follow:
+            self.create_subscription(Clock, topics.CLOCK, self._on_clock, 10)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._now)
@@ -216,11 +242,26 @@ class SimNode(Node):
             self.get_logger().info(f'payload now {param.value:g} kg')
         return SetParametersResult(successful=True)
 
+    def _on_clock(self, msg: Clock) -> None:
+        tick = ticks_at(msg.clock.sec, msg.clock.nanosec, self._js_rate)
+        if self._clock_tick is None:
+            self._tick = tick             # start at the owner's time, at rest
+            self.get_logger().info(f'following /clock from {tick * self._dt:.3f} s')
+        self._clock_tick = tick
+
     def _on_tick(self) -> None:
+        if not self._follow:
+            self._advance()
+            return
+        if self._clock_tick is not None:
+            for _ in range(min(self._clock_tick - self._tick, FOLLOW_CATCH_UP)):
+                self._advance()
+
+    def _advance(self) -> None:
         self._dynamics.step(self._dt)
         self._tick += 1
         now = self._now()
-        if self._tick % self._clock_every == 0:
+        if self._clock_pub is not None and self._tick % self._clock_every == 0:
             self._clock_pub.publish(Clock(clock=now))
         state = self._dynamics.state
         self._publish_joints(now, state)

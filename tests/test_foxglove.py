@@ -34,7 +34,9 @@ SUBPROTOCOLS = ['foxglove.sdk.v1', 'foxglove.websocket.v1']
 MESSAGE_DATA = 1          # opcode of a binary message data frame
 TIP_POSE_TYPE = 'flexarm_msgs/msg/TipPose'
 # The graph's names (flexarm_control.topics): what a layout may name.
-GRAPH_NAMES = {v for v in vars(topics).values() if isinstance(v, str) and v.startswith('/')}
+# The graph's names as a viewer sees a graph without namespace: the constants in full.
+GRAPH_NAMES = {topics.absolute(v) for k, v in vars(topics).items()
+               if k.isupper() and isinstance(v, str)}
 
 
 def _free_port() -> int:
@@ -82,10 +84,10 @@ def test_a_channel_carries_cdr_with_the_full_ros2msg_schema() -> None:
     context = foxglove.Context()
     server = foxglove.start_server(host='127.0.0.1', port=0, context=context)
     try:
-        channel = ros2_channel(topics.TIP_POSE, TIP_POSE_TYPE, context)
+        channel = ros2_channel(topics.absolute(topics.TIP_POSE), TIP_POSE_TYPE, context)
         with _client(server.port) as ws:
             assert ws.subprotocol == 'foxglove.sdk.v1'
-            advertised = _advertised(ws, topics.TIP_POSE, 5.0)
+            advertised = _advertised(ws, topics.absolute(topics.TIP_POSE), 5.0)
             assert (advertised['encoding'], advertised['schemaName'],
                     advertised['schemaEncoding']) == ('cdr', TIP_POSE_TYPE, 'ros2msg')
             assert advertised['schema'] == message_definition(TIP_POSE_TYPE)
@@ -133,12 +135,14 @@ def test_layout_opens_the_graphs_topics_in_its_four_panels() -> None:
     assert three_d['followTf'] == 'base_link'
     [urdf] = [layer for layer in three_d['layers'].values()
               if layer['layerId'] == 'foxglove.Urdf']
-    assert (urdf['sourceType'], urdf['topic']) == ('topic', topics.ROBOT_DESCRIPTION)
-    assert {topics.TF, topics.TF_STATIC, topics.SCENE_MARKERS} <= set(three_d['topics'])
+    description = topics.absolute(topics.ROBOT_DESCRIPTION)
+    assert (urdf['sourceType'], urdf['topic']) == ('topic', description)
+    assert {topics.absolute(t) for t in (topics.TF, topics.TF_STATIC, topics.SCENE_MARKERS)
+            } <= set(three_d['topics'])
     plotted = {path['value'].split('.')[0] for path in by_type['Plot']['paths']}
-    assert plotted == {topics.OUTCOMES}
+    assert plotted == {topics.absolute(topics.OUTCOMES)}
     assert 'position_error' in by_type['Plot']['paths'][0]['value']
-    assert by_type['Image']['imageMode']['imageTopic'] == topics.CAMERA_IMAGE
+    assert by_type['Image']['imageMode']['imageTopic'] == topics.absolute(topics.CAMERA_IMAGE)
     assert by_type['DiagnosticSummary']['topicToRender'] == topics.DIAGNOSTICS
 
     named = {*three_d['topics'], urdf['topic'], *plotted,
@@ -184,7 +188,7 @@ def test_up_with_foxglove_serves_tip_pose_to_a_websocket_client(
             time.sleep(0.1)
         assert f'ws://127.0.0.1:{port} ' in log_path.read_text()
         with _client(port) as ws:
-            channel = _advertised(ws, topics.TIP_POSE, 30.0)
+            channel = _advertised(ws, topics.absolute(topics.TIP_POSE), 30.0)
             assert (channel['encoding'], channel['schemaName']) == ('cdr', TIP_POSE_TYPE)
             assert not _served(ros_node, topics.TIP_POSE)
             log_time, payload = _message_data(ws, channel['id'], 30.0)

@@ -219,6 +219,11 @@ def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
         rclpy.try_shutdown()
 
 
+def _full(args: argparse.Namespace, name: str) -> str:
+    """The full name of a graph name (:mod:`flexarm_control.topics`) of the arm addressed."""
+    return topics.absolute(name, args.namespace)
+
+
 def _goal(run: Callable[[], Any], server: str, interrupted: Callable[[Any], str]) -> Any:
     """``run()``'s result; busy, lost and interrupted goals as outcomes
     (``interrupted(result)`` words the cancelled goal's result, None if none arrived)."""
@@ -326,7 +331,7 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
             max_corrections=args.max_corrections, trial=args.trial, timeout=args.timeout,
             allow_extrapolation=args.allow_extrapolation, dry_run=args.dry_run,
             feedback=feedback),
-            topics.MOVE_TO_POSE, _move_interrupted)
+            _full(args, topics.MOVE_TO_POSE), _move_interrupted)
     out = {'ok': result.error_code == MoveToPose.Result.SUCCESSFUL,
            'error_code': result.error_code,
            'error_name': code_name(MoveToPose.Result, result.error_code),
@@ -343,7 +348,7 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'model_version': result.model_version, 'dry_run': args.dry_run}
     if not out['ok']:
         if is_busy(result.error_string):      # lost the race of two goals sent together
-            raise Outcome(busy_text(topics.MOVE_TO_POSE), Exit.BUSY, **out)
+            raise Outcome(busy_text(_full(args, topics.MOVE_TO_POSE)), Exit.BUSY, **out)
         raise Outcome(_move_text(result), Exit.FAILED, **out)
     print(_move_text(result))
     return out
@@ -389,7 +394,7 @@ def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
                 args.count, region=args.region, strategy=args.strategy, seed=args.seed,
                 dataset=args.dataset, timeout=args.timeout,
                 feedback=lambda fb: bar.update(fb.k - bar.n)),
-                topics.COLLECT_SAMPLES, _collect_interrupted)
+                _full(args, topics.COLLECT_SAMPLES), _collect_interrupted)
         finally:
             bar.close()
     name = code_name(CollectSamples.Result, result.error_code)
@@ -403,7 +408,7 @@ def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
             f' ({human_units(result.error_string)})' if result.error_string else ''))
         return out
     if is_busy(result.error_string):
-        raise Outcome(busy_text(topics.COLLECT_SAMPLES), Exit.BUSY, **out)
+        raise Outcome(busy_text(_full(args, topics.COLLECT_SAMPLES)), Exit.BUSY, **out)
     moved = name != 'INVALID_GOAL'
     raise Outcome(failure_text(name, result.error_string, COLLECT_HINTS, moved) + (
         f'\n  dataset: {_collect_kept(result)}' if moved else ''), Exit.FAILED, **out)
@@ -427,8 +432,9 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
 
         try:
             result = _goal(lambda: client.refresh(args.count, args.region, args.timeout, show),
-                           topics.REFRESH_MODEL, lambda r: 'interrupted; the model is unchanged '
-                           'unless the refresh had ended')
+                           _full(args, topics.REFRESH_MODEL),
+                           lambda r: 'interrupted; the model is unchanged unless the refresh '
+                                     'had ended')
         finally:
             bar.close()
     name = code_name(RefreshModel.Result, result.error_code)
@@ -439,7 +445,7 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
            'residual_before': result.residual_before, 'residual_after': result.residual_after}
     if not out['ok']:
         if is_busy(result.error_string):
-            raise Outcome(busy_text(topics.REFRESH_MODEL), Exit.BUSY, **out)
+            raise Outcome(busy_text(_full(args, topics.REFRESH_MODEL)), Exit.BUSY, **out)
         raise Outcome(f'{name}: {human_units(result.error_string)}', Exit.FAILED, **out)
     print(f'model v{result.model.version} announced: the previous one corrected from '
           f'{result.collected} new samples (in {result.dataset_path}); their median residual '

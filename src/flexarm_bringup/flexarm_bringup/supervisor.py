@@ -57,6 +57,7 @@ from flexarm_control.atomic_file import atomic_write
 from flexarm_control.params import load_config
 
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
+CLOCK_WAIT = 5.0       # [s] more for a namespaced arm to find another arm's /clock
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
 LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock per graph
 # Per-arm folders (node, parameter) and the config file that names them.
@@ -129,12 +130,19 @@ class Graph:
             time.sleep(0.1)
 
     def _choose_clock(self, probe: Any) -> None:
-        """The simulator follows a ``/clock`` another arm's simulator already publishes."""
+        """The simulator follows a ``/clock`` another arm's simulator already publishes: looked
+        for during the name check and, for an arm in a namespace (one of several), up to
+        ``CLOCK_WAIT`` more (Fast DDS may announce a publisher only seconds after its node)."""
         sim = self.nodes.get('flexarm_sim')
-        if (sim is not None and 'clock_source' not in sim.parameters
-                and probe.count_publishers(topics.CLOCK)):
-            sim.parameters['clock_source'] = 'follow'
-            self._report(f'ROS domain {self.domain_id} has a /clock: flexarm_sim follows it')
+        if sim is None or 'clock_source' in sim.parameters:
+            return
+        deadline = time.monotonic() + (CLOCK_WAIT if self.namespace else 0.0)
+        while not probe.count_publishers(topics.CLOCK):
+            if time.monotonic() >= deadline:
+                return
+            time.sleep(0.1)
+        sim.parameters['clock_source'] = 'follow'
+        self._report(f'ROS domain {self.domain_id} has a /clock: flexarm_sim follows it')
 
     def _close_probe(self) -> None:
         self._started_probe = None

@@ -24,13 +24,14 @@ def main() -> None:
     parser.add_argument('--runs', type=int, default=3)
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
-    ready, stop = [], []
+    ready, stop, count = [], [], 0
     with tempfile.TemporaryDirectory() as tmp, reserved_domain(None) as domain:
         for run in range(args.runs):
             graph = Graph(domain, Path(tmp) / f'run{run}', optional=('flexarm_recorder',),
                           parameters={'flexarm_recorder': {'bag_directory': tmp,
                                                            'bag_name': f'b{run}'}},
                           report=lambda _: None)
+            count = len(graph.nodes)
             start = time.monotonic()
             graph.start()
             try:
@@ -42,7 +43,7 @@ def main() -> None:
                 stop.append(time.monotonic() - start)
             print(f'run {run + 1}: ready in {ready[-1]:.2f} s, stopped in {stop[-1]:.2f} s, '
                   f'exit codes {sorted(set(codes.values()))}', flush=True)
-    print(f'{len(ready)} runs of 5 nodes: ready in median {statistics.median(ready):.2f} s '
+    print(f'{len(ready)} runs of {count} nodes: ready in median {statistics.median(ready):.2f} s '
           f'(max {max(ready):.2f} s); shutdown median {statistics.median(stop):.2f} s')
     if args.json:
         print(json.dumps({'ready_s': statistics.median(ready), 'stop_s': statistics.median(stop),

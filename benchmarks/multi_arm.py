@@ -3,8 +3,8 @@
 For each N of ``--arms``: N whole graphs in one fresh ROS domain, each under its own namespace
 (``arm1`` … ``armN``, what ``flexarm up --namespace armK`` starts), arm1 first: its simulator
 owns ``/clock``; the others' are told to follow it (``clock_source: follow``: the supervisor's
-own choice looks for a ``/clock`` publisher for 1 s and under load often finds none yet, which
-makes two clocks). Each arm runs
+own choice looks for a ``/clock`` publisher for a bounded time and under heavy load might find
+none yet, which makes two clocks). Each arm runs
 PREDICTIVE goals in a loop from a client of its own (one thread per arm, all starting together)
 until it has run ``--goals`` or ``--seconds`` have passed (wall clock; 0: no limit).
 

@@ -34,7 +34,7 @@ IDEAL = {'error_sources': {'enabled': False}}
 ARMS = {'arm1': ('A', 1), 'arm2': ('B', 2)}    # namespace: region and seed of its samples
 SAMPLES = 8
 # arm2 follows arm1's /clock, said outright: the supervisor's own choice looks for a /clock
-# publisher for 1 s after its probe appears, and under load often finds none yet (two clocks).
+# publisher for a bounded time (CLOCK_WAIT) and under heavy load might find none yet.
 FOLLOWER = {'clock_source': 'follow'}
 UNKNOWN = '_NODE_NAMESPACE_UNKNOWN_'            # discovery's placeholder until names arrive
 

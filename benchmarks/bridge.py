@@ -8,12 +8,15 @@ first and the last of these legs; the middle one is the controller's.
 Everything runs at real-time factor 1 with joint states at 100 Hz (10 ms period), so the
 controller's share includes up to one period of waiting for its next tick.
 
-    python benchmarks/bridge.py [--moves 40] [--json]
+    python benchmarks/bridge.py [--moves 40] [--robot-only] [--domain ID] [--json]
+
+Smoke run (a few seconds a configuration): ``--moves 1 --robot-only``.
 """
 from __future__ import annotations
 
 import argparse
 import json
+import sys
 import tempfile
 import threading
 import time
@@ -21,7 +24,6 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
@@ -32,9 +34,14 @@ from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.launcher import NodeProcess, load_graph, ros_env, stop_all
 from flexarm_control import topics
 
+# link_proxy is a test helper in tests/ (no package, so not importable): put tests/ on the path
+sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'tests'))
+from link_proxy import TO_CONTROLLER, TO_PC, LinkProxy  # noqa: E402
+
 STEP = 0.01          # [rad] joint4
 SETTLE = 0.4         # [s] between steps (a 0.01 rad joint4 step takes 0.24 s)
 STAGES = ('command_on_wire', 'state_on_wire', 'joint_states')
+ROBOT_NODES = {'sim': {'flexarm_sim'}, 'bridge': {'flexarm_bridge', 'flexarm_fake_controller'}}
 
 
 class StepTimer:
@@ -64,16 +71,18 @@ class StepTimer:
             self.done.set()
 
 
-def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path
-                   ) -> list[dict[str, float]]:
-    """Per step: seconds from publishing the command to each stage it was seen at."""
+def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path,
+                   robot_only: bool = False) -> list[dict[str, float]]:
+    """Per step: seconds from publishing the command to each stage it was seen at; with
+    ``robot_only`` only the robot's nodes run, not the rest of the graph."""
     controller_port = 47000 + 2 * domain
     bridge_port = controller_port + 1 if tap else controller_port
     overrides = {'flexarm_bridge': {'use_sim_time': False, 'port': bridge_port},
                  'flexarm_fake_controller': {'port': controller_port}}
     env = ros_env(domain, run_dir / 'ros_log')
     nodes = [NodeProcess(spec, env, run_dir / f'{spec.name}.log', overrides.get(spec.name))
-             for spec in load_graph(robot)]
+             for spec in load_graph(robot)
+             if not robot_only or spec.name in ROBOT_NODES[robot]]
     timer = StepTimer()
 
     def on_frame(direction: str, t: float, frame: proto.Frame) -> None:
@@ -141,14 +150,23 @@ def line(label: str, figures: dict[str, float]) -> str:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument('--moves', type=int, default=40)
+    parser.add_argument('--moves', type=int, default=40, help='joint4 steps per configuration')
+    parser.add_argument('--robot-only', action='store_true',
+                        help='start only the robot nodes (simulator; bridge and fake controller), '
+                             'not the rest of the graph: quicker and lighter, e.g. a smoke run')
+    parser.add_argument('--domain', type=int, help='ROS domain (default: a free one, reserved)')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
+    if args.moves < 1:
+        parser.error('--moves must be at least 1')
     figures: dict[str, dict] = {}
-    with tempfile.TemporaryDirectory() as tmp, reserved_domain(None) as domain:
+    with tempfile.TemporaryDirectory() as tmp, reserved_domain(args.domain) as domain:
         for label, robot, tap in (('sim', 'sim', False), ('bridge', 'bridge', False),
                                   ('bridge_tapped', 'bridge', True)):
-            steps = step_latencies(robot, tap, args.moves, domain, Path(tmp) / label)
+            steps = step_latencies(robot, tap, args.moves, domain, Path(tmp) / label,
+                                   args.robot_only)
+            if not steps:
+                raise RuntimeError(f'{label}: no step reached /joint_states within 2 s')
             figures[label] = {stage: summary([s[stage] for s in steps if stage in s])
                               for stage in STAGES if any(stage in s for s in steps)}
     inbound = [s['joint_states'] - s['state_on_wire'] for s in steps if 'state_on_wire' in s]

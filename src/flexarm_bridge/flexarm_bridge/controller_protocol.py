@@ -140,7 +140,9 @@ class Decoder:
     the keys of ``auth`` (the handshake key for HELLO and AUTH, the session key for the rest,
     which are refused before the session starts) and with increasing sequence numbers.
     ``rejected`` counts the frames rejected so far (a bad length, CRC, tag, version, sequence
-    or payload); skipped garbage between frames is reported but not counted.
+    or payload); skipped garbage between frames is reported but not counted. A version 2 frame
+    of a known type whose tag fails is consumed whole: one rejection, and nothing inside it (its
+    tag and nonces are random bytes) is ever taken for the start of another frame.
     """
 
     def __init__(self, auth: LinkAuth | None = None) -> None:
@@ -191,6 +193,13 @@ class Decoder:
     def _check(self, version: int, frame_type: int, seq: int, end: int) -> tuple[str, bool] | None:
         """Why the complete frame at the buffer's start is refused, and whether to resync
         (drop one byte: it may not be a frame at all) rather than skip it; None if it is good.
+
+        A CRC mismatch resynchronises: the damage may be in the header, length included. A tag
+        mismatch skips the frame whole when its header is one this link speaks (version 2, a
+        known type; the length was checked): tags fail on complete frames (changed, foreign,
+        reflected, another key), and rescanning the random bytes of a tag or nonce would find a
+        false magic in about 1 frame of 4400, making one refused frame count twice or hold back
+        the next good frame until up to a kilobyte of later bytes arrived.
         """
         name = TYPE_NAMES.get(frame_type, f'type {frame_type}')
         if version == AUTH_VERSION:
@@ -201,7 +210,9 @@ class Decoder:
             if key is None:
                 return f'{name} before the link was authenticated: refused', False
             if tag(key, self._buffer[:end]) != self._buffer[end:end + TAG_SIZE]:
-                return 'authentication tag mismatch: resynchronising', True
+                if frame_type not in TYPE_NAMES:
+                    return 'authentication tag mismatch: resynchronising', True
+                return f'authentication tag mismatch: {name} refused', False
             if frame_type not in HANDSHAKE and not self._auth.fresh(seq):
                 return f'replayed or reordered {name} (sequence {seq}) refused', False
             return None

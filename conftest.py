@@ -1,52 +1,219 @@
-"""Shared fixtures of node-level tests.
+"""Shared fixtures of the test suite, and what keeps its runs apart.
 
-Each test that starts nodes gets its own ROS_DOMAIN_ID (reserved through
-ros-jazzy-domain-coordinator, so parallel test runs on one machine do not talk to each other),
-starts node processes exactly as ``flexarm up`` does (:mod:`flexarm_bringup.launcher`), and
-kills them on teardown. Every wait in a test is bounded.
+- Runtime files: ``FLEXARM_STATE_DIR`` is a temporary folder of the run (of each xdist
+  worker), so no test reads or changes the operator's data, models, runs or calibration, and
+  no test sees another run's.
+- Liveness: ``FLEXARM_LIVENESS_SCALE`` is :data:`flexarm_control.liveness.UNDER_TEST` (unless
+  set): the suite runs two workers on two cores, and a starved node is slow, not dead.
+- ROS domains: a test module that starts nodes gets a domain no other module of the run uses
+  (:class:`DomainPool`: taken for the whole run, and reserved the way domain_coordinator and
+  ``flexarm up`` reserve one, so other runs on the machine skip it too); the domain is empty
+  when the module starts (no process of this machine runs in it).
+- Processes: every test stops the nodes it started and checks they were reaped; every process
+  a module started (its scope token is inherited through the environment) is killed and reaped
+  when the module ends, and the module fails if one was left behind.
 """
 from __future__ import annotations
 
+import os
+import shutil
+import signal
+import socket
+import tempfile
 import time
+import uuid
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
 import pytest
 
+_STATE = Path(tempfile.mkdtemp(prefix='flexarm-test-state-'))
+os.environ['FLEXARM_STATE_DIR'] = str(_STATE)   # before flexarm_control.paths is imported
 
-@pytest.fixture
-def domain_id(monkeypatch: pytest.MonkeyPatch) -> Iterator[int]:
-    """A ROS domain of this test's own; also set for in-process rclpy contexts."""
-    from domain_coordinator import domain_id as reserve
+from flexarm_control import liveness  # noqa: E402
 
-    with reserve() as did:
-        monkeypatch.setenv('ROS_DOMAIN_ID', str(did))
-        monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+os.environ.setdefault(liveness.ENV, str(liveness.UNDER_TEST))
+SCOPE_ENV = 'FLEXARM_TEST_SCOPE'   # inherited by every process a test module starts
+# multiprocessing's resource tracker serves this pytest process for its whole life (started
+# by the first spawn of a test); it is not a test's process.
+_RESOURCE_TRACKER = 'multiprocessing.resource_tracker'
+REAP_WAIT = 5.0   # [s] for a killed process to vanish (SIGKILL: only the kernel's work)
+
+
+def pytest_sessionfinish(session: pytest.Session) -> None:
+    shutil.rmtree(_STATE, ignore_errors=True)
+
+
+def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
+    """Modules that start nodes or build first (stable otherwise): the long ones start while
+    the other worker still has short ones to run, so neither worker idles at the end."""
+    items.sort(key=lambda item: 0 if any(item.iter_markers('colcon')) else
+               1 if any(item.iter_markers('node')) else 2)
+
+
+def _processes_with(variable: str, value: str) -> dict[int, str]:
+    """Live processes of this machine whose environment holds ``variable=value``: their
+    command lines (zombies are dead already and left out)."""
+    wanted, found = f'{variable}={value}'.encode(), {}
+    for entry in Path('/proc').glob('[0-9]*'):
+        pid = int(entry.name)
+        if pid == os.getpid():
+            continue
+        try:
+            if wanted not in (entry / 'environ').read_bytes().split(b'\0'):
+                continue
+            if (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z':
+                continue
+            found[pid] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode(
+                errors='replace').strip()
+        except (OSError, IndexError):
+            continue                     # ended meanwhile, or not ours to read
+    return found
+
+
+def _kill_and_reap(pids: list[int]) -> list[int]:
+    """SIGKILL ``pids``; the ones still there after :data:`REAP_WAIT` s."""
+    for pid in pids:
+        try:
+            os.kill(pid, signal.SIGKILL)
+        except OSError:
+            pass
+    deadline = time.monotonic() + REAP_WAIT
+    remaining = list(pids)
+    while remaining and time.monotonic() < deadline:
+        for pid in list(remaining):
+            try:
+                if os.waitpid(pid, os.WNOHANG)[0] == pid:
+                    remaining.remove(pid)
+                    continue
+            except ChildProcessError:    # not our child: gone once /proc says dead
+                pass
+            try:
+                state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
+            except (OSError, IndexError):
+                state = 'Z'
+            if state == 'Z':
+                remaining.remove(pid)
+        time.sleep(0.02)
+    return remaining
+
+
+class DomainPool:
+    """ROS domain ids for the run: each handed out once, held until the run ends.
+
+    A domain is taken by binding domain_coordinator's port for it (32768 + id), which
+    ``flexarm up`` and parallel runs respect, and only if no process of this machine is in it.
+    """
+
+    FIRST, LAST = 1, 100     # domain_coordinator's range
+
+    def __init__(self) -> None:
+        self._held: dict[int, socket.socket] = {}
+
+    def take(self) -> int:
+        from domain_coordinator.impl import PORT_BASE
+
+        for did in range(self.FIRST, self.LAST + 1):
+            if did in self._held:
+                continue
+            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
+            try:
+                sock.bind(('', PORT_BASE + did))
+            except OSError:
+                sock.close()
+                continue
+            if _processes_with('ROS_DOMAIN_ID', str(did)):   # used without a reservation
+                sock.close()
+                continue
+            self._held[did] = sock
+            return did
+        raise RuntimeError('no free ROS domain left for this test run')
+
+    def close(self) -> None:
+        for sock in self._held.values():
+            sock.close()
+        self._held.clear()
+
+
+@pytest.fixture(scope='session')
+def domain_pool() -> Iterator[DomainPool]:
+    pool = DomainPool()
+    yield pool
+    pool.close()
+
+
+@pytest.fixture(scope='module', autouse=True)
+def _no_process_left_behind(request: pytest.FixtureRequest) -> Iterator[None]:
+    """Tag every process the module starts; kill and reap what is left when it ends."""
+    token = f'{request.module.__name__}-{uuid.uuid4().hex[:8]}'
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv(SCOPE_ENV, token)
+        yield
+    left = {pid: cmd for pid, cmd in _processes_with(SCOPE_ENV, token).items()
+            if _RESOURCE_TRACKER not in cmd}
+    stuck = _kill_and_reap(list(left))
+    if left:
+        pytest.fail(f'{len(left)} process(es) outlived their test and were killed'
+                    f'{f" ({len(stuck)} could not be reaped)" if stuck else ""}: '
+                    + '; '.join(f'{pid}: {cmd[:160]}' for pid, cmd in left.items()),
+                    pytrace=False)
+
+
+@pytest.fixture(scope='module')
+def domain_id(domain_pool: DomainPool) -> Iterator[int]:
+    """The module's own ROS domain (empty when taken); also in the environment of the tests
+    (in-process rclpy contexts) and of every process they start."""
+    did = domain_pool.take()
+    with pytest.MonkeyPatch.context() as patch:
+        patch.setenv('ROS_DOMAIN_ID', str(did))
+        patch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
         yield did
 
 
-@pytest.fixture
-def launch(domain_id: int, tmp_path: Path) -> Iterator[Callable[..., Any]]:
-    """``launch(name, **parameters)`` starts the node ``name`` of config/graph.yaml.
+class Launcher:
+    """``launcher(name, robot='sim', **parameters)`` starts the node ``name`` of
+    config/graph.yaml exactly as ``flexarm up`` does (``robot`` picks the controller entry,
+    default ``sim``); :meth:`stop_all` stops them (SIGINT, then SIGKILL) and checks each was
+    reaped."""
 
-    ``robot`` picks the controller entry of graph.yaml (default ``sim``). All nodes started
-    by the test are stopped (SIGINT, then SIGKILL) when it ends.
-    """
-    from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env, stop_all
+    def __init__(self, domain_id: int, folder: Path) -> None:
+        self._domain_id, self._folder = domain_id, folder
+        self.started: list[Any] = []
 
-    started: list[NodeProcess] = []
+    def __call__(self, name: str, robot: str = 'sim', **parameters: Any) -> Any:
+        from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env
 
-    def start(name: str, robot: str = 'sim', **parameters: Any) -> NodeProcess:
         specs = {**load_optional(), **{s.name: s for s in load_graph(robot)}}
-        node = NodeProcess(specs[name], ros_env(domain_id, tmp_path / 'ros_log'),
-                           tmp_path / f'{name}.log', parameters)
+        node = NodeProcess(specs[name], ros_env(self._domain_id, self._folder / 'ros_log'),
+                           self._folder / f'{name}.log', parameters)
         node.start()
-        started.append(node)
+        self.started.append(node)
         return node
 
-    yield start
-    stop_all(started, timeout=5.0)
+    def stop_all(self) -> None:
+        from flexarm_bringup.launcher import stop_all
+
+        codes = stop_all(self.started, timeout=5.0)
+        running = [name for name, code in codes.items() if code is None]
+        assert not running, f'node(s) {running} could not be stopped and reaped'
+
+
+@pytest.fixture
+def launch(domain_id: int, tmp_path: Path) -> Iterator[Launcher]:
+    """Nodes of one test (:class:`Launcher`), stopped when it ends."""
+    launcher = Launcher(domain_id, tmp_path)
+    yield launcher
+    launcher.stop_all()
+
+
+@pytest.fixture(scope='module')
+def launch_shared(domain_id: int, tmp_path_factory: pytest.TempPathFactory
+                  ) -> Iterator[Launcher]:
+    """Nodes shared by the tests of a module (one running graph), stopped when it ends."""
+    launcher = Launcher(domain_id, tmp_path_factory.mktemp('shared'))
+    yield launcher
+    launcher.stop_all()
 
 
 @pytest.fixture
@@ -79,7 +246,8 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
             waitable.destroy()                   # leaves them, and the node, alive
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-        thread.join(timeout=2.0)
+        thread.join(timeout=5.0)
+        assert not thread.is_alive(), "the test node's executor did not stop"
 
 
 @pytest.fixture
@@ -89,7 +257,9 @@ def wait_for() -> Callable[..., Any]:
 
 
 def _wait_for(condition: Callable[[], Any], timeout: float, what: str) -> Any:
-    """Poll ``condition`` until it returns something truthy; fail the test after ``timeout``."""
+    """Poll ``condition`` until it returns something truthy; fail the test after ``timeout``
+    wall seconds times the liveness factor (a limit on "it never comes", not a timing)."""
+    timeout = liveness.limit(timeout)
     deadline = time.monotonic() + timeout
     while time.monotonic() < deadline:
         value = condition()
@@ -137,7 +307,7 @@ def ready_client(domain_id: int) -> Iterator[Callable[..., Any]]:
         rclpy.init(context=context, domain_id=domain_id)
         client = FlexarmClient('test_client', context=context)
         made.append((client, context))
-        client.wait_until_ready(timeout=30.0, **what)
+        client.wait_until_ready(timeout=liveness.limit(30.0), **what)
         return client
 
     yield make

@@ -21,7 +21,12 @@ plus torn records); orphans (processes carrying the graph's environment marker t
 what started them, after a bounded wait); stale shm (new /dev/shm files that no live process
 maps or holds open once the graph is down; a killed node's own files count for its scenario).
 
-    python benchmarks/faults.py [--json]
+    python benchmarks/faults.py [--only SCENARIOS] [--json]
+
+``--only`` runs some of the scenarios, by key (:data:`KEYS`: ``compensator``, ``learner``,
+``vision_goal``, ``vision_collection``, ``second_up``, ``sim``, ``sigterm_idle``;
+``second_client``, ``bridge``, ``sigterm_goal``; ``sigkill_goal``), each in its graph; a graph
+none of them needs is not started. A smoke run of the harness: ``--only sigterm_idle``.
 
 JSON (last line): ``lost_samples``, ``orphans``, ``stale_shm`` (sums), ``max_detect_s`` (over
 the scenarios that detected; ``undetected`` names the others), ``seconds`` and ``scenarios``.
@@ -49,7 +54,7 @@ from domain_coordinator import domain_id as reserve_domain
 from flexarm_bridge import controller_protocol as proto
 from flexarm_control.dataset import load_dataset
 from flexarm_control.params import load_config
-from flexarm_control.paths import REPO, RUNS_DIR
+from flexarm_control.paths import RUNS_DIR, repo_path
 
 FLEXARM = str(Path(sys.executable).with_name('flexarm'))
 MARKER = 'FLEXARM_FAULT_RUN'
@@ -330,8 +335,8 @@ class Graph:
 
     def dataset(self, purpose: str) -> tuple[str, Path]:
         name = f'faults-{self.marker}-{purpose}'
-        path = REPO / load_config('learner.yaml', node_name='flexarm_learner')[
-            'data_directory'] / f'{name}.jsonl'
+        path = repo_path(load_config('learner.yaml', node_name='flexarm_learner')[
+            'data_directory']) / f'{name}.jsonl'
         self.datasets.append(path)
         return name, path
 
@@ -617,38 +622,42 @@ def attempt(graph: Graph, name: str, scenario: Callable[[Graph, Row], None]) -> 
     return row
 
 
-def sim_faults(graph: Graph) -> None:
-    attempt(graph, 'compensator killed mid-goal',
-            lambda g, r: server_killed_mid_goal(g, 'flexarm_compensator', 'rigid', r))
-    attempt(graph, 'learner killed mid-collection', learner_killed_mid_collection)
-    attempt(graph, 'vision killed mid-goal (closed loop)', vision_killed_mid_goal)
-    attempt(graph, 'vision killed mid-collection', vision_killed_mid_collection)
-    attempt(graph, 'second flexarm up in the domain', second_graph)
-    attempt(graph, 'simulator killed mid-goal',
-            lambda g, r: server_killed_mid_goal(g, 'flexarm_sim', 'rigid', r))
-    attempt(graph, 'SIGTERM of flexarm up (idle)',
-            lambda g, r: stop_graph(g, signal.SIGTERM, False, r))
+Scenario = Callable[[Graph, Row], None]
+# Per graph (label, robot): its scenarios in the order they run, each (key for --only, name,
+# what it does).
+GRAPHS: tuple[tuple[str, str, tuple[tuple[str, str, Scenario], ...]], ...] = (
+    ('sim', 'sim', (
+        ('compensator', 'compensator killed mid-goal',
+         lambda g, r: server_killed_mid_goal(g, 'flexarm_compensator', 'rigid', r)),
+        ('learner', 'learner killed mid-collection', learner_killed_mid_collection),
+        ('vision_goal', 'vision killed mid-goal (closed loop)', vision_killed_mid_goal),
+        ('vision_collection', 'vision killed mid-collection', vision_killed_mid_collection),
+        ('second_up', 'second flexarm up in the domain', second_graph),
+        ('sim', 'simulator killed mid-goal',
+         lambda g, r: server_killed_mid_goal(g, 'flexarm_sim', 'rigid', r)),
+        ('sigterm_idle', 'SIGTERM of flexarm up (idle)',
+         lambda g, r: stop_graph(g, signal.SIGTERM, False, r)))),
+    ('bridge', 'bridge', (
+        ('second_client', 'second controller client (TCP)', second_controller_client),
+        ('bridge', 'bridge killed mid-goal',
+         lambda g, r: server_killed_mid_goal(g, 'flexarm_bridge', 'rigid', r)),
+        ('sigterm_goal', 'SIGTERM of flexarm up mid-goal (bridge)',
+         lambda g, r: stop_graph(g, signal.SIGTERM, True, r)))),
+    ('kill', 'sim', (
+        ('sigkill_goal', 'SIGKILL of flexarm up mid-goal',
+         lambda g, r: stop_graph(g, signal.SIGKILL, True, r)),)),
+)
+KEYS = tuple(key for _, _, scenarios in GRAPHS for key, _, _ in scenarios)
 
 
-def bridge_faults(graph: Graph) -> None:
-    attempt(graph, 'second controller client (TCP)', second_controller_client)
-    attempt(graph, 'bridge killed mid-goal',
-            lambda g, r: server_killed_mid_goal(g, 'flexarm_bridge', 'rigid', r))
-    attempt(graph, 'SIGTERM of flexarm up mid-goal (bridge)',
-            lambda g, r: stop_graph(g, signal.SIGTERM, True, r))
-
-
-def kill_faults(graph: Graph) -> None:
-    attempt(graph, 'SIGKILL of flexarm up mid-goal',
-            lambda g, r: stop_graph(g, signal.SIGKILL, True, r))
-
-
-def run_graph(label: str, robot: str, tag: str, faults: Callable[[Graph], None]) -> list[Row]:
+def run_graph(label: str, robot: str, tag: str,
+              scenarios: Iterable[tuple[str, str, Scenario]]) -> list[Row]:
     with reserve_domain() as domain:
         graph = Graph(label, domain, robot, tag)
         try:
             graph.wait_ready()
-            faults(graph)
+            for _, name, scenario in scenarios:
+                attempt(graph, name, scenario)
         except (RuntimeError, OSError) as exc:
             graph.rows.append(Row(f'{label} graph', note=f'error: {exc}'))
         finally:
@@ -670,14 +679,21 @@ def print_row(row: Row) -> None:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--only', help=f'comma-separated scenarios of {", ".join(KEYS)} '
+                        '(default: every one); a graph with none of them is not started')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
+    only = set(args.only.split(',')) if args.only else set(KEYS)
+    if only - set(KEYS):
+        parser.error(f'unknown scenarios {sorted(only - set(KEYS))}; known: {", ".join(KEYS)}')
     started, tag = time.monotonic(), uuid.uuid4().hex[:8]
     print(f'{"scenario":<40} {"detected s":>10} {"recovered s":>11} {"lost":>4} '
           f'{"orphans":>7} {"stale shm":>9}  note', flush=True)
-    rows = (run_graph('sim', 'sim', tag, sim_faults)
-            + run_graph('bridge', 'bridge', tag, bridge_faults)
-            + run_graph('kill', 'sim', tag, kill_faults))
+    rows: list[Row] = []
+    for label, robot, scenarios in GRAPHS:
+        chosen = [scenario for scenario in scenarios if scenario[0] in only]
+        if chosen:
+            rows += run_graph(label, robot, tag, chosen)
     detected = [r.detected_s for r in rows if r.detected_s is not None]
     summary = {'lost_samples': sum(r.lost_samples for r in rows),
                'orphans': sum(r.orphans for r in rows),

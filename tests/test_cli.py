@@ -13,14 +13,16 @@ import subprocess
 import sys
 import threading
 import time
+from collections.abc import Iterator
 
 import numpy as np
 import pytest
+from joint_watch import JointWatch
 from sensor_msgs.msg import JointState
 
 from flexarm_bringup.cli import main
 from flexarm_bringup.outcome_text import Exit
-from flexarm_control import topics
+from flexarm_control import liveness, topics
 from flexarm_control.kinematics import ArmGeometry, forward
 from flexarm_control.params import load_config
 
@@ -31,9 +33,13 @@ STOPPED = re.compile(r'cancelled; arm stopped at x=(\S+) mm, y=(\S+) mm, phi=(\S
 
 
 class Cli:
-    """A ``flexarm`` process; its stdout and stderr lines as they arrive."""
+    """A ``flexarm`` process; its stdout and stderr lines as they arrive. Every one still
+    running when its test ends is killed and reaped (:func:`no_cli_left`)."""
+
+    running: list[Cli] = []
 
     def __init__(self, *args: str, domain_id: int) -> None:
+        Cli.running.append(self)
         self.process = subprocess.Popen(
             [sys.executable, '-m', 'flexarm_bringup.cli', *args, '--domain-id', str(domain_id)],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
@@ -52,7 +58,7 @@ class Cli:
             lines.append(line.rstrip('\n'))
 
     def wait_line(self, text: str, timeout: float) -> None:
-        deadline = time.monotonic() + timeout
+        deadline = time.monotonic() + liveness.limit(timeout)
         while not any(text in line for line in self.out):
             if time.monotonic() > deadline or self.process.poll() is not None:
                 self.process.kill()
@@ -62,7 +68,7 @@ class Cli:
     def finish(self, timeout: float) -> tuple[int, str]:
         """Exit code and stderr, once the process has ended (killed after ``timeout``)."""
         try:
-            code = self.process.wait(timeout)
+            code = self.process.wait(liveness.limit(timeout))
         except subprocess.TimeoutExpired:
             self.process.kill()
             pytest.fail(f'flexarm still ran after {timeout} s: {self.out} {self.err}')
@@ -71,41 +77,45 @@ class Cli:
         return code, '\n'.join(self.err)
 
 
+@pytest.fixture(autouse=True)
+def no_cli_left() -> Iterator[None]:
+    yield
+    while Cli.running:
+        process = Cli.running.pop().process
+        if process.poll() is None:
+            process.kill()
+        process.wait(10.0)
+
+
 class Arm:
     """The arm's rigid tip pose [m, m, rad] from /joint_states, as a test client sees it."""
 
-    def __init__(self, client) -> None:
-        self._client, self._joints = client, []
-        self._geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
-        client.create_subscription(JointState, topics.JOINT_STATES,
-                                   lambda m: self._joints.append(np.array(m.position)), 10)
+    STILL = 0.3   # [s, sim time] without joint motion: the arm is at rest
 
-    def _spin(self) -> np.ndarray | None:
-        """Let joint states arrive for 0.2 s; the latest joints before that."""
-        before = self._joints[-1] if self._joints else None
+    def __init__(self, client) -> None:
+        self._client, self._watch = client, JointWatch()
+        self._geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
+        client.create_subscription(JointState, topics.JOINT_STATES, self._watch.on_joints, 10)
+
+    def _spin(self) -> None:
         self._client.spin_once(0.2)
-        return before
 
     def at_rest(self, timeout: float = 30.0) -> np.ndarray:
-        """The pose once the joints have not moved for a second."""
-        deadline, still_since = time.monotonic() + timeout, None
+        """The pose once the joints have not moved for ``STILL`` s of the simulator's time."""
+        deadline = time.monotonic() + liveness.limit(timeout)
         while time.monotonic() < deadline:
-            before = self._spin()
-            if before is None or np.max(np.abs(self._joints[-1] - before)) > 1e-7:
-                still_since = None
-                continue
-            still_since = still_since or time.monotonic()
-            if time.monotonic() - still_since > 1.0:
-                return forward(self._geometry, self._joints[-1])
+            self._spin()
+            if self._watch.q is not None and self._watch.still_for >= self.STILL:
+                return forward(self._geometry, self._watch.q)
         pytest.fail(f'the joints did not come to rest within {timeout} s')
 
     def away_from(self, pose: np.ndarray, distance: float, timeout: float = 30.0) -> None:
         """Return once the tip is ``distance`` [m] away from ``pose``."""
-        deadline = time.monotonic() + timeout
+        deadline = time.monotonic() + liveness.limit(timeout)
         while time.monotonic() < deadline:
             self._spin()
-            if self._joints and np.linalg.norm(
-                    forward(self._geometry, self._joints[-1])[:2] - pose[:2]) > distance:
+            if self._watch.q is not None and np.linalg.norm(
+                    forward(self._geometry, self._watch.q)[:2] - pose[:2]) > distance:
                 return
         pytest.fail(f'the tip did not move {distance * 1e3:.0f} mm within {timeout} s')
 

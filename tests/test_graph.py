@@ -1,11 +1,10 @@
 """Node-level: the whole graph comes up, is supervised, and shuts down leaving nothing behind."""
 import os
 import signal
-from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.launcher import _lock_is_stale, _mapped_files
+from flexarm_bringup.launcher import owned_shm
 from flexarm_bringup.supervisor import Graph
 
 pytestmark = pytest.mark.node
@@ -37,6 +36,8 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
 
         vision = graph.nodes['flexarm_vision']          # restart: true in graph.yaml
         old_pid = vision.process.pid
+        left = owned_shm(old_pid)                       # what SIGKILL leaves behind
+        assert left, 'the vision node owns no shared memory to leave behind'
         vision.signal(signal.SIGKILL)
         vision.process.wait(timeout=10)
         assert graph.check() == ['flexarm_vision']
@@ -44,7 +45,9 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
         assert vision.restarts == 1 and vision.process.pid != old_pid
         graph.wait_ready(30.0)                           # /tip_pose is back
 
+        assert not any(p.exists() for p in left if 'port' not in p.name)   # removed at restart
         sim = graph.nodes['flexarm_sim']                 # restart: false
+        left += owned_shm(sim.process.pid)
         sim.signal(signal.SIGKILL)
         sim.process.wait(timeout=10)
         assert graph.check() == ['flexarm_sim'] and sim.returncode == -9
@@ -57,9 +60,5 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
     assert not any(alive(pid) for pid in pids)
     clean = {name: code for name, code in codes.items() if name != 'flexarm_sim'}
     assert all(code == 0 for code in clean.values()), clean       # SIGINT: clean exits
-    stale = [p for p in Path('/dev/shm').glob('fastrtps_*_el') if _lock_is_stale(p)]
-    assert stale == []
-    mapped = _mapped_files(Path('/dev/shm'))           # vision's ports, killed with SIGKILL
-    assert [p.name for p in Path('/dev/shm').glob('fastrtps_port*') if str(p) not in mapped
-            and p.stat().st_uid == os.getuid()] == []
+    assert [p.name for p in left if p.exists()] == []  # the killed nodes' shared memory
     assert (tmp_path / 'bags' / 'graph' / 'metadata.yaml').exists()

@@ -143,8 +143,10 @@ class NodeProcess:
         self.process: subprocess.Popen[bytes] | None = None
         self.restarts = 0
         self.reported = False     # its death was reported and it stays down
+        self.killed_shm: list[Path] = []   # shared memory of its processes killed by SIGKILL
 
     def start(self) -> None:
+        remove_shm_of_dead(self.killed_shm)      # of the previous process, before a restart
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(self.log_path, 'ab')
         overrides = write_overrides(self.spec, self.parameters,
@@ -159,7 +161,12 @@ class NodeProcess:
         return None if self.process is None else self.process.poll()
 
     def signal(self, sig: int) -> None:
+        """Send ``sig`` to the node's process group. Before a SIGKILL, which leaves its Fast
+        DDS shared memory behind, note what it owns: removed once it is gone (:meth:`close`,
+        or the next :meth:`start`)."""
         if self.process is not None and self.process.poll() is None:
+            if sig == signal.SIGKILL:
+                self.killed_shm += owned_shm(self.process.pid)
             os.killpg(self.process.pid, sig)
 
     def log_tail(self, lines: int = 10) -> str:
@@ -170,6 +177,8 @@ class NodeProcess:
         return '\n'.join(text.splitlines()[-lines:])
 
     def close(self) -> None:
+        if self.returncode is not None:
+            remove_shm_of_dead(self.killed_shm)
         if self._log is not None:
             self._log.close()
             self._log = None
@@ -204,7 +213,7 @@ def stop_all(nodes: Iterable[NodeProcess], timeout: float = 5.0) -> dict[str, in
 
     Returns each node's exit code. SIGINT and SIGTERM to the caller are ignored meanwhile
     (the shutdown is bounded). A node killed with SIGKILL leaves Fast DDS shared-memory
-    files behind; they are removed by :func:`remove_stale_shm`.
+    files behind; the ones it owned are removed (:func:`owned_shm`).
     """
     with _signals_ignored(signal.SIGINT, signal.SIGTERM):
         return _stop_all(list(nodes), timeout)
@@ -229,35 +238,59 @@ def _stop_all(nodes: list[NodeProcess], timeout: float) -> dict[str, int | None]
                 pass
         node.close()
         codes[node.spec.name] = node.returncode
-    remove_stale_shm()
     return codes
 
 
-def remove_stale_shm(shm_dir: Path = Path('/dev/shm')) -> int:
-    """Remove Fast DDS shared-memory files whose owning processes are gone; return how many.
+SHM_DIR = Path('/dev/shm')
 
-    Segments (``fastrtps_<id>`` with their ``_el`` lock file) are stale when no process holds
-    the lock. Ports (``fastrtps_port<N>`` with ``sem.fastrtps_port<N>_mutex``) are shared by
-    every participant that listens on them and have no lock: a port file of this user is stale
-    when no process maps it (``/proc/*/maps``; a process whose map cannot be read, such as a
-    container's init, is taken not to). A process that dies with SIGKILL leaves both kinds.
+
+def owned_shm(pid: int, shm_dir: Path = SHM_DIR) -> list[Path]:
+    """The Fast DDS shared-memory files of the live process ``pid`` that nobody else can
+    remove once it dies by SIGKILL: its segments (``fastrtps_<id>``, owned by whoever holds
+    the flock of ``fastrtps_<id>_el``, read from /proc/locks) with their lock files, and the
+    port files (``fastrtps_port<N>`` with ``sem.fastrtps_port<N>_mutex``) it maps.
+
+    Asked of a named process instead of guessed from the whole folder: a file that merely
+    looks unused may be one another participant of the machine is just creating.
     """
-    removed = 0
-    for lock in shm_dir.glob('fastrtps_*_el'):
-        if _lock_is_stale(lock):
-            removed += _unlink(lock, lock.with_name(lock.name.removesuffix('_el')))
-    mapped = _mapped_files(shm_dir)
-    for port in shm_dir.glob('fastrtps_port*'):
+    held: set[tuple[int, int]] = set()
+    try:
+        lines = Path('/proc/locks').read_text().splitlines()
+    except OSError:
+        lines = []
+    for line in lines:
+        fields = line.split()
+        if len(fields) < 6 or fields[1] != 'FLOCK' or '->' in fields:
+            continue
         try:
-            mine = port.stat().st_uid == os.getuid()
+            if int(fields[4]) == pid:
+                major, minor, inode = fields[5].split(':')
+                held.add((os.makedev(int(major, 16), int(minor, 16)), int(inode)))
+        except ValueError:
+            continue
+    owned = []
+    for lock in shm_dir.glob('fastrtps_*_el'):
+        try:
+            info = lock.stat()
         except OSError:
             continue
-        if mine and not port.name.endswith('_el') and str(port) not in mapped:
-            removed += _unlink(port, shm_dir / f'sem.{port.name}_mutex')
-    for mutex in shm_dir.glob('sem.fastrtps_port*_mutex'):
-        port = mutex.name.removeprefix('sem.').removesuffix('_mutex')
-        if not (shm_dir / port).exists():
-            removed += _unlink(mutex)
+        if (info.st_dev, info.st_ino) in held:
+            owned += [lock, lock.with_name(lock.name.removesuffix('_el'))]
+    for path in sorted(_mapped_files(shm_dir, pid)):
+        name = Path(path).name
+        if name.startswith('fastrtps_port'):
+            owned += [Path(path), shm_dir / f'sem.{name}_mutex']
+    return owned
+
+
+def remove_shm_of_dead(files: list[Path], shm_dir: Path = SHM_DIR) -> int:
+    """Remove ``files`` (:func:`owned_shm` of processes that are gone) that no live process
+    maps any more (a port file is shared by every participant listening on that port, so it
+    stays while another maps it); clear the list; how many were removed."""
+    mapped = _mapped_files(shm_dir)
+    kept = mapped | {str(shm_dir / f'sem.{Path(m).name}_mutex') for m in mapped}
+    removed = _unlink(*(f for f in files if str(f) not in kept))
+    files.clear()
     return removed
 
 
@@ -273,10 +306,11 @@ def _unlink(*paths: Path) -> int:
     return removed
 
 
-def _mapped_files(directory: Path) -> set[str]:
-    """Paths under ``directory`` that a process maps (of the processes whose map is readable)."""
+def _mapped_files(directory: Path, pid: int | None = None) -> set[str]:
+    """Paths under ``directory`` that a process maps (``pid``, or any whose map is
+    readable)."""
     prefix, mapped = f'{directory}/', set()
-    for maps in Path('/proc').glob('[0-9]*/maps'):
+    for maps in Path('/proc').glob(f'{pid if pid is not None else "[0-9]*"}/maps'):
         try:
             text = maps.read_text()
         except OSError:                  # ended meanwhile, or not ours to read
@@ -286,18 +320,3 @@ def _mapped_files(directory: Path) -> set[str]:
             if path.startswith(prefix):
                 mapped.add(path.removesuffix(' (deleted)'))
     return mapped
-
-
-def _lock_is_stale(lock: Path) -> bool:
-    """A Fast DDS ``*_el`` lock file is stale when no process holds a lock on it."""
-    import fcntl
-
-    try:
-        with open(lock, 'rb') as f:
-            fcntl.flock(f, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            fcntl.flock(f, fcntl.LOCK_UN)
-        return True
-    except BlockingIOError:
-        return False
-    except OSError:
-        return False

@@ -52,10 +52,11 @@ from flexarm_bringup.launcher import (
     select_nodes,
     stop_all,
 )
-from flexarm_control import topics
+from flexarm_control import liveness, topics
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.params import load_config
 
+# Wall-clock limits, times the liveness factor (flexarm_control.liveness):
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 CLOCK_WAIT = 5.0       # [s] more for a namespaced arm to find another arm's /clock
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
@@ -119,7 +120,7 @@ class Graph:
         self._write_record()
 
     def _check_domain_free(self, probe: Any) -> None:
-        deadline = time.monotonic() + DISCOVERY_WAIT
+        deadline = time.monotonic() + liveness.limit(DISCOVERY_WAIT)
         while time.monotonic() < deadline:
             taken = sorted(name for name, ns in probe.get_node_names_and_namespaces()
                            if name in self.nodes and ns.strip('/') == self.namespace)
@@ -136,7 +137,7 @@ class Graph:
         sim = self.nodes.get('flexarm_sim')
         if sim is None or 'clock_source' in sim.parameters:
             return
-        deadline = time.monotonic() + (CLOCK_WAIT if self.namespace else 0.0)
+        deadline = time.monotonic() + (liveness.limit(CLOCK_WAIT) if self.namespace else 0.0)
         while not probe.count_publishers(topics.CLOCK):
             if time.monotonic() >= deadline:
                 return

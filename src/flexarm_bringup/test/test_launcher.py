@@ -132,17 +132,45 @@ def test_a_second_interrupt_does_not_cut_the_shutdown_short(tmp_path) -> None:
         supervisor.stdout.close()
 
 
-def test_stale_shared_memory_ports_are_removed_and_mapped_ones_kept(tmp_path):
+def test_the_shared_memory_a_killed_process_owned_is_removed_and_shared_ports_kept(tmp_path):
+    import fcntl
     import mmap
 
-    from flexarm_bringup.launcher import remove_stale_shm
+    from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead
 
-    for port in ('fastrtps_port1', 'fastrtps_port2'):
-        (tmp_path / port).write_bytes(b'\0' * 4096)
-        (tmp_path / f'sem.{port}_mutex').write_bytes(b'\0' * 32)
-    with open(tmp_path / 'fastrtps_port1', 'r+b') as f, mmap.mmap(f.fileno(), 4096):
-        assert remove_stale_shm(tmp_path) == 2                   # port 2 and its mutex
+    for name in ('fastrtps_abc', 'fastrtps_abc_el', 'fastrtps_other', 'fastrtps_other_el',
+                 'fastrtps_port1', 'sem.fastrtps_port1_mutex', 'fastrtps_port2',
+                 'sem.fastrtps_port2_mutex'):
+        (tmp_path / name).write_bytes(b'\0' * 4096)
+    # A participant: holds its segment's lock and maps port 1 and port 2.
+    owner = subprocess.Popen([sys.executable, '-c', (
+        'import fcntl, mmap, sys, pathlib\n'
+        f'd = pathlib.Path({str(tmp_path)!r})\n'
+        'lock = open(d / "fastrtps_abc_el", "rb"); fcntl.flock(lock, fcntl.LOCK_EX)\n'
+        'files = [open(d / p, "r+b") for p in ("fastrtps_port1", "fastrtps_port2")]\n'
+        'maps = [mmap.mmap(f.fileno(), 4096) for f in files]\n'
+        'print("ready", flush=True); sys.stdin.read()\n')],
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
+    try:
+        assert owner.stdout.readline().strip() == 'ready'
+        with open(tmp_path / 'fastrtps_other_el', 'rb') as other_lock, \
+                open(tmp_path / 'fastrtps_port1', 'r+b') as port, \
+                mmap.mmap(port.fileno(), 4096):            # another participant on port 1
+            fcntl.flock(other_lock, fcntl.LOCK_EX)
+            owned = owned_shm(owner.pid, tmp_path)
+            assert sorted(p.name for p in owned) == [
+                'fastrtps_abc', 'fastrtps_abc_el', 'fastrtps_port1', 'fastrtps_port2',
+                'sem.fastrtps_port1_mutex', 'sem.fastrtps_port2_mutex']
+            owner.kill()
+            owner.wait(10)
+            assert remove_shm_of_dead(owned, tmp_path) == 4     # port 1 is still mapped
+            assert owned == []
         assert sorted(p.name for p in tmp_path.iterdir()) == [
-            'fastrtps_port1', 'sem.fastrtps_port1_mutex']
-    assert remove_stale_shm(tmp_path) == 2                       # port 1, no longer mapped
-    assert not list(tmp_path.iterdir())
+            'fastrtps_other', 'fastrtps_other_el', 'fastrtps_port1',
+            'sem.fastrtps_port1_mutex']
+    finally:
+        owner.kill()
+        owner.wait(10)
+        owner.stdin.close()
+        owner.stdout.close()
+

@@ -25,7 +25,7 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flexarm_control import topics
+from flexarm_control import liveness, topics
 from flexarm_control.kinematics import JOINT_NAMES
 from flexarm_control.measurement import Measurement, average_frames
 from flexarm_msgs.msg import TipPose
@@ -34,11 +34,12 @@ from flexarm_msgs.msg import TipPose
 _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
 _POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them at once)
-# [s, wall] without /joint_states, once they came, after which the controller counts as gone.
-# At 100 Hz of sim time even a simulator at a tenth of real time publishes every 0.1 s, but on a
-# loaded 2-core machine a starved simulator or subscriber has paused for over 1 s (a CI run),
-# so 3 s: still "within a few seconds" for a dead controller. The bridge's own link-loss
-# timeout (heartbeats, PROTOCOL.md) is separate and stays at 1 s.
+# [s, wall] without /joint_states, once they came, after which the controller counts as gone
+# (times the liveness factor, :mod:`flexarm_control.liveness`). At 100 Hz of sim time even a
+# simulator at a tenth of real time publishes every 0.1 s, but a starved simulator or
+# subscriber has paused for over 1 s on a busy 2-core machine, so 3 s: still "within a few
+# seconds" for a dead controller. The bridge's own link-loss timeout (heartbeats,
+# PROTOCOL.md) is separate and stays at 1 s.
 JOINT_SILENCE = 3.0
 
 
@@ -106,9 +107,9 @@ class ArmInterface:
 
     @property
     def controller_silent(self) -> bool:
-        """Whether ``/joint_states`` came once but not for ``JOINT_SILENCE`` s (wall)."""
+        """Whether ``/joint_states`` came once but not for ``JOINT_SILENCE`` s (wall, scaled)."""
         heard = self._joints_heard
-        return heard is not None and time.monotonic() - heard > JOINT_SILENCE
+        return heard is not None and time.monotonic() - heard > liveness.limit(JOINT_SILENCE)
 
     # --- commands ---------------------------------------------------------------------------
     def command(self, q: np.ndarray) -> None:

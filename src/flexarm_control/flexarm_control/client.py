@@ -9,7 +9,8 @@ Every call blocks with a timeout (seconds, wall clock) and raises :class:`Timeou
 it runs out; a goal that the server rejects raises :class:`GoalRejected` with its reason, and
 one that ends without success but without an error code raises :class:`GoalFailed`. While a
 goal runs the client watches its server (:class:`ServerWatch`): a server that stops answering
-for ``SERVER_SILENCE`` seconds (killed) or is replaced by another instance (restarted: it
+for ``SERVER_SILENCE`` seconds (times the liveness factor,
+:mod:`flexarm_control.liveness`: killed) or is replaced by another instance (restarted: it
 does not know the goal) raises :class:`ServerLost`, naming the node, instead of waiting out
 the timeout. A timeout
 or a Ctrl-C (KeyboardInterrupt) while a goal runs cancels it (bounded wait) before the
@@ -42,7 +43,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from flexarm_control import topics
+from flexarm_control import liveness, topics
 from flexarm_control.modes import Mode
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
@@ -53,6 +54,10 @@ _SPIN_SLICE = 0.1   # [s] waits spin in slices so that a Ctrl-C is raised at onc
 SERVER_SILENCE = 3.0  # [s] without an answer from a goal's action server: it is gone
 _PROBE_PERIOD = 0.5   # [s] between the watch's requests to the server
 CANCEL_WAIT = 5.0     # [s] after Ctrl-C: acceptance, cancel and the cancelled goal's result
+# [s] a parameter request unanswered this long is sent again: a server discovered by this
+# client may not have discovered the client yet, and drops the request (a DDS service race);
+# getting or setting a parameter twice does the same as once.
+PARAMETER_RESEND = 1.0
 
 
 class GoalRejected(RuntimeError):
@@ -124,7 +129,7 @@ class ServerWatch:
         if self._names == [_UNKNOWN] and set(current) <= set(self._servers):
             self._names = _known(current.values())    # names arrive after the endpoints
         server = f'{self._client._action_name} ({", ".join(self._names)})'
-        if now - self._answered > SERVER_SILENCE:
+        if now - self._answered > liveness.limit(SERVER_SILENCE):
             return (f'{server} stopped answering {now - self._answered:.1f} s ago while the '
                     'goal ran: the node died; the goal is lost')
         if set(current) - set(self._servers):
@@ -148,6 +153,8 @@ class FlexarmClient(Node):
         self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
         self._refresh = ActionClient(self, RefreshModel, topics.REFRESH_MODEL)
         self._executor = SingleThreadedExecutor(context=self.context)
+        # One per node, made on first use; its service clients go with destroy_node.
+        self._parameter_clients: dict[str, AsyncParameterClient] = {}
         self._executor.add_node(self)
         self._goal_handle: Any = None
         self.active_model: ModelInfo | None = None
@@ -271,26 +278,41 @@ class FlexarmClient(Node):
 
     def node_parameter(self, node: str, name: str, timeout: float = 10.0) -> Any:
         """The value of parameter ``name`` of the graph's node ``node``."""
-        client = self._parameter_client(node, timeout)
-        values = self._spin_until(client.get_parameters([name]), timeout,
-                                  f'{node} parameter {name}').values
+        values = self._parameter_call(
+            node, lambda client: client.get_parameters([name]), timeout,
+            f'{node} parameter {name}').values
         return parameter_value_to_python(values[0])
 
     def set_node_parameter(self, node: str, name: str, value: Any,
                            timeout: float = 10.0) -> None:
         """Set parameter ``name`` of the graph's node ``node``; ValueError with the node's
         reason if it refuses."""
-        client = self._parameter_client(node, timeout)
-        result = self._spin_until(client.set_parameters([Parameter(name, value=value)]),
-                                  timeout, f'{node} parameter {name}').results[0]
+        result = self._parameter_call(
+            node, lambda client: client.set_parameters([Parameter(name, value=value)]),
+            timeout, f'{node} parameter {name}').results[0]
         if not result.successful:
             raise ValueError(f'{node} refused {name}: {result.reason}')
 
-    def _parameter_client(self, node: str, timeout: float) -> AsyncParameterClient:
-        client = AsyncParameterClient(self, node)
+    def _parameter_call(self, node: str, request: Callable[[AsyncParameterClient], Future],
+                        timeout: float, what: str) -> Any:
+        """The response to ``request`` of ``node``'s parameter services, sent again every
+        ``PARAMETER_RESEND`` s until it is answered or ``timeout`` runs out."""
+        deadline = time.monotonic() + timeout
+        client = self._parameter_clients.get(node)
+        if client is None:
+            client = self._parameter_clients[node] = AsyncParameterClient(self, node)
         if not client.wait_for_services(timeout):
             raise TimeoutError(f'no parameter services of {node} within {timeout:.0f} s')
-        return client
+        while True:
+            future = request(client)
+            remaining = deadline - time.monotonic()
+            try:
+                return self._spin_until(future, min(remaining, PARAMETER_RESEND), what)
+            except TimeoutError:
+                future.cancel()
+                if remaining <= PARAMETER_RESEND:
+                    raise TimeoutError(f'timed out after {timeout:.1f} s waiting for '
+                                       f'{what}') from None
 
     def spin_once(self, timeout: float) -> None:
         """Process this client's pending callbacks for up to ``timeout`` seconds."""

@@ -4,7 +4,9 @@ beside it, all git-ignored.
 The tree is the clone this module runs from (pip's editable install, ``colcon build
 --symlink-install``); a copying install (plain ``colcon build``) is not inside the clone, so
 there ``FLEXARM_HOME`` names the clone, else the working directory is taken if it holds
-``config/``.
+``config/``. ``FLEXARM_STATE_DIR`` moves the runtime directories (data, models, runs,
+results, bags, calibration) elsewhere while ``config/`` stays the tree's: the test suite points
+it at a temporary folder, so no test reads or changes an operator's files.
 """
 from __future__ import annotations
 
@@ -23,15 +25,18 @@ def _repo() -> Path:
 
 REPO = _repo()
 CONFIG_DIR = REPO / 'config'
-DATA_DIR = REPO / 'data'         # collected samples (JSON lines)
-MODELS_DIR = REPO / 'models'     # trained models and current.json
-RUNS_DIR = REPO / 'runs'         # per-graph logs and supervisor records
-RESULTS_DIR = REPO / 'results'   # experiment and study outputs
-BAGS_DIR = REPO / 'bags'         # MCAP bags
-CALIBRATION_DIR = REPO / 'calibration'   # site calibrations (flexarm calibrate)
+STATE = (Path(os.environ['FLEXARM_STATE_DIR']).expanduser().resolve()
+         if os.environ.get('FLEXARM_STATE_DIR') else REPO)
+DATA_DIR = STATE / 'data'         # collected samples (JSON lines)
+MODELS_DIR = STATE / 'models'     # trained models and current.json
+RUNS_DIR = STATE / 'runs'         # per-graph logs and supervisor records
+RESULTS_DIR = STATE / 'results'   # experiment and study outputs
+BAGS_DIR = STATE / 'bags'         # MCAP bags
+CALIBRATION_DIR = STATE / 'calibration'   # site calibrations (flexarm calibrate)
 
 
 def repo_path(value: str) -> Path:
-    """A configured path: absolute, or relative to the repository."""
+    """A configured runtime path (data, models, calibration): absolute, or relative to the
+    runtime directories' root (the repository unless ``FLEXARM_STATE_DIR`` is set)."""
     path = Path(value).expanduser()
-    return path if path.is_absolute() else REPO / path
+    return path if path.is_absolute() else STATE / path

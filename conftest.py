@@ -102,26 +102,21 @@ def _kill_and_reap(pids: list[int]) -> list[int]:
 class DomainPool:
     """ROS domain ids for the run: each handed out once, held until the run ends.
 
-    A domain is taken by binding domain_coordinator's port for it (32768 + id), which
-    ``flexarm up`` and parallel runs respect, and only if no process of this machine is in it.
+    A domain is taken by reserving it (:mod:`flexarm_bringup.domains`), which ``flexarm up``
+    and parallel runs respect, and only if no process of this machine is in it.
     """
-
-    FIRST, LAST = 1, 100     # domain_coordinator's range
 
     def __init__(self) -> None:
         self._held: dict[int, socket.socket] = {}
 
     def take(self) -> int:
-        from domain_coordinator.impl import PORT_BASE
+        from flexarm_bringup import domains
 
-        for did in range(self.FIRST, self.LAST + 1):
+        for did in range(domains.FIRST, domains.LAST + 1):
             if did in self._held:
                 continue
-            sock = socket.socket(socket.AF_INET, socket.SOCK_STREAM)
-            try:
-                sock.bind(('', PORT_BASE + did))
-            except OSError:
-                sock.close()
+            sock = domains.hold(did)
+            if sock is None:
                 continue
             if _processes_with('ROS_DOMAIN_ID', str(did)):   # used without a reservation
                 sock.close()

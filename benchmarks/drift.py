@@ -22,7 +22,12 @@ Errors are the true tip against the target (mm), pooled over regions and seeds (
 ``worst_run_refreshed_p95_mm`` is the worst single run. Target: refreshed ≤ 0.3 mm with ≤ 10
 samples.
 
-    python benchmarks/drift.py [--targets 40] [--seeds 3] [--refresh-samples 8] [--json]
+    python benchmarks/drift.py [--targets 40] [--seeds 3] [--refresh-samples 8] [--kind KIND]
+        [--only SCENARIOS] [--json]
+
+``--kind`` trains another predictor kind than the learner's default (a smoke run, a few
+seconds, takes a cheap one: ``--seeds 1 --targets 2 --samples 12 --regions A --kind kinematic
+--workers 1``).
 """
 from __future__ import annotations
 
@@ -91,8 +96,8 @@ def goals(rig: Rig, motion: CalibratedMotion, predictor: Predictor, targets: np.
     return errors, stale_at, failed
 
 
-def run(job: tuple[str, str, int, int, int, int, int]) -> dict[str, Any]:
-    scenario, region_name, region_index, seed, samples, targets, refresh_count = job
+def run(job: tuple[str, str, int, int, int, int, int, str]) -> dict[str, Any]:
+    scenario, region_name, region_index, seed, samples, targets, refresh_count, kind = job
     started = time.perf_counter()
     c = config()
     rig = Rig(c, set(SOURCES) - {'payload'}, 0.0, seed=100 * seed + region_index)
@@ -109,7 +114,7 @@ def run(job: tuple[str, str, int, int, int, int, int]) -> dict[str, Any]:
     collected = []
     collector.collect(poses, 0.0, collected.append)
     predictor, _ = fit_robust(
-        learner['default_kind'], {}, np.array([s.joints for s in collected]),
+        kind or learner['default_kind'], {}, np.array([s.joints for s in collected]),
         np.array([s.deflection for s in collected]), folds=learner['validation_folds'],
         geometry=rig.geometry, screening=Screening.from_dict(learner['training']))
     health = ModelHealth(HealthSettings.from_dict(c['compensator']['model_health']), regions)
@@ -171,12 +176,14 @@ def main() -> None:
     parser.add_argument('--refresh-samples', type=int, default=8)
     parser.add_argument('--regions', default='A,B')
     parser.add_argument('--only', help='comma-separated scenarios (default: every one)')
+    parser.add_argument('--kind', help="predictor kind (default: the learner's default_kind)")
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
     scenarios = args.only.split(',') if args.only else list(SCENARIOS)
     regions = args.regions.split(',')
-    jobs = [(scenario, region, i, seed, args.samples, args.targets, args.refresh_samples)
+    jobs = [(scenario, region, i, seed, args.samples, args.targets, args.refresh_samples,
+             args.kind or '')
             for scenario in scenarios for i, region in enumerate(regions)
             for seed in range(args.seeds)]
     with ProcessPoolExecutor(args.workers) as pool:

@@ -35,7 +35,12 @@ it cannot work; ``sweep.runs[*].calibration`` holds its estimate, the camera's t
 and the arm's own link-4 errors). ``all``: every source, calibrated by the reference procedure
 as the realistic world is run; ``all_uncalibrated``: without it.
 
-    python benchmarks/error_budget.py [--targets 200] [--samples 40] [--seeds 3] [--json]
+    python benchmarks/error_budget.py [--targets 200] [--samples 40] [--seeds 3] [--kind KIND]
+        [--only SETS] [--json]
+
+``--kind`` trains another predictor kind than the learner's default (a smoke run, a few
+seconds, takes a cheap one: ``--seeds 1 --targets 2 --samples 12 --regions A --kind kinematic
+--workers 1``).
 """
 from __future__ import annotations
 
@@ -121,11 +126,11 @@ class Rig:
         self.correction = ToolCorrection()
 
 
-def run(job: tuple[str, tuple[str, ...], str, int, int, int, int, float, str]
+def run(job: tuple[str, tuple[str, ...], str, int, int, int, int, float, str, str]
         ) -> dict[str, Any]:
     """One source set in one region with one training seed: learn, then every target in
     both modes."""
-    name, on, region_name, region_index, seed, samples, targets, payload, calibrate = job
+    name, on, region_name, region_index, seed, samples, targets, payload, calibrate, kind = job
     started = time.perf_counter()
     c = config()
     rig = Rig(c, set(on), payload, seed=100 * seed + region_index)
@@ -144,7 +149,7 @@ def run(job: tuple[str, tuple[str, ...], str, int, int, int, int, float, str]
               clock=lambda: rig.arm.time).collect(poses, rig.payload, collected.append)
     joints = np.array([s.joints for s in collected])
     deflections = np.array([s.deflection for s in collected])
-    predictor, _ = fit_robust(learner['default_kind'], {}, joints, deflections,
+    predictor, _ = fit_robust(kind or learner['default_kind'], {}, joints, deflections,
                               folds=learner['validation_folds'], geometry=rig.geometry,
                               screening=Screening.from_dict(learner['training']))
     learned_at = rig.arm.time
@@ -271,6 +276,7 @@ def main() -> None:
     parser.add_argument('--regions', default='A,B')
     parser.add_argument('--payload', type=float, default=5.0, help='[kg] the payload source')
     parser.add_argument('--only', help='comma-separated source sets (default: every one)')
+    parser.add_argument('--kind', help="predictor kind (default: the learner's default_kind)")
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
@@ -282,7 +288,7 @@ def main() -> None:
     chosen = args.only.split(',') if args.only else list(sets)
     regions = args.regions.split(',')
     jobs = [(name, sets[name], region, i, seed, args.samples, args.targets, args.payload,
-             calibration.get(name, ''))
+             calibration.get(name, ''), args.kind or '')
             for name in chosen for i, region in enumerate(regions)
             for seed in range(args.seeds)]
     with ProcessPoolExecutor(args.workers) as pool:

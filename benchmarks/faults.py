@@ -49,9 +49,8 @@ from dataclasses import asdict, dataclass
 from pathlib import Path
 from typing import IO
 
-from domain_coordinator import domain_id as reserve_domain
-
 from flexarm_bridge import controller_protocol as proto
+from flexarm_bringup.domains import reserved
 from flexarm_control.dataset import load_dataset
 from flexarm_control.params import load_config
 from flexarm_control.paths import RUNS_DIR, repo_path
@@ -652,7 +651,7 @@ KEYS = tuple(key for _, _, scenarios in GRAPHS for key, _, _ in scenarios)
 
 def run_graph(label: str, robot: str, tag: str,
               scenarios: Iterable[tuple[str, str, Scenario]]) -> list[Row]:
-    with reserve_domain() as domain:
+    with reserved() as domain:
         graph = Graph(label, domain, robot, tag)
         try:
             graph.wait_ready()

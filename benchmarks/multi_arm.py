@@ -93,8 +93,11 @@ DISCOVERY_PERIOD = 0.5    # [s] between the monitor's looks at the graph
 READY_S = 180.0           # [s] bound of each graph's bring-up
 GOAL_S = 300.0            # [s] bound of one goal
 # The arms after the first follow its /clock, said outright: the supervisor's own choice looks
-# for a /clock publisher for 1 s, and under load it often finds none yet (two clocks).
+# for a /clock publisher for 1 s, and under load it often finds none yet (two clocks). The first
+# owns it, said outright too: else the supervisor looks for another arm's /clock first (its
+# CLOCK_WAIT, times the liveness factor: 20 s under test) before every run.
 FOLLOWER = {'clock_source': 'follow'}
+OWNER = {'clock_source': 'own'}
 UNKNOWN = '_NODE_NAMESPACE_UNKNOWN_'   # discovery's placeholder until a node's name arrives
 TICK = os.sysconf('SC_CLK_TCK')
 
@@ -328,7 +331,7 @@ def run_arms(count: int, models: dict[str, Any], targets: Targets,
                     report=lambda text, name=name: print(f'  {name}: {text}', flush=True),
                     parameters={
                         'flexarm_sim': {'real_time_factor': args.real_time_factor,
-                                        **({} if name == names[0] else FOLLOWER)},
+                                        **(OWNER if name == names[0] else FOLLOWER)},
                         'flexarm_learner': {'data_directory': str(folder / 'data'),
                                             'model_directory': str(folder / 'models')},
                         'flexarm_compensator': {'model_path': str(models[name][0])}})

@@ -31,6 +31,9 @@ from flexarm_bringup.launcher import NodeProcess, load_optional, ros_env, stop_a
 from flexarm_control import topics
 
 WIDTH, HEIGHT = 640, 480
+# Full names (the root namespace): the bag names its topics so, not as topics.py's relative ones
+JOINT_STATES = topics.absolute(topics.JOINT_STATES)
+CAMERA_IMAGE = topics.absolute(topics.CAMERA_IMAGE)
 
 
 def _flushed_count(bag_dir: Path) -> int:
@@ -49,8 +52,8 @@ def _cpu_seconds(pid: int) -> float:
 
 def publish(node: Any, seconds: float, joint_rate: float, image_rate: float) -> dict[str, int]:
     """Publish both streams on schedule (catching up when late); return counts sent."""
-    joint_pub = node.create_publisher(JointState, topics.JOINT_STATES, QoSProfile(depth=1000))
-    image_pub = node.create_publisher(Image, topics.CAMERA_IMAGE, QoSProfile(depth=30))
+    joint_pub = node.create_publisher(JointState, JOINT_STATES, QoSProfile(depth=1000))
+    image_pub = node.create_publisher(Image, CAMERA_IMAGE, QoSProfile(depth=30))
     deadline = time.monotonic() + 20.0
     while min(joint_pub.get_subscription_count(), image_pub.get_subscription_count()) == 0:
         if time.monotonic() > deadline:
@@ -61,17 +64,17 @@ def publish(node: Any, seconds: float, joint_rate: float, image_rate: float) -> 
                        velocity=[0.0] * 4)
     image = Image(height=HEIGHT, width=WIDTH, encoding='mono8', step=WIDTH,
                   data=bytes(range(256)) * (WIDTH * HEIGHT // 256))
-    sent = {topics.JOINT_STATES: 0, topics.CAMERA_IMAGE: 0}
+    sent = {JOINT_STATES: 0, CAMERA_IMAGE: 0}
     start = time.monotonic()
     while (elapsed := time.monotonic() - start) < seconds:
-        while sent[topics.JOINT_STATES] < elapsed * joint_rate:
-            joint.position[0] = float(sent[topics.JOINT_STATES])
+        while sent[JOINT_STATES] < elapsed * joint_rate:
+            joint.position[0] = float(sent[JOINT_STATES])
             joint_pub.publish(joint)
-            sent[topics.JOINT_STATES] += 1
-        if sent[topics.CAMERA_IMAGE] < elapsed * image_rate:
-            image.header.frame_id = str(sent[topics.CAMERA_IMAGE])
+            sent[JOINT_STATES] += 1
+        if sent[CAMERA_IMAGE] < elapsed * image_rate:
+            image.header.frame_id = str(sent[CAMERA_IMAGE])
             image_pub.publish(image)
-            sent[topics.CAMERA_IMAGE] += 1
+            sent[CAMERA_IMAGE] += 1
         time.sleep(0.0002)
     sent['publish_seconds'] = time.monotonic() - start
     return sent
@@ -90,7 +93,7 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
     recorder.start()
     try:
         sent = publish(node, seconds, joint_rate, image_rate)
-        total = sent[topics.JOINT_STATES] + sent[topics.CAMERA_IMAGE]
+        total = sent[JOINT_STATES] + sent[CAMERA_IMAGE]
         deadline, last, stalled_since = time.monotonic() + 30.0, -1, time.monotonic()
         while time.monotonic() < deadline and (count := _flushed_count(bag_dir)) < total:
             if count != last:
@@ -106,9 +109,9 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     info = bag_info(bag_dir)
-    image_bytes = sum(len(m.data) for _, _, m in read_messages(bag_dir, [topics.CAMERA_IMAGE]))
+    image_bytes = sum(len(m.data) for _, _, m in read_messages(bag_dir, [CAMERA_IMAGE]))
     recorded = {t: info['topics'].get(t, {}).get('count', 0)
-                for t in (topics.JOINT_STATES, topics.CAMERA_IMAGE)}
+                for t in (JOINT_STATES, CAMERA_IMAGE)}
     window = sent['publish_seconds']
     return {
         'seconds': window,
@@ -116,8 +119,8 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
         'recorded': recorded,
         'dropped': {t: sent[t] - recorded[t] for t in recorded},
         'messages_per_s': sum(recorded.values()) / window,
-        'joint_states_per_s': recorded[topics.JOINT_STATES] / window,
-        'images_per_s': recorded[topics.CAMERA_IMAGE] / window,
+        'joint_states_per_s': recorded[JOINT_STATES] / window,
+        'images_per_s': recorded[CAMERA_IMAGE] / window,
         'image_mb_per_s': image_bytes / window / 1e6,
         'bag_mb': info['size_bytes'] / 1e6,
         'recorder_cpu_percent': 100.0 * cpu / window,

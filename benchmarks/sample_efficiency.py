@@ -236,7 +236,10 @@ def graph_campaigns(count: int, regions: list[str], frames: int | None) -> dict[
                     result = client.collect(count, region=region, strategy=strategy, seed=1,
                                             dataset=f'{strategy}_{region}')
                     wall = time.monotonic() - wall
-                    for _ in range(20):
+                    # this goal's last sample messages: queued behind ~1000 truth poses a
+                    # second (100 Hz x10), so wait for them, not for a number of callbacks
+                    deadline = time.monotonic() + 10.0
+                    while len(samples) < result.collected and time.monotonic() < deadline:
                         client.spin_once(0.02)
                     del samples[:-result.collected or len(samples)]   # this goal's only
                     stamps = np.array([_seconds(s.stamp) for s in samples])

@@ -25,6 +25,7 @@ import numpy as np
 
 from flexarm_bringup.bag_tools import ACCURACY_CODES
 from flexarm_bringup.calibration import calibrate_tool
+from flexarm_bringup.domains import reserved
 from flexarm_bringup.supervisor import Graph
 from flexarm_bringup.trials import (
     MOVE_CSV_FIELDS,
@@ -63,12 +64,7 @@ class ExperimentSettings:
 @contextlib.contextmanager
 def reserved_domain(domain_id: int | None) -> Iterator[int]:
     """The given ROS domain, or a free one reserved for this process."""
-    if domain_id is not None:
-        yield domain_id
-        return
-    from domain_coordinator import domain_id as reserve
-
-    with reserve() as did:
+    with reserved(domain_id) as did:
         yield did
 
 

@@ -1,0 +1,160 @@
+"""Smoke runs of every benchmark in benchmarks/: benchmarks rot where nothing runs them.
+
+Each test runs one benchmark as a script at its smallest size (a few seconds; a cheap predictor
+kind where training would dominate) and checks that it exits 0 and that its JSON line (the last
+of stdout) holds the keys a reader relies on, their numbers finite where they are even at that
+size. The figures themselves stay the benchmarks' job: nothing here judges a value.
+"""
+from __future__ import annotations
+
+import json
+import math
+import subprocess
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import pytest
+
+REPO = Path(__file__).resolve().parents[1]
+TAIL = 3000    # [characters] of a failed run's output shown
+
+
+@dataclass(frozen=True)
+class Smoke:
+    """One benchmark's smoke run."""
+
+    name: str                    # benchmarks/<name>.py
+    args: tuple[str, ...]        # its smallest size
+    keys: tuple[str, ...]        # top-level keys of its JSON
+    finite: tuple[str, ...] = ()  # dotted paths (list index or key) to finite numbers
+    timeout: float = 90.0        # [s] wall, then the child is killed
+    domain: str = ''             # its option that takes the test's ROS domain, if any
+    check: Callable[[dict[str, Any]], None] | None = None   # more to check in its JSON
+
+    def __str__(self) -> str:
+        return self.name
+
+
+def _faults_ran(figures: dict[str, Any]) -> None:
+    """The scenario ran: faults.py reports a scenario's or graph's failure as a row."""
+    rows = figures['scenarios']
+    assert [row['scenario'] for row in rows] == ['SIGTERM of flexarm up (idle)'], rows
+    assert not [row for row in rows if 'error:' in row['note']], rows
+
+
+# Offline: the control core on the static simulated arm, no ROS node.
+OFFLINE = [
+    Smoke('plant', (), ('pose_us', 'batch_10000_ms', 'table10'),
+          ('pose_us', 'batch_10000_ms')),
+    Smoke('vision', ('--count', '10'), ('valid_rate', 'position_error_mean_mm',
+                                        'frames_per_second'),
+          ('valid_rate', 'position_error_mean_mm', 'frames_per_second')),
+    Smoke('robustness', ('--seeds', '1', '--targets', '2', '--samples', '12', '--regions', 'A',
+                         '--kind', 'kinematic'),
+          ('refused', 'max_mm', 'p95_mm', 'outlier'), ('max_mm', 'max_deg')),
+    Smoke('error_budget', ('--seeds', '1', '--targets', '2', '--samples', '12', '--regions', 'A',
+                           '--kind', 'kinematic', '--workers', '1'),
+          ('sources', 'all', 'all_uncalibrated'),
+          ('all.closed_loop_p95_mm', 'all.predictive_p95_mm', 'sources.camera.after_mm')),
+    Smoke('drift', ('--seeds', '1', '--targets', '2', '--samples', '12', '--regions', 'A',
+                    '--kind', 'kinematic', '--workers', '1'),
+          ('scenarios',),
+          ('scenarios.payload.refreshed_p95_mm', 'scenarios.none.refreshed_p95_mm')),
+    Smoke('payload', ('--seeds', '1', '--samples', '12', '--held-out', '2', '--regions', 'A',
+                      '--kind', 'kinematic', '--workers', '1'),
+          ('regions', 'ratio'), ('ratio',)),
+    # training, compensation, footprint: added here by their owners (and out of PENDING)
+]
+
+# Start ROS nodes: in the test module's domain where the benchmark takes one, else in a free
+# one the benchmark reserves itself (flexarm_bringup.experiment.reserved_domain).
+NODE = [
+    Smoke('bridge', ('--moves', '1', '--robot-only'), ('sim', 'bridge', 'added_median_ms'),
+          ('added_median_ms',), domain='--domain'),
+    Smoke('bringup', ('--runs', '1'), ('ready_s', 'stop_s'), ('ready_s', 'stop_s')),
+    Smoke('faults', ('--only', 'sigterm_idle'), ('lost_samples', 'orphans', 'scenarios'),
+          ('max_detect_s',), timeout=120.0, check=_faults_ran),
+    Smoke('multi_arm', ('--arms', '1', '--goals', '1', '--kind', 'kinematic'),
+          ('goals_per_min', 'crosstalk', 'cpu'), ('goals_per_min.1.total',), timeout=120.0),
+    Smoke('recorder', ('--seconds', '1'), ('messages_per_s', 'dropped', 'clean_close'),
+          ('messages_per_s', 'image_mb_per_s'), domain='--domain-id'),
+    # the offline learning curves, then the campaigns through a running graph
+    Smoke('sample_efficiency', ('--seeds', '1', '--regions', 'A', '--counts', '12',
+                                '--held-out', '2', '--kinds', 'kinematic', '--campaign', '2',
+                                '--workers', '1'),
+          ('samples_for_1mm', 'curves', 'campaign_s_per_sample'),
+          ('curves.sobol.A.0.worst_max_mm', 'campaign_s_per_sample.sobol',
+           'campaign_s_per_sample.active'), timeout=150.0),
+    Smoke('sim_node', ('--seconds', '1'), ('runs',),
+          ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id'),
+    # suite: added here by its owner (and out of PENDING)
+]
+# Benchmarks whose smoke runs their owners are adding
+PENDING = {'training', 'compensation', 'footprint', 'suite'}
+
+
+def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:
+    """Run the benchmark (killed after its timeout); its JSON line, checked."""
+    command = [sys.executable, f'benchmarks/{smoke.name}.py', *smoke.args, '--json']
+    if smoke.domain:
+        command += [smoke.domain, str(domain_id)]
+    try:
+        done = subprocess.run(command, cwd=REPO, capture_output=True, text=True,
+                              timeout=smoke.timeout, stdin=subprocess.DEVNULL)
+    except subprocess.TimeoutExpired as exc:
+        pytest.fail(f'{smoke.name} still ran after {smoke.timeout:.0f} s (killed):\n'
+                    f'{_tail(exc.stdout)}\n{_tail(exc.stderr)}')
+    assert done.returncode == 0, (f'{smoke.name} exited with code {done.returncode}:\n'
+                                  f'{_tail(done.stdout)}\n{_tail(done.stderr)}')
+    lines = done.stdout.strip().splitlines()
+    assert lines, f'{smoke.name} printed nothing:\n{_tail(done.stderr)}'
+    try:
+        figures = json.loads(lines[-1])
+    except json.JSONDecodeError as exc:
+        pytest.fail(f'{smoke.name}: the last line is not JSON ({exc}): {lines[-1][:500]}')
+    missing = [key for key in smoke.keys if key not in figures]
+    assert not missing, f'{smoke.name}: no {missing} in its JSON (keys: {sorted(figures)})'
+    for path in smoke.finite:
+        value = _at(figures, path)
+        assert isinstance(value, int | float) and math.isfinite(value), (
+            f'{smoke.name}: {path} is {value!r}, not a finite number')
+    if smoke.check is not None:
+        smoke.check(figures)
+    return figures
+
+
+def _at(tree: Any, path: str) -> Any:
+    """The value at a dotted ``path`` (list index or key per part); fails the test if absent."""
+    for part in path.split('.'):
+        try:
+            tree = tree[int(part)] if isinstance(tree, list) else tree[part]
+        except (KeyError, IndexError, TypeError, ValueError):
+            pytest.fail(f'no {path!r} in the JSON (at {part!r})')
+    return tree
+
+
+def _tail(text: str | bytes | None) -> str:
+    if isinstance(text, bytes):
+        text = text.decode(errors='replace')
+    return (text or '')[-TAIL:]
+
+
+def test_every_benchmark_has_a_smoke_run() -> None:
+    present = {path.stem for path in (REPO / 'benchmarks').glob('*.py')}
+    covered = {smoke.name for smoke in OFFLINE + NODE}
+    assert not present - covered - PENDING, f'no smoke run: {sorted(present - covered - PENDING)}'
+    assert not covered - present, f'smoke runs of no benchmark: {sorted(covered - present)}'
+
+
+@pytest.mark.parametrize('smoke', OFFLINE, ids=str)
+def test_offline_benchmark_runs(smoke: Smoke) -> None:
+    run(smoke)
+
+
+@pytest.mark.node
+@pytest.mark.parametrize('smoke', NODE, ids=str)
+def test_node_benchmark_runs(smoke: Smoke, domain_id: int) -> None:
+    run(smoke, domain_id)

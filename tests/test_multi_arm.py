@@ -33,9 +33,11 @@ pytestmark = [pytest.mark.node, pytest.mark.timeout(300)]
 IDEAL = {'error_sources': {'enabled': False}}
 ARMS = {'arm1': ('A', 1), 'arm2': ('B', 2)}    # namespace: region and seed of its samples
 SAMPLES = 8
-# arm2 follows arm1's /clock, said outright: the supervisor's own choice looks for a /clock
-# publisher for a bounded time (CLOCK_WAIT) and under heavy load might find none yet.
+# arm1 owns /clock and arm2 follows it, said outright: the supervisor's own choice looks for a
+# /clock publisher for a bounded time (CLOCK_WAIT), which the first arm would wait out, and
+# under heavy load might find none yet.
 FOLLOWER = {'clock_source': 'follow'}
+OWNER = {'clock_source': 'own'}
 UNKNOWN = '_NODE_NAMESPACE_UNKNOWN_'            # discovery's placeholder until names arrive
 
 
@@ -96,7 +98,7 @@ def arms(domain_id, tmp_path):
     contexts: list[Context] = []
     try:
         for ns in ARMS:
-            sim = {'real_time_factor': 10.0, **IDEAL, **(FOLLOWER if graphs else {})}
+            sim = {'real_time_factor': 10.0, **IDEAL, **(FOLLOWER if graphs else OWNER)}
             graphs.append(Graph(domain_id, tmp_path / 'run' / ns, namespace=ns, parameters={
                 'flexarm_sim': sim, 'flexarm_learner': learner}))
             graphs[-1].start()

@@ -8,7 +8,9 @@ with joint2 from the same rule - which needs the detailed model the paper says i
 to build.
 Accuracy of both is judged on the plant; times are per goal, on one core.
 
-    python benchmarks/compensation.py [--kind gp] [--json]
+    python benchmarks/compensation.py [--kind gp] [--targets A1,B4] [--samples 40] [--json]
+
+Smoke run: --kind kinematic --targets A1 --samples 12
 """
 from __future__ import annotations
 
@@ -18,8 +20,8 @@ import math
 import time
 
 import numpy as np
-import torch
 from scipy.optimize import least_squares
+from threadpoolctl import threadpool_limits
 
 from flexarm_control.compensator import Compensator
 from flexarm_control.kinematics import ArmGeometry, inverse
@@ -44,9 +46,16 @@ def per_goal(func, repeats: int = 50) -> tuple[float, object]:
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--kind', help="predictor kind (default: the learner's)")
+    parser.add_argument('--targets', default=','.join(t.name for t in TABLE_10),
+                        help='comma-separated Table 10 targets')
+    parser.add_argument('--samples', type=int, default=40, help='learning poses per region')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
-    torch.set_num_threads(1)
+    threadpool_limits(1)
+    names = args.targets.split(',')
+    if unknown := set(names) - {t.name for t in TABLE_10}:
+        parser.error(f'unknown targets {sorted(unknown)}')
+    targets = [t for t in TABLE_10 if t.name in names]
     config = load_config('arm.yaml', 'sim.yaml', 'compensator.yaml',
                          node_name='flexarm_compensator')
     geometry = ArmGeometry.from_dict(config['arm'])
@@ -56,13 +65,13 @@ def main() -> None:
     regions = regions_from_dict(learner['regions'])
     kind = args.kind or learner['default_kind']
     models = {}
-    for name in ('A', 'B'):
-        _, joints = sample_poses(geometry, regions[name].grown(learner['coverage_margin']), 40,
-                                 seed=1)
+    for name in sorted({t.region for t in targets}):
+        _, joints = sample_poses(geometry, regions[name].grown(learner['coverage_margin']),
+                                 args.samples, seed=1)
         models[name] = make_predictor(kind).fit(joints, plant.deflection(joints))
 
     rows = []
-    for t in TABLE_10:
+    for t in targets:
         target, model = t.pose, models[t.region]
         t_pred, plan = per_goal(lambda target=target, model=model:
                                   compensator.predictive(target, model.predict))

@@ -3,7 +3,8 @@ fit; the learner also cross-validates its choices, up to ~10 s on one core is ac
 5-fold cross-validated training time, prediction time per single query and per batch of
 1000, and the held-out error on a synthetic sag-like deflection (~20 mm, ~1.5°).
 
-Usage: .venv/bin/python benchmarks/training.py [--samples 50] [--repeats 3] [--json]
+Usage: .venv/bin/python benchmarks/training.py [--samples 50] [--repeats 3] [--kinds mlp,gp]
+[--json]; smoke run: --samples 12 --repeats 1 --kinds kinematic,gp
 """
 from __future__ import annotations
 
@@ -46,6 +47,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--samples', type=int, default=50)
     parser.add_argument('--repeats', type=int, default=3)
+    parser.add_argument('--kinds', default=','.join(KINDS), help='comma-separated kinds')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
     rng = np.random.default_rng(0)
@@ -53,7 +55,7 @@ def main() -> None:
     deflections = sag(joints)
     queries = LOWER + (UPPER - LOWER) * rng.random((1000, 4))
     results = {'samples': args.samples}
-    for kind in KINDS:
+    for kind in args.kinds.split(','):
         start = time.perf_counter()
         model = make_predictor(kind).fit(joints, deflections)   # first fit: includes warm-up
         first = time.perf_counter() - start

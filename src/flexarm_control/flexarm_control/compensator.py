@@ -9,9 +9,10 @@ flexible arm's tip lands on the target.
   - ``newton`` (default): θ2 is chosen once, by the kinematics' rule for the first
     compensated pose x_d − Δ(IK(x_d)) (its ``reach_margin`` covers the rest of the way), and
     kept; joints 1, 3, 4 solve FK(θ) + Δ(θ) = x_d by damped Newton steps with the
-    predictor's Jacobian (finite differences) and a backtracking line search. It converges
-    wherever the fixed point exists and the predicted deflection does not cancel the motion
-    (I + dΔ/dx* regular), also where the paper's iteration oscillates.
+    predictor's Jacobian (finite differences, in the same predictor call as the point) and a
+    backtracking line search. It converges wherever the fixed point exists and the predicted
+    deflection does not cancel the motion (I + dΔ/dx* regular), also where the paper's
+    iteration oscillates.
   - ``paper``: x*_{k+1} = x_d − Δ(θ_k), θ_{k+1} = IK(x*_{k+1}), the iteration of section
     3-2, kept for the comparison with Tables 9 and 10. It contracts only when, for a small
     change of x*, the actual tip displacement a differs from the rigid-model one r by less
@@ -30,7 +31,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 
@@ -71,6 +72,15 @@ def deflection_slope(geometry: ArmGeometry, predict: Predict, joints: np.ndarray
     jx = np.swapaxes(d_pose * weight, 1, 2)
     jd = np.swapaxes(d_defl * weight, 1, 2)
     return np.linalg.norm(jd @ np.linalg.inv(jx), ord=2, axis=(1, 2))
+
+
+class _Point(NamedTuple):
+    """What the Newton solver knows of joints q."""
+
+    residual: np.ndarray     # (3,) predicted tip FK(q) + Δ(q) − target, angle wrapped
+    jacobian: np.ndarray     # (3, 3) of the residual by the free joints
+    deflection: np.ndarray   # (3,) Δ(q)
+    pose: np.ndarray         # (3,) FK(q), the pose to command
 
 
 class CompensationError(UnreachableError):
@@ -139,35 +149,39 @@ class Compensator:
             raise CompensationError(f'compensated target unreachable: {exc}') from exc
         branch = np.sign(elbow_bend(self.geometry, joints))
         weight = np.array([1.0, 1.0, self.geometry.link4])   # angle as tip-length metres
+        probes = np.zeros((1 + len(FREE), 4))
+        probes[np.arange(1, 1 + len(FREE)), FREE] = JACOBIAN_STEP
 
-        def residual(q: np.ndarray) -> np.ndarray:
-            r = forward(self.geometry, q) + np.asarray(predict(q), dtype=float) - target
-            r[..., 2] = wrap_angle(r[..., 2])
-            return r
+        def evaluate(q: np.ndarray) -> _Point:
+            """The solver's view of joints q from one predictor call (whose cost dominates)
+            for q and its finite-difference probes."""
+            batch = q + probes
+            deflection = np.asarray(predict(batch), dtype=float)
+            pose = forward(self.geometry, batch)
+            r = pose + deflection - target
+            r[:, 2] = wrap_angle(r[:, 2])
+            return _Point(r[0], ((r[1:] - r[0]) / JACOBIAN_STEP).T, deflection[0], pose[0])
 
-        r = residual(joints)
-        commanded, step, iterations = forward(self.geometry, joints), 0.0, 0
-        while not (np.hypot(r[0], r[1]) <= self.settings.tolerance
-                   and abs(r[2]) <= self.settings.angle_tolerance):
+        point, step, iterations = evaluate(joints), 0.0, 0
+        while not (np.hypot(*point.residual[:2]) <= self.settings.tolerance
+                   and abs(point.residual[2]) <= self.settings.angle_tolerance):
+            r = point.residual
             if iterations == self.settings.max_iterations:
                 raise CompensationError(
                     f'compensation does not converge: the predicted tip is still '
                     f'{np.hypot(r[0], r[1]) * 1e3:.3g} mm / {np.degrees(abs(r[2])):.3g} deg '
                     f'from the target after {iterations} Newton steps')
             iterations += 1
-            probes = joints + np.zeros((len(FREE), 4))
-            probes[np.arange(len(FREE)), FREE] += JACOBIAN_STEP
-            jacobian = ((residual(probes) - r) / JACOBIAN_STEP).T
             try:
-                direction = np.linalg.solve(jacobian, -r)
+                direction = np.linalg.solve(point.jacobian, -r)
             except np.linalg.LinAlgError:
                 direction = np.full(len(FREE), np.nan)
             fraction, size = 1.0, np.linalg.norm(r * weight)
             while True:
                 trial = joints.copy()
                 trial[FREE] += fraction * direction
-                r_trial = residual(trial)
-                if np.linalg.norm(r_trial * weight) < (1 - 1e-4 * fraction) * size:
+                tried = evaluate(trial)
+                if np.linalg.norm(tried.residual * weight) < (1 - 1e-4 * fraction) * size:
                     break
                 fraction /= 2
                 if not fraction >= MIN_STEP_FRACTION:   # also for a NaN direction
@@ -175,10 +189,14 @@ class Compensator:
                         'compensation has no solution here: the predicted deflection cancels '
                         f'the motion (the predicted tip stays {np.hypot(r[0], r[1]) * 1e3:.3g}'
                         ' mm from the target); the model is unreliable at this pose')
-            joints, r = trial, r_trial
-            new = forward(self.geometry, joints)
-            step, commanded = float(np.hypot(*(new[:2] - commanded[:2]))), new
-        joints[FREE] = wrap_angle(joints[FREE])
+            step = float(np.hypot(*(tried.pose[:2] - point.pose[:2])))
+            joints, point = trial, tried
+        deflection = point.deflection
+        wrapped = joints.copy()
+        wrapped[FREE] = wrap_angle(joints[FREE])
+        if np.abs(wrapped - joints).max() > np.pi:    # a turn, not rounding: predict there
+            deflection = np.asarray(predict(wrapped), dtype=float)
+        joints = wrapped
         violation = limit_violation(self.geometry, joints)
         if violation is not None:
             raise CompensationError(f'compensated target unreachable: {violation}')
@@ -188,8 +206,7 @@ class Compensator:
                 f'compensated target unreachable: the elbow would bend {np.degrees(bend):.2f} '
                 f'deg (at least {np.degrees(self.geometry.min_elbow_bend):.1f} deg, same '
                 'branch)')
-        return Plan(joints, forward(self.geometry, joints),
-                    np.asarray(predict(joints), dtype=float), iterations, step)
+        return Plan(joints, point.pose, deflection, iterations, step)
 
     def _paper(self, target: np.ndarray, predict: Predict) -> Plan:
         joints = inverse(self.geometry, target)

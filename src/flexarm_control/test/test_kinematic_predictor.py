@@ -50,6 +50,30 @@ def test_the_rigid_pose_of_perturbed_pose_is_the_arm_model() -> None:
         rtol=0, atol=1e-12)
 
 
+def test_pose_jacobian_is_the_derivative_of_perturbed_pose() -> None:
+    geometry, joints = kinematic.nominal_geometry(), random_joints(6, seed=10)
+    rng = np.random.default_rng(11)
+    # kinematic errors, then per sample 4 turns and 3 shifts
+    parameters = np.concatenate([TRUE, rng.normal(0.0, 0.01, 6 * 7)])
+
+    def split(p: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        turns, shifts = np.split(p[kinematic.KINEMATIC:].reshape(6, 7), [4], axis=1)
+        return p[:kinematic.KINEMATIC], turns, shifts
+
+    jacobian = kinematic.pose_jacobian(geometry, joints, *split(parameters))
+    step = 1e-7
+    for i in range(kinematic.KINEMATIC + 7):     # a kinematic error, or a turn or shift
+        change = np.zeros_like(parameters)
+        if i < kinematic.KINEMATIC:
+            change[i] = step
+        else:
+            change[kinematic.KINEMATIC:].reshape(6, 7)[:, i - kinematic.KINEMATIC] = step
+        numeric = (kinematic.perturbed_pose(geometry, joints, *split(parameters + change))
+                   - kinematic.perturbed_pose(geometry, joints, *split(parameters - change))
+                   ) / (2 * step)
+        np.testing.assert_allclose(jacobian[:, :, i], numeric, rtol=0, atol=1e-8)
+
+
 def test_noisy_samples_give_a_close_calibration() -> None:
     joints = random_joints(40, seed=4)
     noisy = deflection(joints) + np.random.default_rng(5).normal(0.0, 2e-5, (40, 3))

@@ -3,11 +3,15 @@ from __future__ import annotations
 
 import os
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import numpy as np
 import pytest
 
 from flexarm_control.predictors import Predictor, base, load_predictor, make_predictor
+
+if TYPE_CHECKING:
+    from sklearn.gaussian_process.kernels import Kernel
 
 # The learned kinds, on the normalised space; the ones that model the arm (kinematic, greybox)
 # and auto have tests of their own (test_<kind>_predictor.py).
@@ -65,6 +69,71 @@ def test_mlp_seed_changes_the_initialisation() -> None:
     a = make_predictor('mlp', {**settings, 'seed': 1}).fit(joints, sag(joints))
     b = make_predictor('mlp', {**settings, 'seed': 2}).fit(joints, sag(joints))
     assert not np.array_equal(a.predict(joints), b.predict(joints))
+
+
+@pytest.mark.parametrize('activation', ['tanh', 'sigmoid', 'relu', 'softplus'])
+def test_mlp_trains_on_the_gradient_of_the_network_it_predicts_with(activation: str) -> None:
+    from scipy.optimize import approx_fprime
+
+    from flexarm_control.predictors import mlp
+
+    rng = np.random.default_rng(0)
+    x, y, sizes = rng.normal(size=(20, 4)), rng.normal(size=(20, 3)), [4, 6, 5, 3]
+    flat = rng.normal(0.0, 0.5, sum(n_out * (n_in + 1) for n_in, n_out in
+                                    zip(sizes[:-1], sizes[1:])))
+    loss, gradient = mlp.objective(flat, x, y, sizes, activation, 1e-3)
+    model = make_predictor('mlp', {'hidden': sizes[1:-1], 'activation': activation})
+    model._layers = mlp.unflatten(flat, sizes)
+    weights = sum(np.sum(w ** 2) for w, _ in model._layers)
+    assert loss == pytest.approx(np.mean((model._predict_normalised(x) - y) ** 2)
+                                 + 1e-3 * weights, rel=1e-12)
+    numeric = approx_fprime(flat, lambda p: mlp.objective(p, x, y, sizes, activation, 1e-3)[0],
+                            1e-7)
+    np.testing.assert_allclose(gradient, numeric, rtol=0, atol=1e-6)
+
+
+def _scikit_learn_kernel(kernel: str, inputs: int) -> Kernel:
+    """The kernel of the GP's docstring as scikit-learn builds it, with the GP's defaults."""
+    from sklearn.gaussian_process.kernels import RBF, ConstantKernel, Matern, WhiteKernel
+
+    bounds = np.tile([1e-2, 1e3], (inputs, 1))
+    scales = np.ones(inputs)
+    shape = {'rbf': RBF(scales, bounds), 'matern52': Matern(scales, bounds, nu=2.5),
+             'matern32': Matern(scales, bounds, nu=1.5),
+             'rbf+matern32': RBF(scales, bounds) + ConstantKernel(0.3, (1e-4, 1e1)) * Matern(
+                 scales, bounds, nu=1.5)}[kernel]
+    return ConstantKernel(1.0, (1e-3, 1e3)) * shape + WhiteKernel(1e-4, (1e-6, 1e-1))
+
+
+@pytest.mark.parametrize('kernel', ['rbf', 'matern52', 'matern32', 'rbf+matern32'])
+def test_gp_is_scikit_learns(kernel: str) -> None:
+    from sklearn.gaussian_process import GaussianProcessRegressor
+
+    from flexarm_control.predictors.gp import negative_log_likelihood
+
+    joints = random_joints(30, seed=14)
+    gp = make_predictor('gp', {'kernel': kernel, 'restarts': 1}).fit(joints, sag(joints))
+    reference = _scikit_learn_kernel(kernel, gp._x.shape[1])
+    theta0, bounds = gp._hyperparameters(gp._x.shape[1])
+    np.testing.assert_allclose(theta0, reference.theta, rtol=1e-12)
+    np.testing.assert_allclose(bounds, reference.bounds, rtol=1e-12)
+    squares = (gp._x[:, None] - gp._x[None]) ** 2
+    query = random_joints(40, seed=15)
+    inputs = gp._normalisation.inputs(base.model_inputs(query))
+    for k, theta in enumerate(gp._theta):
+        sklearn_gp = GaussianProcessRegressor(reference.clone_with_theta(theta),
+                                              optimizer=None).fit(gp._x, gp._y[:, k])
+        for probe in (theta, 0.5 * theta0 + 0.5 * theta):
+            value, gradient = negative_log_likelihood(probe, kernel, squares, gp._y[:, k])
+            expected, expected_gradient = sklearn_gp.log_marginal_likelihood(
+                probe, eval_gradient=True)
+            assert value == pytest.approx(-expected, rel=1e-10)
+            np.testing.assert_allclose(gradient, -expected_gradient, rtol=1e-8, atol=1e-7)
+        mean, std = sklearn_gp.predict(inputs, return_std=True)
+        np.testing.assert_allclose(gp._predict_normalised(inputs)[:, k], mean, rtol=0,
+                                   atol=1e-9)
+        np.testing.assert_allclose(gp.predict_std(query)[:, k],
+                                   std * gp._normalisation.output_std[k], rtol=1e-6)
 
 
 @pytest.mark.parametrize('kind', KINDS)

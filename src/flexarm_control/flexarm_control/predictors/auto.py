@@ -9,9 +9,9 @@ grouped, the trimmed RMS score) and keeps the single best one, fitted on all sam
 rather than averages: the mean of the grey-box and GP predictions missed the held-out truth by
 more than the choice in all six cases on the mean over seeds, five on the worst seed (regions
 A, B, paper × 20, 40 samples, 3 seeds, with friction, thermal strain and noise), and one model
-keeps the GP's position std meaningful. The MLP is not among the default kinds: it more than
-doubles the training time (40 samples, one thread: 2.8 s → 6-7 s) and never scored best in
-regions A, B or paper; add it to ``kinds`` to let it compete.
+keeps the GP's position std meaningful. The MLP is not among the default kinds: it adds ~60 %
+to the training time (40 samples of region A, one thread: 1.4 s → 2.3 s) and never scored best
+in regions A, B or paper; add it to ``kinds`` to let it compete.
 
 The model is an :class:`AutoPredictor` that predicts with the chosen one; the metadata's
 ``auto`` entry says which (``chosen``, its ``settings``), the score of every kind (``scores``:

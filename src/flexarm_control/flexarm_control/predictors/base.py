@@ -53,14 +53,18 @@ from abc import ABC, abstractmethod
 from collections.abc import Mapping
 from dataclasses import dataclass
 from datetime import UTC, datetime
+from functools import cache
 from pathlib import Path
-from typing import Any, ClassVar
+from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from flexarm_control.atomic_file import atomic_write
 from flexarm_control.drift_correction import Correction
+
+if TYPE_CHECKING:
+    from threadpoolctl import ThreadpoolController
 
 FORMAT_VERSION = 2        # 2: link-angle inputs and the learned-data support
 JOINTS = 4
@@ -205,7 +209,8 @@ class Predictor(ABC):
     def fit(self, joints: np.ndarray, deflections: np.ndarray,
             payload: np.ndarray | None = None) -> Predictor:
         """Fit on joints (N, 4), deflections (N, 3) [m, m, rad] and payload (N,) [kg]."""
-        x, _ = self._inputs(joints, payload)
+        q, p, _ = self._query(joints, payload)
+        x = self._model_inputs(q, p)
         y = np.asarray(deflections, dtype=float)
         if y.shape != (len(x), OUTPUTS):
             raise ValueError(f'deflections must have shape ({len(x)}, {OUTPUTS}), '
@@ -216,10 +221,11 @@ class Predictor(ABC):
             raise ValueError(f'at least 2 samples are needed to fit, got {len(x)}')
         normalisation = Normalisation.of(x, y)
         support = normalisation.inputs(x)
-        if self.physical:
-            self._fit_physical(*self._physical_inputs(x), y)
-        else:
-            self._fit_normalised(support, normalisation.outputs(y))
+        with _blas().limit(limits=1, user_api='blas'):
+            if self.physical:
+                self._fit_physical(q, p, y)
+            else:
+                self._fit_normalised(support, normalisation.outputs(y))
         self._normalisation, self._support = normalisation, support
         now = datetime.now(UTC)
         self.metadata.update(created=now.isoformat(), version=now.strftime('%Y%m%dT%H%M%S.%fZ'),
@@ -242,10 +248,10 @@ class Predictor(ABC):
     def predict(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
                 ) -> np.ndarray:
         """Deflection (3,) for joints (4,), or (M, 3) for joints (M, 4)."""
-        x, single = self._inputs(joints, payload)
+        q, p, single = self._query(joints, payload)
         normalisation = self._require_fitted()
-        y = (self._predict_physical(*self._physical_inputs(x)) if self.physical else
-             normalisation.outputs_back(self._predict_normalised(normalisation.inputs(x))))
+        y = (self._predict_physical(q, p) if self.physical else normalisation.outputs_back(
+            self._predict_normalised(normalisation.inputs(self._model_inputs(q, p)))))
         for correction in self.corrections:
             y = correction.apply(np.atleast_2d(np.asarray(joints, dtype=float)), y)
         return y[0] if single else y
@@ -280,35 +286,41 @@ class Predictor(ABC):
             raise RuntimeError(f'the {self.kind} predictor is not fitted')
         return self._normalisation
 
-    def _physical_inputs(self, x: np.ndarray) -> tuple[np.ndarray, np.ndarray | None]:
-        """Joints (N, 4) and payload (N,) or None of model inputs ``x`` (:meth:`_inputs`)."""
-        joints = np.column_stack([x[:, 0], x[:, 1], x[:, 2] - x[:, 0], x[:, 3] - x[:, 2]])
-        return joints, x[:, JOINTS] if self.settings['payload_input'] else None
-
     def _inputs(self, joints: np.ndarray, payload: np.ndarray | float | None,
                 ) -> tuple[np.ndarray, bool]:
         """Model inputs (N, 4 or 5) and whether a single (4,) query was given."""
-        x = np.asarray(joints, dtype=float)
-        single = x.ndim == 1
+        q, p, single = self._query(joints, payload)
+        return self._model_inputs(q, p), single
+
+    @staticmethod
+    def _model_inputs(joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
+        x = model_inputs(joints)
+        return x if payload is None else np.column_stack([x, payload])
+
+    def _query(self, joints: np.ndarray, payload: np.ndarray | float | None,
+               ) -> tuple[np.ndarray, np.ndarray | None, bool]:
+        """Joints (N, 4), payload (N,) (None unless ``payload_input``) and whether a single
+        (4,) query was given; ValueError for a wrong shape or a value not finite."""
+        q = np.asarray(joints, dtype=float)
+        single = q.ndim == 1
         if single:
-            x = x[np.newaxis]
-        if x.ndim != 2 or x.shape[1] != JOINTS:
+            q = q[np.newaxis]
+        if q.ndim != 2 or q.shape[1] != JOINTS:
             raise ValueError(f'joints must have shape ({JOINTS},) or (N, {JOINTS}), '
                              f'got {np.shape(joints)}')
-        x = model_inputs(x)
+        p = None
         if self.settings['payload_input']:
             if payload is None:
                 raise ValueError(f'this {self.kind} predictor takes the payload as an input')
             p = np.asarray(payload, dtype=float)
             if p.ndim == 0:
-                p = np.full(len(x), float(p))
-            if p.shape != (len(x),):
-                raise ValueError(f'payload must be a scalar or have shape ({len(x)},), '
+                p = np.full(len(q), float(p))
+            if p.shape != (len(q),):
+                raise ValueError(f'payload must be a scalar or have shape ({len(q)},), '
                                  f'got {np.shape(payload)}')
-            x = np.column_stack([x, p])
-        if not np.all(np.isfinite(x)):
+        if not (np.isfinite(q).all() and (p is None or np.isfinite(p).all())):
             raise ValueError('joints or payload contain NaN or infinite values')
-        return x, single
+        return q, p, single
 
 
 def read_model(path: str | Path) -> tuple[dict[str, Any], dict[str, np.ndarray]]:
@@ -370,6 +382,17 @@ def restore(cls: type[Predictor], metadata: dict[str, Any],
     if np.shape(probe) != (OUTPUTS,) or not np.all(np.isfinite(probe)):
         raise ValueError(f'inconsistent {cls.kind} model: it predicts {probe}')
     return predictor
+
+
+@cache
+def _blas() -> ThreadpoolController:
+    """The BLAS libraries, limited to one thread while fitting: the matrices of tens of samples
+    are too small to share out, a second thread only waits (GP fits took 3-5× the CPU time
+    with two on a busy 2-core machine). Created at the first fit (importing threadpoolctl
+    costs ~30 ms), when numpy's and scipy's BLAS are loaded."""
+    from threadpoolctl import ThreadpoolController
+
+    return ThreadpoolController()
 
 
 def _spacing(support: np.ndarray) -> float:

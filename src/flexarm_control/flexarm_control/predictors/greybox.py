@@ -41,7 +41,9 @@ from flexarm_control.predictors.gp import KERNELS, GpPredictor
 from flexarm_control.predictors.kinematic import (
     KINEMATIC,
     PARAMETERS,
-    perturbed_pose,
+    pose_change,
+    pose_jacobian,
+    read_config,
     solve,
     weighted,
 )
@@ -61,9 +63,7 @@ RESIDUALS = ('none', 'gp')
 
 def load_arm() -> ArmMasses:
     """The arm of config/arm.yaml and config/sim.yaml ``plant``."""
-    from flexarm_control.params import load_config
-
-    return ArmMasses.from_config(load_config('arm.yaml', 'sim.yaml'))
+    return ArmMasses.from_config(read_config('arm.yaml', 'sim.yaml'))
 
 
 class GreyboxPredictor(Predictor):
@@ -95,14 +95,14 @@ class GreyboxPredictor(Predictor):
                                     else payload)[:, _MOMENT]
         return np.where(_PLAY, np.tanh(moments / self.settings['dead_band']), moments)
 
+    def _geometry(self) -> dict[str, float]:
+        return {'link3': self._arm.link3, 'link4': self._arm.link4, 'offset': self._arm.offset}
+
     def _structure(self, joints: np.ndarray, features: np.ndarray, kinematic: np.ndarray,
                    compliance: np.ndarray) -> np.ndarray:
         """Deflection (N, 3) of the structure with these parameters."""
         slots = (features * compliance) @ _SLOTS
-        geometry = {'link3': self._arm.link3, 'link4': self._arm.link4,
-                    'offset': self._arm.offset}
-        return (perturbed_pose(geometry, joints, kinematic, slots[:, :4], slots[:, 4:])
-                - perturbed_pose(geometry, joints, np.zeros(KINEMATIC)))
+        return pose_change(self._geometry(), joints, kinematic, slots[:, :4], slots[:, 4:])
 
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
@@ -114,8 +114,17 @@ class GreyboxPredictor(Predictor):
         def split(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
             return p[:KINEMATIC], p[KINEMATIC:] / scale
 
+        def jacobian(p: np.ndarray) -> np.ndarray:
+            """Of the residuals by p: the kinematic errors', and each term's through its
+            slot."""
+            kinematic, compliance = split(p)
+            slots = (features * compliance) @ _SLOTS
+            jac = pose_jacobian(self._geometry(), joints, kinematic, slots[:, :4], slots[:, 4:])
+            terms = (jac[:, :, KINEMATIC:] @ _SLOTS.T) * (features / scale)[:, None]
+            return weighted(np.concatenate([jac[:, :, :KINEMATIC], terms], axis=2))
+
         p = solve(lambda p: weighted(self._structure(joints, features, *split(p)) - deflections),
-                  KINEMATIC + len(TERMS), self.settings['ridge'])
+                  jacobian, KINEMATIC + len(TERMS), self.settings['ridge'])
         self._kinematic, self._compliance = split(p)
         self._residual: GpPredictor | None = None
         if self.settings['residual'] == 'gp':

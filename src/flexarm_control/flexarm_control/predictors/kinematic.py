@@ -24,14 +24,42 @@ ANGLE_LENGTH = 1.0     # [m] a φ residual of 1 rad weighs as much as 1 m of pos
 PARAMETERS = ('joint1_zero', 'joint2_zero', 'joint3_zero', 'joint4_zero', 'link3', 'link4',
               'offset')
 KINEMATIC = len(PARAMETERS)
+_CONFIGS: dict[tuple[str, ...], tuple[tuple[int, ...], dict[str, Any]]] = {}
+
+
+def read_config(*names: str) -> dict[str, Any]:
+    """``load_config(*names)``, parsed again only when one of the files changed (shared: not
+    to be modified). Parsing the YAML (~15 ms) took longer than fitting a kinematic model,
+    and a cross-validation fits tens of models."""
+    from flexarm_control.params import config_path, load_config
+
+    stamps = tuple(config_path(name).stat().st_mtime_ns for name in names)
+    cached = _CONFIGS.get(names)
+    if cached is None or cached[0] != stamps:
+        cached = _CONFIGS[names] = (stamps, load_config(*names))
+    return cached[1]
 
 
 def nominal_geometry() -> dict[str, float]:
     """link3, link4 and offset [m] of config/arm.yaml."""
-    from flexarm_control.params import load_config
-
-    arm = load_config('arm.yaml')['arm']
+    arm = read_config('arm.yaml')['arm']
     return {name: float(arm[name]) for name in ('link3', 'link4', 'offset')}
+
+
+def _links(geometry: Mapping[str, float], joints: np.ndarray, kinematic: np.ndarray,
+           turns: np.ndarray | None, shifts: np.ndarray | None,
+           ) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """Per sample and link (No.2 arm, third, fourth; (N, 3)): its angle, its length along it
+    and its lateral offset; and the tip angle (N,), for :func:`perturbed_pose`."""
+    q = np.asarray(joints, dtype=float) + kinematic[:4]
+    angles = np.cumsum(q[:, [0, 2, 3]] if turns is None else q[:, [0, 2, 3]] + turns[:, :3],
+                       axis=1)
+    along = np.empty_like(angles)
+    along[:, 0] = q[:, 1]
+    along[:, 1:] = geometry['link3'] + kinematic[4], geometry['link4'] + kinematic[5]
+    across = np.zeros_like(angles) if shifts is None else shifts.copy()
+    across[:, 0] += geometry['offset'] + kinematic[6]
+    return angles, along, across, angles[:, 2] if turns is None else angles[:, 2] + turns[:, 3]
 
 
 def perturbed_pose(geometry: Mapping[str, float], joints: np.ndarray, kinematic: np.ndarray,
@@ -41,34 +69,69 @@ def perturbed_pose(geometry: Mapping[str, float], joints: np.ndarray, kinematic:
     sample, extra rotations ``turns`` (N, 4) [rad] at joint1, joint3, joint4 and of the tip
     frame only, and lateral displacements ``shifts`` (N, 3) [m] of joint3, joint4 and the tip
     (each normal to the link ending there); φ not wrapped."""
-    q = np.asarray(joints, dtype=float) + kinematic[:4]
-    turns = np.zeros((len(q), 4)) if turns is None else turns
-    shifts = np.zeros((len(q), 3)) if shifts is None else shifts
-    a1 = q[:, 0] + turns[:, 0]
-    a3 = a1 + q[:, 2] + turns[:, 1]
-    a4 = a3 + q[:, 3] + turns[:, 2]
-    lateral = geometry['offset'] + kinematic[6] + shifts[:, 0]
-    xy = np.zeros((len(q), 2))
-    for angle, along, across in ((a1, q[:, 1], lateral),
-                                 (a3, geometry['link3'] + kinematic[4], shifts[:, 1]),
-                                 (a4, geometry['link4'] + kinematic[5], shifts[:, 2])):
-        c, s = np.cos(angle), np.sin(angle)
-        xy += np.column_stack([along * c - across * s, along * s + across * c])
-    return np.column_stack([xy, a4 + turns[:, 3]])
+    angles, along, across, phi = _links(geometry, joints, kinematic, turns, shifts)
+    c, s = np.cos(angles), np.sin(angles)
+    return np.stack([(along * c - across * s).sum(axis=1), (along * s + across * c).sum(axis=1),
+                     phi], axis=1)
 
 
-def solve(residuals: Callable[[np.ndarray], np.ndarray], size: int, ridge: float
-          ) -> np.ndarray:
-    """Parameters (size,) minimising |residuals(p)|² + ridge |p|² from p = 0."""
+def pose_change(geometry: Mapping[str, float], joints: np.ndarray, kinematic: np.ndarray,
+                turns: np.ndarray | None = None, shifts: np.ndarray | None = None,
+                ) -> np.ndarray:
+    """:func:`perturbed_pose` minus the rigid pose (N, 3), the deflection the physical kinds
+    predict, with one pass over the sines and cosines of both (the compensator queries it
+    in its inner loop)."""
+    angles, along, across, phi = _links(geometry, joints, kinematic, turns, shifts)
+    rigid, rigid_along, rigid_across, rigid_phi = _links(geometry, joints, np.zeros(KINEMATIC),
+                                                         None, None)
+    both = np.concatenate([angles, rigid], axis=1)
+    along = np.concatenate([along, -rigid_along], axis=1)
+    across = np.concatenate([across, -rigid_across], axis=1)
+    c, s = np.cos(both), np.sin(both)
+    return np.stack([(along * c - across * s).sum(axis=1), (along * s + across * c).sum(axis=1),
+                     phi - rigid_phi], axis=1)
+
+
+def pose_jacobian(geometry: Mapping[str, float], joints: np.ndarray, kinematic: np.ndarray,
+                  turns: np.ndarray | None = None, shifts: np.ndarray | None = None,
+                  ) -> np.ndarray:
+    """Derivatives (N, 3, 14) of :func:`perturbed_pose` by the kinematic errors (7), the turns
+    (4) and the shifts (3): analytic, so that least squares needs no finite differences (one
+    pose per step instead of one per parameter)."""
+    angles, along, across, _ = _links(geometry, joints, kinematic, turns, shifts)
+    c, s = np.cos(angles), np.sin(angles)
+    # A turn at joint1, joint3 or joint4 turns the links from there on: (-y, x) of their sum.
+    beyond_x = np.cumsum((along * c - across * s)[:, ::-1], axis=1)[:, ::-1]
+    beyond_y = np.cumsum((along * s + across * c)[:, ::-1], axis=1)[:, ::-1]
+    jac = np.zeros((len(angles), 3, KINEMATIC + 7))
+    jac[:, 0, KINEMATIC:KINEMATIC + 3], jac[:, 1, KINEMATIC:KINEMATIC + 3] = -beyond_y, beyond_x
+    jac[:, 2, KINEMATIC:KINEMATIC + 4] = 1.0
+    jac[:, 0, KINEMATIC + 4:], jac[:, 1, KINEMATIC + 4:] = -s, c      # shifts: across a link
+    jac[:, 0, [1, 4, 5]], jac[:, 1, [1, 4, 5]] = c, s                # lengths: along a link
+    jac[:, :, [0, 2, 3, 6]] = jac[:, :, KINEMATIC + np.array([0, 1, 2, 4])]
+    return jac
+
+
+def solve(residuals: Callable[[np.ndarray], np.ndarray],
+          jacobian: Callable[[np.ndarray], np.ndarray], size: int, ridge: float) -> np.ndarray:
+    """Parameters (size,) minimising |residuals(p)|² + ridge |p|² from p = 0, with the
+    residuals' ``jacobian`` (len(residuals), size), by Levenberg-Marquardt (MINPACK): on the
+    grey-box of a sag it does not model, the trust-region reflective solver crept for ~750
+    steps where this takes ~45, to the same or a lower cost."""
     def objective(p: np.ndarray) -> np.ndarray:
         return np.concatenate([residuals(p), np.sqrt(ridge) * p])
 
-    return least_squares(objective, np.zeros(size), method='trf', x_scale='jac').x
+    def derivative(p: np.ndarray) -> np.ndarray:
+        return np.vstack([jacobian(p), np.sqrt(ridge) * np.eye(size)])
+
+    return least_squares(objective, np.zeros(size), derivative, method='lm', x_scale='jac').x
 
 
 def weighted(error: np.ndarray) -> np.ndarray:
-    """Deflection errors (N, 3) [m, m, rad] as one residual vector [m]."""
-    return (error * np.array([1.0, 1.0, ANGLE_LENGTH])).ravel()
+    """Deflection errors (N, 3) [m, m, rad], or their derivatives (N, 3, P), as one residual
+    vector [m] (or its Jacobian (3N, P))."""
+    scaled = error * np.array([1.0, 1.0, ANGLE_LENGTH]).reshape(3, *([1] * (error.ndim - 2)))
+    return scaled.reshape(-1, *error.shape[2:])
 
 
 class KinematicPredictor(Predictor):
@@ -86,15 +149,15 @@ class KinematicPredictor(Predictor):
                       deflections: np.ndarray) -> None:
         self._geometry = nominal_geometry()
         rigid = perturbed_pose(self._geometry, joints, np.zeros(KINEMATIC))
-        self._parameters = solve(lambda p: weighted(
-            perturbed_pose(self._geometry, joints, p) - rigid - deflections), KINEMATIC,
-            self.settings['ridge'])
+        self._parameters = solve(
+            lambda p: weighted(perturbed_pose(self._geometry, joints, p) - rigid - deflections),
+            lambda p: weighted(pose_jacobian(self._geometry, joints, p)[:, :, :KINEMATIC]),
+            KINEMATIC, self.settings['ridge'])
         self.metadata['kinematic'] = {'geometry': self._geometry, 'parameters': dict(
             zip(PARAMETERS, self._parameters.tolist()))}
 
     def _predict_physical(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
-        return (perturbed_pose(self._geometry, joints, self._parameters)
-                - perturbed_pose(self._geometry, joints, np.zeros(KINEMATIC)))
+        return pose_change(self._geometry, joints, self._parameters)
 
     def _state(self) -> dict[str, np.ndarray]:
         return {'parameters': self._parameters}

@@ -66,7 +66,15 @@ OFFLINE = [
     Smoke('payload', ('--seeds', '1', '--samples', '12', '--held-out', '2', '--regions', 'A',
                       '--kind', 'kinematic', '--workers', '1'),
           ('regions', 'ratio'), ('ratio',)),
-    # training, compensation, footprint: added here by their owners (and out of PENDING)
+    Smoke('training', ('--samples', '12', '--repeats', '1', '--kinds', 'kinematic,gp'),
+          ('samples', 'kinematic', 'gp'), ('kinematic.fit_s', 'gp.fit_s')),
+    Smoke('compensation', ('--kind', 'kinematic', '--targets', 'A1', '--samples', '12'),
+          ('kind', 'rows', 'predictive_max_ms'), ('predictive_max_ms',)),
+    # The README's test command on a module of this checkout (a fresh clone sets up a venv).
+    Smoke('suite', ('--here', '--runs', '1', '--tests',
+                    '-n 0 src/flexarm_control/test/test_modes.py'),
+          ('runs', 'failures', 'median_s'), ('failures', 'median_s')),
+    # footprint: added here by its owner (and out of PENDING)
 ]
 
 # Start ROS nodes: in the test module's domain where the benchmark takes one, else in a free
@@ -90,10 +98,9 @@ NODE = [
            'campaign_s_per_sample.active'), timeout=150.0),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id'),
-    # suite: added here by its owner (and out of PENDING)
 ]
 # Benchmarks whose smoke runs their owners are adding
-PENDING = {'training', 'compensation', 'footprint', 'suite'}
+PENDING = {'footprint'}
 
 
 def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:

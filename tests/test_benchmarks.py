@@ -156,11 +156,13 @@ def test_every_benchmark_has_a_smoke_run() -> None:
     assert not covered - present, f'smoke runs of no benchmark: {sorted(covered - present)}'
 
 
+@pytest.mark.benchmark
 @pytest.mark.parametrize('smoke', OFFLINE, ids=str)
 def test_offline_benchmark_runs(smoke: Smoke) -> None:
     run(smoke)
 
 
+@pytest.mark.benchmark
 @pytest.mark.node
 @pytest.mark.parametrize('smoke', NODE, ids=str)
 def test_node_benchmark_runs(smoke: Smoke, domain_id: int) -> None:

@@ -52,6 +52,7 @@ BAD_INPUT = [
 ]
 
 
+@pytest.mark.node
 @pytest.mark.parametrize('argv, says', BAD_INPUT, ids=[' '.join(a) for a, _ in BAD_INPUT])
 def test_bad_input_is_refused_in_words_before_connecting(argv, says, domain_id, capsys):
     handler = signal.getsignal(signal.SIGTERM)
@@ -63,6 +64,7 @@ def test_bad_input_is_refused_in_words_before_connecting(argv, says, domain_id, 
     assert signal.getsignal(signal.SIGTERM) is handler    # main restores what it replaced
 
 
+@pytest.mark.node
 def test_a_refusal_before_connecting_ends_the_json_output_too(domain_id, capsys):
     assert main(['--json', 'collect', '5', '--region', 'Z']) == Exit.USAGE
     captured = capsys.readouterr()
@@ -92,6 +94,7 @@ def test_offline_commands_take_only_their_own_options(name, capsys):
     assert '--domain-id' not in out and '--wait' not in out and '--quiet' in out
 
 
+@pytest.mark.node
 def test_no_graph_names_the_domain_the_cause_and_shows_the_wait(domain_id, capsys):
     started = time.monotonic()
     assert main(['move', *A1, '--wait', '2', '--domain-id', str(domain_id)]) == Exit.NO_GRAPH
@@ -103,6 +106,7 @@ def test_no_graph_names_the_domain_the_cause_and_shows_the_wait(domain_id, capsy
     assert f'waiting for the flexarm graph in ROS_DOMAIN_ID={domain_id} ...' in err
 
 
+@pytest.mark.node
 @pytest.mark.parametrize('flag', ['--quiet', '--json'])
 def test_quiet_and_json_show_no_progress(flag, domain_id, capsys):
     assert main([flag, 'collect', '5', '--wait', '1.5']) == Exit.NO_GRAPH   # env's domain
@@ -134,6 +138,7 @@ def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
         signal.signal(signal.SIGUSR1, previous)
 
 
+@pytest.mark.node
 def test_status_without_a_graph_says_so_and_exits_3(domain_id, capsys):
     import json
 

@@ -361,6 +361,7 @@ def _start_and_publish(launch: Any, ros_node: Any, wait_for: Any,
     return recorder, joint_pub
 
 
+@pytest.mark.node
 @pytest.mark.parametrize('sig', [signal.SIGINT, signal.SIGTERM])
 def test_recorder_closes_bag_with_every_message_on_signal(
         launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path, sig: int) -> None:
@@ -394,6 +395,7 @@ def test_recorder_closes_bag_with_every_message_on_signal(
     assert info['complete'] and info['rosbag2_metadata'] and info['message_count'] == 2 * N + 1
 
 
+@pytest.mark.node
 def test_messages_published_just_before_the_signal_are_recorded(
         launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path) -> None:
     """As the last goal's outcome when a demo stops its graph right after the result."""
@@ -407,6 +409,7 @@ def test_messages_published_just_before_the_signal_are_recorded(
     assert positions == [float(i) for i in range(N + 20)]
 
 
+@pytest.mark.node
 def test_recorder_bag_survives_sigkill_up_to_its_last_chunk(
         launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path) -> None:
     recorder, joint_pub = _start_and_publish(launch, ros_node, wait_for, tmp_path)

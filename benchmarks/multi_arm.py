@@ -18,13 +18,16 @@ graph would take minutes per arm on two cores and measure the learner, not sever
 compensator's limits (config/compensator.yaml): a refusal would measure the model's coverage
 (robustness.py does), not the throughput. The simulated world is the default one (realistic).
 
-Crosstalk (must be 0): a monitor node subscribes raw (nothing decoded) to every topic under
-``/armK/`` as it is discovered (images and actions' hidden topics included) and lists each
-topic's publishers every ``DISCOVERY_PERIOD``; a message received on a topic that has a
-publisher outside its namespace counts (publishers whose node discovery does not know yet are
-not judged), and so does every goal outcome on ``/armK/compensator/outcomes`` whose trial is not
-one of armK's (trial names carry the arm), and every goal of armK whose outcome was not heard
-there.
+Crosstalk (must be 0): a monitor node lists the publishers of every topic under ``/armK/``
+(images and actions' hidden topics included) every ``DISCOVERY_PERIOD``; a message received on
+a topic that has a publisher outside its namespace counts (the monitor subscribes raw, nothing
+decoded, to each such topic once found; publishers whose node discovery does not know yet are
+not judged), and so does every goal outcome on ``/armK/compensator/outcomes`` whose
+trial is not one of armK's (trial names carry the arm), and every goal of armK whose outcome was
+not heard there. Apart from the outcomes the monitor subscribes to nothing else: the graph
+makes camera images, tip poses and ``/tf`` only while someone subscribes to them
+(:mod:`flexarm_control.demand`), so a monitor subscribed to every topic would have every arm
+render and measure all the time.
 
 CPU: user + system time of each arm's node processes and their child processes (the learner's
 training worker), from ``/proc/<pid>/stat`` over the goal phase, per wall second (1.0 = one
@@ -233,8 +236,8 @@ class Monitor:
                     None)
 
     def discover(self) -> None:
-        """Subscribe to new ``/armK/`` topics; note the publishers outside their namespace
-        and those of ``/clock``."""
+        """Note the publishers outside their namespace and those of ``/clock``; subscribe to
+        the outcomes and to every topic with a publisher outside its namespace."""
         self.clock_owners.update(f'{p.node_namespace}/{p.node_name}' for p in
                                  self.node.get_publishers_info_by_topic(topics.CLOCK)
                                  if p.node_namespace != UNKNOWN)
@@ -248,7 +251,8 @@ class Monitor:
             with self._lock:
                 if outside:
                     self.foreign.setdefault(topic, set()).update(outside)
-            if topic not in self._subscriptions and publishers:
+            watched = outside or topic == topics.absolute(topics.OUTCOMES, ns)
+            if watched and publishers and topic not in self._subscriptions:
                 self._subscribe(topic, publishers)
 
     def _subscribe(self, topic: str, publishers: list[Any]) -> None:

@@ -2,7 +2,9 @@
 
 Starts the sim node as its own process (as ``flexarm up`` does) in a private ROS domain,
 listens for ``--seconds`` of wall time, and reports the message rate in sim time and in wall
-time, the real-time factor achieved and the jitter of the wall-clock inter-arrival times.
+time, the real-time factor achieved and the jitter of the wall-clock inter-arrival times. The
+simulator sends the ticks of one ``/clock`` period (40 ms wall) in one burst, so the jitter is
+mostly that burst pattern: ~0 within a burst, a clock period between two.
 
     python benchmarks/sim_node.py [--seconds 10] [--json]
 """

@@ -74,7 +74,6 @@ OFFLINE = [
     Smoke('suite', ('--here', '--runs', '1', '--tests',
                     '-n 0 src/flexarm_control/test/test_modes.py'),
           ('runs', 'failures', 'median_s'), ('failures', 'median_s')),
-    # footprint: added here by its owner (and out of PENDING)
 ]
 
 # Start ROS nodes: in the test module's domain where the benchmark takes one, else in a free
@@ -83,6 +82,11 @@ NODE = [
     Smoke('bridge', ('--moves', '1', '--robot-only'), ('sim', 'bridge', 'added_median_ms'),
           ('added_median_ms',), domain='--domain'),
     Smoke('bringup', ('--runs', '1'), ('ready_s', 'stop_s'), ('ready_s', 'stop_s')),
+    Smoke('footprint', ('--smoke',), ('idle_x1', 'idle_x10', 'collect_x10', 'rss_mb_total',
+                                      'nodes'),
+          ('idle_x1.total_cores', 'idle_x10.total_cores', 'collect_x10.achieved_rtf',
+           'collect_x10.s_per_sample_wall', 'rss_mb_total'), timeout=120.0,
+          domain='--domain-id'),
     Smoke('faults', ('--only', 'sigterm_idle'), ('lost_samples', 'orphans', 'scenarios'),
           ('max_detect_s',), timeout=120.0, check=_faults_ran),
     Smoke('multi_arm', ('--arms', '1', '--goals', '1', '--kind', 'kinematic'),
@@ -100,7 +104,7 @@ NODE = [
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id'),
 ]
 # Benchmarks whose smoke runs their owners are adding
-PENDING = {'footprint'}
+PENDING: set[str] = set()
 
 
 def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:

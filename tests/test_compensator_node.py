@@ -23,7 +23,7 @@ from std_msgs.msg import Empty
 
 from flexarm_control import topics
 from flexarm_control.client import FlexarmClient, GoalFailed, GoalRejected
-from flexarm_control.compensator_node import EXECUTOR_THREADS, CompensatorNode
+from flexarm_control.compensator_node import CompensatorNode
 from flexarm_control.health_report import ERROR, WARN
 from flexarm_control.kinematics import ArmGeometry, forward, inverse
 from flexarm_control.params import config_path, load_config
@@ -314,7 +314,9 @@ def in_process(launch, domain_id, client):
         '--params-file', str(config_path('learner.yaml')),
         '--params-file', str(config_path('compensator.yaml'))])
     node = CompensatorNode(context=context)
-    executor = MultiThreadedExecutor(num_threads=EXECUTOR_THREADS, context=context)
+    # Several threads: test_two_goals_passing_the_busy_check_together holds two goal checks
+    # at a barrier (the node itself spins single-threaded).
+    executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(node)
     thread = threading.Thread(target=executor.spin, daemon=True)
     thread.start()

@@ -101,7 +101,8 @@ def host_env(home: Path) -> dict[str, str]:
     """Environment of a host's processes: its own flexarm tree and /tmp, DDS over UDP."""
     (home / 'tmp').mkdir(parents=True)
     (home / 'config').symlink_to(CONFIG_DIR)
-    return {**os.environ, 'FLEXARM_HOME': str(home), 'TMPDIR': str(home / 'tmp'),
+    return {**os.environ, 'FLEXARM_HOME': str(home), 'FLEXARM_STATE_DIR': str(home),
+            'TMPDIR': str(home / 'tmp'),
             'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET', 'FASTDDS_BUILTIN_TRANSPORTS': 'UDPv4',
             'PYTHONUNBUFFERED': '1'}
 

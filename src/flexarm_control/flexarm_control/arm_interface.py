@@ -3,24 +3,38 @@
 Shared by the compensator and the learner, whose policies drive it as an
 :class:`~flexarm_control.arm_motion.Arm`. Commands go to ros2_control's
 ``/forward_position_controller/commands`` (one value per joint, in ``JOINT_NAMES`` order), so a
-real controller drops in. Waits are in the node's clock (sim time under ``use_sim_time``) and
-are also capped in wall time, so a stopped ``/clock`` can never hang a goal. A wait also ends
-when ``/joint_states`` stop (the controller died or its link is down: nothing the arm does can
-be seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can then exit).
+real controller drops in. A move or a measurement waits in the arm's own time, the stamps of
+its joint states (sim time from the simulator): with several arms on one ``/clock`` a busy
+simulator following it can lag by seconds, and its arm is not late for that. Waits are also
+capped in wall time, so a stopped clock can never hang a goal. A wait also ends when
+``/joint_states`` stop (the controller died or its link is down: nothing the arm does can be
+seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can then exit).
+
+Inputs are subscribed only while they are used: ``/joint_states`` while a goal drives the arm
+(:meth:`ArmInterface.attached`), ``/tip_pose`` while a measurement waits for it; nobody asking
+for tip poses lets the vision node and the camera rest (:mod:`flexarm_control.demand`). And
+they are taken, not called back: the waiting thread takes what arrived each time it looks
+(every ``_POLL`` s), so no message wakes the node's executor (at a 10x real-time factor
+``/joint_states`` alone is 1000 messages a wall second, and a wake-up costs more than the
+message). Of the joint states only the newest counts: a queue of one.
 """
 from __future__ import annotations
 
 import threading
 import time
 from collections import deque
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from rclpy.callback_groups import CallbackGroup
+from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
@@ -33,7 +47,7 @@ from flexarm_msgs.msg import TipPose
 # A wait of T s of sim time may take at most this many times T (+ slack) of wall time.
 _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
-_POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them at once)
+_POLL = 0.02   # [s] waits take the inputs that arrived this often
 # [s, wall] without /joint_states, once they came, after which the controller counts as gone
 # (times the liveness factor, :mod:`flexarm_control.liveness`). At 100 Hz of sim time even a
 # simulator at a tenth of real time publishes every 0.1 s, but a starved simulator or
@@ -41,6 +55,33 @@ _POLL = 0.02   # [s] waits re-check joint states this often (tip poses wake them
 # seconds" for a dead controller. The bridge's own link-loss timeout (heartbeats,
 # PROTOCOL.md) is separate and stays at 1 s.
 JOINT_SILENCE = 3.0
+NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # /joint_states
+TIP_POSES = 10   # queue of /tip_pose: a measurement's frames, between two looks at most a few
+
+
+class Taken(CallbackGroup):
+    """The callback group of subscriptions that the executor never runs: their owner takes
+    what arrived when it looks (:func:`take`)."""
+
+    def can_execute(self, entity: Any) -> bool:
+        return False
+
+    def beginning_execution(self, entity: Any) -> bool:
+        return False
+
+    def ending_execution(self, entity: Any) -> None:
+        return None
+
+
+def take(subscription: Subscription) -> Any:
+    """The oldest message waiting in a subscription of a :class:`Taken` group (raw bytes for
+    a raw subscription); None if none, or if the node shut down and destroyed it."""
+    try:
+        with subscription.handle:
+            taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
+    except InvalidHandle:
+        return None
+    return None if taken is None else taken[0]
 
 
 @dataclass(frozen=True)
@@ -49,53 +90,64 @@ class JointSnapshot:
     positions: np.ndarray   # (4,) in JOINT_NAMES order [rad, m, rad, rad]
 
 
+def joint_positions(msg: JointState) -> np.ndarray | None:
+    """The positions (4,) of ``JOINT_NAMES`` in a joint state, None if one is missing."""
+    try:
+        return np.array([msg.position[msg.name.index(n)] for n in JOINT_NAMES])
+    except (ValueError, IndexError):
+        return None
+
+
 class ArmInterface:
     """Joint commands, joint states and tip poses of one node, with bounded waits."""
 
-    def __init__(self, node: Node, callback_group: CallbackGroup | None = None,
-                 frames_kept: int = 50) -> None:
+    def __init__(self, node: Node, frames_kept: int = 50) -> None:
         self._node = node
-        self._cond = threading.Condition()
+        self._lock = threading.Lock()
+        self._taken = Taken()
+        self._joint_input: Subscription | None = None     # while attached
+        self._tip_input: Subscription | None = None       # while measuring
         self._joints: JointSnapshot | None = None
-        self._joints_raw: bytes | None = None     # newest /joint_states, not yet parsed
-        self._joints_heard: float | None = None   # [s, monotonic] when the newest came
+        self._joints_heard: float | None = None   # [s, monotonic] when the newest was taken
         self._frames: deque[TipPose] = deque(maxlen=frames_kept)
         self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
-        # Raw: at a 10x real-time factor /joint_states arrives 1000 times a wall second; only
-        # the newest is parsed, when a wait looks at it.
-        node.create_subscription(JointState, topics.JOINT_STATES, self._on_joint_state,
-                                 qos_profile_sensor_data, callback_group=callback_group,
-                                 raw=True)
-        node.create_subscription(TipPose, topics.TIP_POSE, self._on_tip_pose, 10,
-                                 callback_group=callback_group)
+
+    @contextmanager
+    def attached(self) -> Iterator[None]:
+        """Subscribe ``/joint_states`` for the duration (a goal), starting from none: what an
+        earlier goal saw is not the arm now. Raw: only the newest is parsed, when taken."""
+        with self._lock:
+            self._joints = self._joints_heard = None
+        self._joint_input = self._subscribe(JointState, topics.JOINT_STATES, NEWEST, raw=True)
+        try:
+            yield
+        finally:
+            self._node.destroy_subscription(self._joint_input)
+            self._joint_input = None
 
     # --- inputs -----------------------------------------------------------------------------
-    def _on_joint_state(self, raw: bytes) -> None:
-        with self._cond:
-            self._joints_raw = raw
+    def _subscribe(self, msg_type: type, topic: str, qos: QoSProfile | int,
+                   raw: bool = False) -> Subscription:
+        return self._node.create_subscription(msg_type, topic, lambda _: None,   # never run
+                                              qos, callback_group=self._taken, raw=raw)
+
+    def _take_inputs(self) -> None:
+        """Take the newest joint state and every tip pose that arrived (lock held)."""
+        raw = None if self._joint_input is None else take(self._joint_input)
+        if raw is not None:
             self._joints_heard = time.monotonic()
-
-    def _parse_joints(self) -> JointSnapshot | None:
-        """The newest joint state (call with the lock held)."""
-        if self._joints_raw is not None:
-            msg = deserialize_message(self._joints_raw, JointState)
-            self._joints_raw = None
-            try:
-                positions = np.array([msg.position[msg.name.index(n)] for n in JOINT_NAMES])
-            except (ValueError, IndexError):
-                return self._joints
-            self._joints = JointSnapshot(Time.from_msg(msg.header.stamp), positions)
-        return self._joints
-
-    def _on_tip_pose(self, msg: TipPose) -> None:
-        with self._cond:
-            self._frames.append(msg)
-            self._cond.notify_all()
+            msg = deserialize_message(raw, JointState)
+            positions = joint_positions(msg)
+            if positions is not None:       # else a joint is missing: keep the last state
+                self._joints = JointSnapshot(Time.from_msg(msg.header.stamp), positions)
+        while self._tip_input is not None and (frame := take(self._tip_input)) is not None:
+            self._frames.append(frame)
 
     @property
     def joints(self) -> JointSnapshot | None:
-        with self._cond:
-            return self._parse_joints()
+        with self._lock:
+            self._take_inputs()
+            return self._joints
 
     def positions(self) -> np.ndarray | None:
         """The newest joint positions (4,), None before the first joint state."""
@@ -104,6 +156,11 @@ class ArmInterface:
 
     def now(self) -> Time:
         return self._node.get_clock().now()
+
+    def arm_time(self) -> Time:
+        """The arm's time: the stamp of the newest joint state taken (the node's before one)."""
+        joints = self._joints
+        return self.now() if joints is None else joints.stamp
 
     @property
     def controller_silent(self) -> bool:
@@ -126,39 +183,43 @@ class ArmInterface:
 
     # --- waits ------------------------------------------------------------------------------
     def wait_until(self, predicate: Callable[[], bool], timeout: float,
-                   abort: Callable[[], bool] = lambda: False) -> bool:
-        """Wait until ``predicate()`` (evaluated under the lock) or ``timeout`` s of node time.
+                   abort: Callable[[], bool] = lambda: False,
+                   clock: Callable[[], Time] | None = None) -> bool:
+        """Wait until ``predicate()`` (evaluated under the lock, on the inputs just taken) or
+        ``timeout`` s of ``clock`` (default: the node's).
 
         Returns False on timeout, when ``abort()`` becomes true (e.g. a cancel request), when
         ``/joint_states`` stopped (:attr:`controller_silent`) or when the node shuts down.
         Under ``use_sim_time`` the node time is 0 until the first ``/clock`` arrives and then
         jumps to the simulator's time: the wait starts counting at the first non-zero time.
         """
-        start = self.now()
+        clock = clock or self.now
+        start = clock()
         wall_deadline = time.monotonic() + _WALL_FACTOR * timeout + _WALL_SLACK
-        with self._cond:
-            while not predicate():
-                if (abort() or time.monotonic() > wall_deadline or self.controller_silent
-                        or not self._node.context.ok()):
-                    return False
-                now = self.now()
-                if start.nanoseconds == 0:
-                    start = now
-                elif (now - start).nanoseconds * 1e-9 > timeout:
-                    return False
-                self._cond.wait(_POLL)
-        return True
+        while True:
+            with self._lock:
+                self._take_inputs()
+                if predicate():
+                    return True
+            if (abort() or time.monotonic() > wall_deadline or self.controller_silent
+                    or not self._node.context.ok()):
+                return False
+            now = clock()
+            if start.nanoseconds == 0:
+                start = now
+            elif (now - start).nanoseconds * 1e-9 > timeout:
+                return False
+            time.sleep(_POLL)
 
     def wait_for_joints(self, timeout: float) -> bool:
         """Whether a joint state arrives within ``timeout`` wall seconds (the controller's
         liveness is a wall-clock matter: at a 10x real-time factor 5 s of sim time would be
         half a second, less than DDS matching may take on a loaded machine)."""
         deadline = time.monotonic() + timeout
-        with self._cond:
-            while self._parse_joints() is None:
-                if time.monotonic() > deadline or not self._node.context.ok():
-                    return False
-                self._cond.wait(_POLL)
+        while self.joints is None:
+            if time.monotonic() > deadline or not self._node.context.ok():
+                return False
+            time.sleep(_POLL)
         return True
 
     def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
@@ -168,26 +229,35 @@ class ArmInterface:
         self.command(target)
 
         def arrived() -> bool:
-            joints = self._parse_joints()
+            joints = self._joints
             return joints is not None and bool(np.all(np.abs(joints.positions - target)
                                                       <= tolerance))
-        return self.wait_until(arrived, timeout, abort)
+        return self.wait_until(arrived, timeout, abort, self.arm_time)
 
     def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,
                 ) -> Measurement | None:
-        """Average ``frames`` valid, settled tip poses captured after now; None on timeout."""
-        since = self.now()
-        with self._cond:
+        """Average ``frames`` valid, settled tip poses captured after now in the arm's time (the
+        node's clock can be a few /clock periods behind it, or ahead); None on timeout.
+        ``/tip_pose`` is subscribed for the measurement only."""
+        with self._lock:
+            self._take_inputs()
+            since = self.arm_time()
             self._frames.clear()
 
         def usable() -> list[TipPose]:
             return [f for f in self._frames
                     if f.valid and f.settled and Time.from_msg(f.header.stamp) >= since]
 
-        if not self.wait_until(lambda: len(usable()) >= frames, timeout, abort):
-            return None
-        with self._cond:
-            chosen = usable()[:frames]
+        self._tip_input = self._subscribe(TipPose, topics.TIP_POSE, TIP_POSES)
+        try:
+            if not self.wait_until(lambda: len(usable()) >= frames, timeout, abort,
+                                   self.arm_time):
+                return None
+            with self._lock:
+                chosen = usable()[:frames]
+        finally:
+            self._node.destroy_subscription(self._tip_input)
+            self._tip_input = None
         return average_frames(
             np.array([[f.pose.x, f.pose.y, f.pose.phi] for f in chosen]),
             holes_used=min(f.holes_used for f in chosen),

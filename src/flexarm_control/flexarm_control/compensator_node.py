@@ -46,8 +46,10 @@ goal gives one: the measured error must be within it (TOLERANCE_NOT_MET otherwis
 MEASUREMENT_FAILED if the tip could not be measured to check it). A ``dry_run`` goal is planned
 and answered with the plan; nothing moves.
 
-The executor has ``EXECUTOR_THREADS`` threads, so an executing goal (holding one thread until
-it ends) leaves threads for joint states, tip poses, cancel and new goals.
+A goal executes in a thread of its own (:class:`~flexarm_control.node_main.Offload`), which
+takes the arm's inputs itself, subscribed only while the goal runs
+(:class:`~flexarm_control.arm_interface.ArmInterface`); the node's single-threaded executor
+serves cancel requests, new goals and ``/clock`` meanwhile.
 
 Health on ``/diagnostics``: :func:`model_status`, :func:`model_health_status` and
 :func:`goals_status`.
@@ -57,7 +59,6 @@ from __future__ import annotations
 import math
 import threading
 import traceback
-from functools import partial
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -66,7 +67,6 @@ from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
@@ -93,7 +93,7 @@ from flexarm_control.model_health import HealthSettings, ModelHealth
 from flexarm_control.model_health import RegionHealth as RegionReport
 from flexarm_control.model_store import payload_warning
 from flexarm_control.modes import Mode
-from flexarm_control.node_main import finish_goal, run
+from flexarm_control.node_main import Offload, finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
@@ -103,7 +103,7 @@ from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
 
-EXECUTOR_THREADS = 4
+GOAL_THREADS = 2   # the goal executing and one that lost the race past the busy check
 Goal = MoveToPose.Goal
 Result = MoveToPose.Result
 Feedback = MoveToPose.Feedback
@@ -218,8 +218,8 @@ class CompensatorNode(Node):
         self._health_lock = threading.Lock()
         self._payload: float | None = None     # [kg] from /payload; None until it comes
 
-        self._group = ReentrantCallbackGroup()
-        self._arm = ArmInterface(self, self._group)
+        self._group = ReentrantCallbackGroup()   # in parallel under a multi-threaded executor
+        self._arm = ArmInterface(self)
         self._motion = ArmMotion(self._arm, self._geometry, motion)
         self._model: tuple[Predictor, ModelInfo] | None = None     # swapped whole
         self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)
@@ -239,8 +239,10 @@ class CompensatorNode(Node):
         self._outcomes = self.create_publisher(GoalOutcome, topics.OUTCOMES, 10)
         self._target_pub = self.create_publisher(PoseStamped, topics.TARGET_POSE, latched)
         self._commanded_pub = self.create_publisher(PoseStamped, topics.COMMANDED_POSE, latched)
+        self._goals = Offload(self, GOAL_THREADS)
         self._server = ActionServer(
-            self, MoveToPose, topics.MOVE_TO_POSE, execute_callback=self._execute,
+            self, MoveToPose, topics.MOVE_TO_POSE,
+            execute_callback=self._goals.wrap(self._execute),
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
             callback_group=self._group)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses)
@@ -333,7 +335,8 @@ class CompensatorNode(Node):
             mode = Mode(goal.mode).label if goal.mode < len(Mode) else f'mode {goal.mode}'
             self._executing = f'{goal.trial or "(no trial name)"} ({mode})'
             try:
-                result = self._run(handle, goal)
+                with self._arm.attached():
+                    result = self._run(handle, goal)
             except Exception as exc:   # last resort: a reason for the client, never empty
                 self.get_logger().error(f'goal failed: {traceback.format_exc()}')
                 result = Result(error_code=Result.INVALID_GOAL,
@@ -465,12 +468,13 @@ class CompensatorNode(Node):
 
 
     def destroy_node(self) -> None:
+        self._goals.shutdown()
         self._server.destroy()           # Node.destroy_node leaves actions (and the node) alive
         super().destroy_node()
 
 
 def main(args: list[str] | None = None) -> None:
-    run(CompensatorNode, args, partial(MultiThreadedExecutor, num_threads=EXECUTOR_THREADS))
+    run(CompensatorNode, args)
 
 
 if __name__ == '__main__':

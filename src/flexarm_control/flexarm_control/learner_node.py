@@ -45,9 +45,11 @@ Policy: one collection or refresh at a time; a goal arriving while another runs 
 (one that wins the race past that check is aborted with FAILED, "busy"). A training request
 while a collection runs is refused (it would slow the collection down; train on the finished
 dataset), as is one while a timed-out training job still occupies the worker. Every failure
-gives an error code or message; nothing escapes a callback. The executor has
-``EXECUTOR_THREADS`` threads, so a running collection and a training request (each holding one
-thread while it waits) leave threads for the joint states, tip poses and cancel requests.
+gives an error code or message; nothing escapes a callback. A collection or refresh runs in a
+thread of its own, which takes the arm's inputs itself, subscribed only while it runs
+(:class:`~flexarm_control.arm_interface.ArmInterface`), and training and model changes in
+another, one at a time (:class:`~flexarm_control.node_main.Offload`); the node's
+single-threaded executor serves cancel requests, ``/clock`` and parameters meanwhile.
 
 Health on ``/diagnostics``: :func:`learner_statuses` (activity, training, model).
 """
@@ -58,7 +60,6 @@ import threading
 import traceback
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
-from functools import partial
 from pathlib import Path
 
 import numpy as np
@@ -66,8 +67,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.action.server import ServerGoalHandle
-from rclpy.callback_groups import MutuallyExclusiveCallbackGroup, ReentrantCallbackGroup
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
 from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
@@ -92,7 +92,7 @@ from flexarm_control.model_store import (
     read_current,
     write_current,
 )
-from flexarm_control.node_main import finish_goal, run
+from flexarm_control.node_main import Offload, finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.paths import repo_path
 from flexarm_control.predictors import KINDS, load_predictor, make_predictor
@@ -115,7 +115,7 @@ from flexarm_msgs.msg import (
 )
 from flexarm_msgs.srv import Train, UseModel
 
-EXECUTOR_THREADS = 4
+GOAL_THREADS = 2   # the collection or refresh running and a goal that lost the race past the check
 CHOICE_TIMEOUT = 60.0    # [s, wall] for the choice of an active learning pose
 Goal = CollectSamples.Goal
 Result = CollectSamples.Result
@@ -246,8 +246,7 @@ class LearnerNode(Node):
             raise ValueError(f'default_region {self._default_region} is not in regions')
 
         self._collecting = threading.Lock()
-        group = ReentrantCallbackGroup()
-        self._arm = ArmInterface(self, group)
+        self._arm = ArmInterface(self)
         self._collector = Collector(
             ArmMotion(self._arm, self._geometry, motion), self._geometry, retries,
             clock=lambda: self.get_clock().now().nanoseconds * 1e-9,
@@ -259,20 +258,23 @@ class LearnerNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._health: ModelHealth | None = None
         self.create_subscription(ModelHealth, topics.MODEL_HEALTH,
-                                 lambda msg: setattr(self, '_health', msg), latched,
-                                 callback_group=group)
+                                 lambda msg: setattr(self, '_health', msg), latched)
         self._sample_pub = self.create_publisher(DeflectionSample, topics.SAMPLES, 100)
+        self._goals = Offload(self, GOAL_THREADS)
         self._collect_server = ActionServer(
-            self, CollectSamples, topics.COLLECT_SAMPLES, execute_callback=self._collect,
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
-            callback_group=group)
+            self, CollectSamples, topics.COLLECT_SAMPLES,
+            execute_callback=self._goals.wrap(self._collect),
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
         self._refresh_server = ActionServer(
-            self, RefreshModel, topics.REFRESH_MODEL, execute_callback=self._refresh,
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
-            callback_group=group)
-        models = MutuallyExclusiveCallbackGroup()      # one model change at a time
-        self.create_service(Train, topics.TRAIN, self._train, callback_group=models)
-        self.create_service(UseModel, topics.USE_MODEL, self._use_model, callback_group=models)
+            self, RefreshModel, topics.REFRESH_MODEL,
+            execute_callback=self._goals.wrap(self._refresh),
+            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+        # One model change at a time: a service awaiting its call holds its callback group.
+        models, self._models = MutuallyExclusiveCallbackGroup(), Offload(self, 1)
+        self.create_service(Train, topics.TRAIN, self._models.wrap(self._train),
+                            callback_group=models)
+        self.create_service(UseModel, topics.USE_MODEL, self._models.wrap(self._use_model),
+                            callback_group=models)
         self._progress = ''        # of the running collection or refresh
         self._training = False
         self._dataset: tuple[str, int] | None = None    # last collected into, its samples
@@ -326,7 +328,8 @@ class LearnerNode(Node):
             result.error_string = 'busy: another collection is running'
         else:
             try:
-                self._run_collection(handle, goal, result)
+                with self._arm.attached():
+                    self._run_collection(handle, goal, result)
             except Exception as exc:   # last resort: a reason for the client, never a crash
                 self.get_logger().error(f'collection failed: {traceback.format_exc()}')
                 result.error_code = Result.FAILED
@@ -414,7 +417,8 @@ class LearnerNode(Node):
             result.error_string = 'busy: a collection or refresh is running'
         else:
             try:
-                self._run_refresh(handle, handle.request, result)
+                with self._arm.attached():
+                    self._run_refresh(handle, handle.request, result)
             except Exception as exc:   # last resort: a reason for the client, never a crash
                 self.get_logger().error(f'refresh failed: {traceback.format_exc()}')
                 result.error_code = RefreshModel.Result.FAILED
@@ -579,6 +583,8 @@ class LearnerNode(Node):
         return response
 
     def destroy_node(self) -> None:
+        self._goals.shutdown()
+        self._models.shutdown()
         self._chooser.shutdown(wait=False, cancel_futures=True)
         self._trainer.shutdown()
         self._collect_server.destroy()   # Node.destroy_node leaves actions (and the node) alive
@@ -640,7 +646,7 @@ class LearnerNode(Node):
                                f'dataset {info.dataset or "unknown"})')
 
 def main(args: list[str] | None = None) -> None:
-    run(LearnerNode, args, partial(MultiThreadedExecutor, num_threads=EXECUTOR_THREADS))
+    run(LearnerNode, args)
 
 
 if __name__ == '__main__':

@@ -16,18 +16,27 @@ equals :func:`flexarm_control.kinematics.forward` at the joint positions. The ca
 the hole plate, which lies behind the arm's plane (+y): ``tip_camera_link`` is tool-aligned,
 its optical frame has z along +y (the optical axis), x along the tool axis (image u) and y
 along −z of the tool (image v), as :mod:`flexarm_vision.camera_model` maps the plate to pixels.
+
+The transforms are plain quaternion arithmetic: scipy's ``Rotation`` costs a process some
+30 MB, and the state publisher, which makes ``/tf`` from them, needs nothing else of scipy.
+Only :func:`compose` and :func:`planar_pose`, which check the chain with it, import it.
 """
 from __future__ import annotations
 
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from flexarm_control import plane
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry
+
+if TYPE_CHECKING:
+    from scipy.spatial.transform import Rotation
+
+Quaternion = tuple[float, float, float, float]    # (x, y, z, w)
 
 BASE_FRAME = 'base_link'
 TIP_FRAME = 'tip_link'
@@ -86,17 +95,16 @@ def arm_joints(geometry: ArmGeometry, camera_offset: Sequence[float] = (0.0, 0.0
 
 def joint_transform(joint: Joint, position: float = 0.0) -> Transform:
     """parent -> child of ``joint`` at ``position`` [rad or m] (ignored for a fixed joint)."""
-    origin = Rotation.from_euler('xyz', joint.rpy)
+    roll, pitch, yaw = joint.rpy
+    origin = _product(_product(_about((0.0, 0.0, 1.0), yaw), _about((0.0, 1.0, 0.0), pitch)),
+                      _about((1.0, 0.0, 0.0), roll))          # URDF rpy: fixed axes x, y, z
     translation = np.asarray(joint.xyz, dtype=float)
-    axis = np.asarray(joint.axis, dtype=float)
+    rotation = origin
     if joint.kind == 'revolute':
-        rotation = origin * Rotation.from_rotvec(axis * position)
-    else:
-        rotation = origin
-        if joint.kind == 'prismatic':
-            translation = translation + origin.apply(axis * position)
-    return Transform(joint.parent, joint.child, _tuple(translation),
-                     _tuple(rotation.as_quat()))
+        rotation = _product(origin, _about(joint.axis, position))
+    elif joint.kind == 'prismatic':
+        translation = translation + _rotate(origin, np.asarray(joint.axis) * position)
+    return Transform(joint.parent, joint.child, _tuple(translation), rotation)
 
 
 def moving_transforms(joints: Sequence[Joint], positions: dict[str, float]) -> list[Transform]:
@@ -119,6 +127,8 @@ def planar_transform(parent: str, child: str, pose: Sequence[float]) -> Transfor
 
 def compose(transforms: Sequence[Transform]) -> tuple[np.ndarray, Rotation]:
     """The product of a parent-to-child sequence: (translation (3,), rotation)."""
+    from scipy.spatial.transform import Rotation
+
     translation, rotation = np.zeros(3), Rotation.identity()
     for t in transforms:
         translation = translation + rotation.apply(t.translation)
@@ -132,5 +142,26 @@ def planar_pose(translation: np.ndarray, rotation: Rotation) -> np.ndarray:
     return np.array([translation[0], translation[2], math.atan2(tool[2], tool[0])])
 
 
-def _tuple(values: np.ndarray) -> tuple[float, ...]:
-    return tuple(float(v) for v in values)
+def _tuple(values: np.ndarray) -> tuple[float, float, float]:
+    x, y, z = (float(v) for v in values)
+    return x, y, z
+
+
+def _about(axis: Sequence[float], angle: float) -> Quaternion:
+    """The rotation by ``angle`` [rad] about the unit vector ``axis``."""
+    s = math.sin(angle / 2.0)
+    return axis[0] * s, axis[1] * s, axis[2] * s, math.cos(angle / 2.0)
+
+
+def _product(a: Quaternion, b: Quaternion) -> Quaternion:
+    """The rotation ``b``, then ``a`` (Hamilton product a b)."""
+    ax, ay, az, aw = a
+    bx, by, bz, bw = b
+    return (aw * bx + ax * bw + ay * bz - az * by, aw * by - ax * bz + ay * bw + az * bx,
+            aw * bz + ax * by - ay * bx + az * bw, aw * bw - ax * bx - ay * by - az * bz)
+
+
+def _rotate(q: Quaternion, v: np.ndarray) -> np.ndarray:
+    """``v`` (3,) turned by ``q``."""
+    u, w = np.array(q[:3]), q[3]
+    return v + 2.0 * np.cross(u, np.cross(u, v) + w * v)

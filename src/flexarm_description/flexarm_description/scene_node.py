@@ -24,14 +24,12 @@ from std_msgs.msg import ColorRGBA, Float64, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from flexarm_control import topics
-from flexarm_control.at_payload import AtPayload
 from flexarm_control.deflection_field import deflection_field
 from flexarm_control.diagnostics import DiagnosticsPublisher
 from flexarm_control.health_report import OK, WARN, Status, status
 from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.predictors import load_predictor
 from flexarm_control.sampling import regions_from_dict
 from flexarm_description.chain import BASE_FRAME
 from flexarm_description.scene import (
@@ -105,6 +103,10 @@ class SceneNode(Node):
         self._arrows, self._changed, self._field_problem = [], True, ''
         if self._model is None or not self._model.path:
             return
+        # The predictors (scipy: some 45 MB of the process) are loaded once a model is in use.
+        from flexarm_control.at_payload import AtPayload
+        from flexarm_control.predictors import load_predictor
+
         try:
             model = AtPayload(load_predictor(self._model.path), self._payload)
         except (OSError, ValueError) as exc:

@@ -11,24 +11,38 @@ between them is the deflection. The two tips are also published as
 
 Each stream is published at most ``publish_frequency`` times a second of wall-clock time (the
 simulator publishes joint states at 100 Hz of sim time, 1000 a second at 10x real time), with
-the stamp of the message it comes from, like robot_state_publisher's ``publish_frequency``.
+the stamp of the message it comes from, like robot_state_publisher's ``publish_frequency``:
+joint states are taken raw and only the one published is parsed.
 
-Health on ``/diagnostics`` (``flexarm_state_publisher: frames``): STALE until a
-``/joint_states`` message comes, WARN when none came for ``JOINTS_STALE`` seconds or the last
-one lacked a joint, OK otherwise, with the /tf messages published and the tips seen.
+On demand (:mod:`flexarm_control.demand`): each input is subscribed only while what it makes
+is watched — ``/joint_states`` while ``/tf`` has a subscriber, ``/tip_pose`` while ``/tf`` or
+``/scene/measured_tip`` has one, ``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip``
+has one. Decision: watching the arm (rviz, Foxglove, a recorder) asks for the measured tip too,
+so the vision node and the camera run while someone watches; an unwatched graph measures only
+when a node measures.
+
+Health on ``/diagnostics`` (``flexarm_state_publisher: frames``): OK and idle while nobody
+watches ``/tf``; then STALE until a ``/joint_states`` message comes, WARN when none came for
+``JOINTS_STALE`` seconds or the last one lacked a joint, OK otherwise, with the /tf messages
+published and the tips seen.
 """
 from __future__ import annotations
 
 import time
 from collections.abc import Callable
+from functools import partial
 
 from geometry_msgs.msg import PoseStamped, TransformStamped
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
-from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile, ReliabilityPolicy
+from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
 from flexarm_control import topics
+from flexarm_control.demand import Demand, on_matched
 from flexarm_control.diagnostics import DiagnosticsPublisher
 from flexarm_control.health_report import OK, STALE, WARN, Status, status
 from flexarm_control.kinematics import ArmGeometry
@@ -50,6 +64,7 @@ from tf2_msgs.msg import TFMessage
 MEASURED_FRAME = 'tip_measured'
 TRUE_FRAME = 'tip_true'
 JOINTS_STALE = 5.0      # [s, wall] without /joint_states: the frames are stale
+NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # /joint_states
 
 
 class Throttle:
@@ -93,23 +108,39 @@ class StatePublisher(Node):
         header = Header(stamp=self.get_clock().now().to_msg())
         self.create_publisher(TFMessage, topics.TF_STATIC, latched).publish(TFMessage(
             transforms=[transform_msg(t, header) for t in fixed_transforms(self._joints)]))
-        self._tf = self.create_publisher(TFMessage, topics.TF, 100)
         self._counts = {'tf': 0, 'measured': 0, 'true': 0}
         self._last_joints: float | None = None      # monotonic time of the last joint state
         self._joint_problem = ''
-        DiagnosticsPublisher(self, self._statuses)
         self._throttles = {name: Throttle(frequency) for name in ('joints', 'measured', 'true')}
-        self.create_subscription(JointState, topics.JOINT_STATES, self._on_joints, 10)
         tips = {'measured': (topics.TIP_POSE, topics.MEASURED_TIP, MEASURED_FRAME),
                 'true': (topics.TIP_POSE_TRUTH, topics.TRUE_TIP, TRUE_FRAME)}
+        # Each input by name: how to subscribe it, and its subscription while it is wanted.
+        self._sources: dict[str, Callable[[], Subscription]] = {'joints': partial(
+            self.create_subscription, JointState, topics.JOINT_STATES, self._on_joints, NEWEST,
+            raw=True)}
+        self._inputs: dict[str, Subscription] = {}
+        demands = {name: Demand(partial(self._watch, name)) for name in ('joints', *tips)}
         for name, (source, target, frame) in tips.items():
-            publisher = self.create_publisher(PoseStamped, target, 10)
-            self.create_subscription(
-                TipPose, source,
-                lambda msg, n=name, p=publisher, f=frame: self._on_tip(msg, n, p, f), 10)
+            publisher = self.create_publisher(PoseStamped, target, 10, event_callbacks=(
+                PublisherEventCallbacks(matched=on_matched(target, demands[name]))))
+            self._sources[name] = partial(self.create_subscription, TipPose, source, partial(
+                self._on_tip, name=name, publisher=publisher, frame=frame), 10)
+        self._tf = self.create_publisher(TFMessage, topics.TF, 100, event_callbacks=(
+            PublisherEventCallbacks(matched=on_matched(topics.TF, *demands.values()))))
+        DiagnosticsPublisher(self, self._statuses)
 
-    def _on_joints(self, msg: JointState) -> None:
+    def _watch(self, name: str, wanted: bool) -> None:
+        """Subscribe input ``name`` while what it makes is watched."""
+        if wanted:
+            self._inputs[name] = self._sources[name]()
+        else:
+            self.destroy_subscription(self._inputs.pop(name))
+
+    def _on_joints(self, raw: bytes) -> None:
         self._last_joints = time.monotonic()
+        if not self._throttles['joints']():
+            return
+        msg = deserialize_message(raw, JointState)
         positions = dict(zip(msg.name, msg.position, strict=False))
         try:
             transforms = moving_transforms(self._joints, positions)
@@ -118,10 +149,9 @@ class StatePublisher(Node):
             self.get_logger().warn(self._joint_problem, throttle_duration_sec=10.0)
             return
         self._joint_problem = ''
-        if self._throttles['joints']():
-            self._tf.publish(TFMessage(transforms=[transform_msg(t, msg.header)
-                                                   for t in transforms]))
-            self._counts['tf'] += 1
+        self._tf.publish(TFMessage(transforms=[transform_msg(t, msg.header)
+                                               for t in transforms]))
+        self._counts['tf'] += 1
 
     def _on_tip(self, msg: TipPose, name: str, publisher, frame: str) -> None:
         if not msg.valid or not self._throttles[name]():
@@ -138,6 +168,8 @@ class StatePublisher(Node):
                   '/tf joint messages': self._counts['tf'],
                   'measured tips': self._counts['measured'], 'true tips': self._counts['true']}
         name = self.get_name()
+        if 'joints' not in self._inputs:
+            return [status(name, 'frames', OK, 'idle: no subscriber of /tf', values)]
         if self._last_joints is None:
             return [status(name, 'frames', STALE, 'no /joint_states yet', values)]
         if time.monotonic() - self._last_joints > JOINTS_STALE:

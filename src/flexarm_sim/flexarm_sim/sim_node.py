@@ -18,16 +18,26 @@ and ``offset`` [m] are writable too while error sources are on: a knock bends a 
 
 Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
 dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), counted in integer
-ticks so that stamps never drift or step back (:func:`tick_time`); the wall timer runs
-``real_time_factor`` times faster. When the CPU cannot keep up the simulation slows down, it
-never skips steps; ``benchmarks/sim_node.py`` measures the achieved rate.
+ticks so that stamps never drift or step back (:func:`tick_time`). A wall timer wakes the node
+once per ``/clock`` (``clock_rate`` times a wall second, at most once a tick), and each wake-up
+steps the ticks of one clock period (40 at a 10x factor) and publishes ``/clock`` with the
+last: the ticks' messages leave in one burst, so the simulator and its subscribers wake up once
+per burst, not once per tick (a wake-up costs more than the step). When the CPU cannot keep
+up the simulation slows down, it never skips steps; ``benchmarks/sim_node.py`` measures the
+achieved rate.
+
+Only what someone consumes is made: ``/joint_states``, the ground truth and the camera images
+are built and published while they have a subscriber (an image costs ~10 ms to render; the
+vision node subscribes only while a node measures, :mod:`flexarm_control.demand`). The
+plant is stepped regardless: its state is the arm's.
 
 Several arms in one ROS domain (``flexarm up --namespace``) share one ``/clock``: the simulator
 of the first arm owns it (``clock_source: own``); the simulators started later follow it
 (``follow``, chosen by the supervisor when it finds a ``/clock`` publisher): they publish no
-clock, start at the owner's time and step, each timer tick, until their time has caught up
-with the last ``/clock`` (at most ``FOLLOW_CATCH_UP`` steps a tick). Their stamps are therefore
-on the one clock every node of the domain waits on; if the owner stops, their time stops.
+clock, start at the owner's time and step, on each ``/clock`` of the owner, until their time
+has caught up with it (at most ``FOLLOW_CATCH_UP`` steps a ``/clock``). Their stamps are
+therefore on the one clock every node of the domain waits on; if the owner stops, their time
+stops.
 
 Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
 :func:`controller_status` and the commands' :class:`~flexarm_control.health_report.CommandLog`.
@@ -63,7 +73,7 @@ FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
 BASE_FRAME = 'base_link'
 CLOCK_SOURCES = ('own', 'follow')
-FOLLOW_CATCH_UP = 20     # steps a timer tick at most, following /clock
+FOLLOW_CATCH_UP = 200    # steps at most on one /clock, following (2 s of sim time)
 CAMERA_FRAME = 'tip_camera_optical_frame'   # flexarm_description's URDF
 
 
@@ -102,8 +112,9 @@ class SimNode(Node):
                             'simulated seconds per wall-clock second')
         self._js_rate = declare(self, 'joint_state_rate', 100.0,
                                 '[Hz, sim time] /joint_states and ground-truth rate')
-        clock_rate = declare(self, 'clock_rate', 100.0,
-                             '[Hz, wall time] /clock publications (at most one per tick)')
+        clock_rate = declare(self, 'clock_rate', 25.0,
+                             '[Hz, wall time] /clock publications and wake-ups (at most one '
+                             'per tick)')
         camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
         clock_source = declare(self, 'clock_source', 'own',
                                'own: publish /clock; follow: step to the /clock of another '
@@ -136,9 +147,10 @@ class SimNode(Node):
         self._dt = 1.0 / self._js_rate
         self._camera_every = max(1, round(self._js_rate / camera_rate))
         self._tick = 0
-        # Every node on sim time handles each /clock message in Python: at 10x real time a
-        # /clock per tick would be 1000 a second; 100 a second (10 ms wall) is plenty for waits.
-        self._clock_every = max(1, round(self._js_rate * self._rtf / clock_rate))
+        # Every node on sim time wakes up for each /clock message, and a wake-up costs an
+        # idle rclpy node ~0.8 ms of CPU here (0.08 core at 100 a second); 25 a second (a node's
+        # time moves in steps of 40 ms wall) is plenty for waits of seconds.
+        self._clock_every = max(1, round(self._js_rate * self._rtf / clock_rate))   # ticks
         self._commands = CommandLog()
         self._hardware_id = ''      # the controller's: none for the simulator
         self._reported = (time.monotonic(), 0)   # wall time and tick of the last report
@@ -152,9 +164,10 @@ class SimNode(Node):
         self._setup_joint_io()
         self._camera_info = self._make_camera_info()
         self._info_pub.publish(self._camera_info)
-        self.create_timer(self._dt / self._rtf, self._on_tick)
         if self._follow:
             self.create_subscription(Clock, topics.CLOCK, self._on_clock, 10)
+        else:
+            self.create_timer(self._clock_every * self._dt / self._rtf, self._on_wake)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._now)
@@ -169,6 +182,8 @@ class SimNode(Node):
                                  lambda msg: self.apply_command(list(msg.data)), 10)
 
     def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
+        if not self._js_pub.get_subscription_count():
+            return
         self._js_pub.publish(JointState(
             header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
             position=state.joint_positions.tolist(), velocity=state.joint_velocities.tolist()))
@@ -243,19 +258,19 @@ class SimNode(Node):
         return SetParametersResult(successful=True)
 
     def _on_clock(self, msg: Clock) -> None:
+        """Following: step up to the owner's time (the first /clock: start there, at rest)."""
         tick = ticks_at(msg.clock.sec, msg.clock.nanosec, self._js_rate)
         if self._clock_tick is None:
-            self._tick = tick             # start at the owner's time, at rest
+            self._tick = tick
             self.get_logger().info(f'following /clock from {tick * self._dt:.3f} s')
         self._clock_tick = tick
-
-    def _on_tick(self) -> None:
-        if not self._follow:
+        for _ in range(min(self._clock_tick - self._tick, FOLLOW_CATCH_UP)):
             self._advance()
-            return
-        if self._clock_tick is not None:
-            for _ in range(min(self._clock_tick - self._tick, FOLLOW_CATCH_UP)):
-                self._advance()
+
+    def _on_wake(self) -> None:
+        """Owning the clock: step one clock period (its last tick publishes /clock)."""
+        for _ in range(self._clock_every):
+            self._advance()
 
     def _advance(self) -> None:
         self._dynamics.step(self._dt)

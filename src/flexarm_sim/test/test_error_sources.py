@@ -191,6 +191,22 @@ def test_a_payload_change_at_run_time_moves_the_tip_as_the_heavier_plant_would()
     assert arm.plant.payload == 5.0
 
 
+def test_a_step_at_rest_is_what_evaluating_the_plant_anew_gives_bit_for_bit():
+    """The arm keeps the plant's pose and the tip frequency while it rests (every source on:
+    thermal strain, a payload change, moves with their joint errors and friction)."""
+    kept, anew = make(only(*NAMES)), make(only(*NAMES))
+    events = {50: lambda arm: arm.command(TARGET), 900: lambda arm: arm.set_payload(3.0),
+              1200: lambda arm: arm.command(START), 1900: lambda arm: arm.hold()}
+    for step in range(2500):
+        for arm in (kept, anew):
+            events.get(step, lambda arm: None)(arm)
+        anew._kept = None                   # evaluated anew at every step
+        kept.step(0.01)
+        anew.step(0.01)
+        for field in ('joint_positions', 'joint_velocities', 'tip_pose', 'tip_velocity'):
+            assert np.array_equal(getattr(kept.state, field), getattr(anew.state, field))
+
+
 def test_a_repeated_command_is_the_same_move_with_the_same_error():
     errors = ArmErrors.from_dict(only('repeatability'), PLANT.backlash)
     start = np.array([0.0, 0.6, -0.5, -0.5])

@@ -7,6 +7,14 @@ pose comes from :class:`TipPoseEstimator`; whether the arm was at rest from
 :class:`SettleDetector`. An invalid measurement carries NaN coordinates and the reason in
 ``status``.
 
+On demand (:mod:`flexarm_control.demand`): images and joint states are subscribed only while
+``/tip_pose`` has a subscriber — a node that measures (the learner and the compensator
+subscribe for a measurement only), the state publisher while someone watches ``/tf``, a
+recorder, a viewer. Otherwise nothing is received or estimated, and the simulator renders no
+image. Each start of measuring begins a new settle detection: stillness seen before is no
+evidence about the arm now. Of the images only the newest is kept: a frame that waited
+behind others would report the tip late.
+
 Intrinsics: the camera's calibration as its driver publishes it wins. config/camera.yaml gives
 the mounting (standoff, offset) and the intrinsics used until the first camera_info; a
 camera_info with other values (K, plumb_bob D up to k3, size) replaces them, with one log line
@@ -21,8 +29,8 @@ calibrate``) when there is one, else zeros; ``flexarm calibrate`` also sets the 
 the running node. A damaged file is reported and the node runs uncorrected.
 
 Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
-:func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds and
-:func:`camera_info_status`.
+:func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
+nobody asks for tip poses) and :func:`camera_info_status`.
 """
 from __future__ import annotations
 
@@ -31,13 +39,16 @@ import time
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import qos_profile_sensor_data
+from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
+from rclpy.subscription import Subscription
 from sensor_msgs.msg import CameraInfo, Image, JointState
 
 from flexarm_control import topics
+from flexarm_control.demand import Demand, on_matched
 from flexarm_control.diagnostics import DiagnosticsPublisher
 from flexarm_control.health_report import (
     ERROR,
@@ -64,6 +75,7 @@ DISTORTION_MODELS = ('plumb_bob', '')   # '' with an empty D: an ideal lens
 STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
 HEALTH_WINDOW = 10.0      # [s, wall] images the measurement health looks back on
 MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health warns
+NEWEST_IMAGE = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
 def image_to_array(msg: Image) -> tuple[np.ndarray | None, str]:
@@ -114,6 +126,12 @@ def measurement_status(node: str, camera: str, window: WindowSummary, span: floa
                   f'{window.median * 1e3:.4f} mm', values, camera)
 
 
+def idle_status(node: str, camera: str) -> Status:
+    """``<node>: measurements`` while nobody subscribes to ``/tip_pose``: OK, nothing to do."""
+    return status(node, 'measurements', OK, 'idle: no subscriber of /tip_pose',
+                  hardware_id=camera)
+
+
 def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info: bool,
                        problem: str) -> Status:
     """``<node>: camera_info``: ERROR while the camera_info is refused (every image is then
@@ -151,17 +169,12 @@ class VisionNode(Node):
         self._recent = RecentWindow(HEALTH_WINDOW)    # fit residuals of the valid images
         self._last_invalid = ''
         self._camera_id = ''          # the frame id of the camera's images
-        self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10)
-        self.create_subscription(Image, topics.CAMERA_IMAGE, self._on_image,
-                                 qos_profile_sensor_data)
         # volatile: matches both a latched (simulator) and a per-frame (driver) camera_info
         self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_info, 1)
-        # Raw: at a 10x real-time factor /joint_states comes 1000 times a wall second; only
-        # a message that differs from the previous one beyond its stamp is parsed (a still
-        # arm repeats itself; any move changes the positions and is never missed).
         self._last_joints = b''
-        self.create_subscription(JointState, topics.JOINT_STATES, self._on_joints, 10,
-                                 raw=True)
+        self._inputs: list[Subscription] = []      # images and joint states while measuring
+        self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10, event_callbacks=(
+            PublisherEventCallbacks(matched=on_matched(topics.TIP_POSE, Demand(self._measure)))))
         self._diagnostics = DiagnosticsPublisher(self, self.statuses)
         i = self._estimator.camera.intrinsics
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
@@ -182,12 +195,30 @@ class VisionNode(Node):
         self.get_logger().info(f'tool calibration from {path}: {record["correction"]}')
         return record['correction']
 
+    def _measure(self, wanted: bool) -> None:
+        """Subscribe the inputs when ``/tip_pose`` gains its first subscriber, drop them when
+        it loses its last. Raw joint states: at a 10x real-time factor they come 1000 times a
+        wall second; only one that differs from the previous beyond its stamp is parsed (a
+        still arm repeats itself; any move changes the positions and is never missed)."""
+        for subscription in self._inputs:
+            self.destroy_subscription(subscription)
+        self._inputs = []
+        if wanted:
+            self._settle = SettleDetector(self._settle.settings)
+            self._last_joints = b''
+            self._inputs = [
+                self.create_subscription(Image, topics.CAMERA_IMAGE, self._on_image,
+                                         NEWEST_IMAGE),
+                self.create_subscription(JointState, topics.JOINT_STATES, self._on_joints, 10,
+                                         raw=True)]
+
     def statuses(self) -> list[Status]:
         """The node's health (module docstring): measurements, camera_info."""
         name = self.get_name()
         return [measurement_status(name, self._camera_id,
                                    self._recent.summary(time.monotonic()), HEALTH_WINDOW,
-                                   self._last_invalid),
+                                   self._last_invalid) if self._inputs else
+                idle_status(name, self._camera_id),
                 camera_info_status(name, self._camera_id, self._estimator.camera.intrinsics,
                                    self._info_used, self._info_problem)]
 

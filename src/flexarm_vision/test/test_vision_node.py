@@ -216,3 +216,28 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
     count = len(received)
     wait_for(lambda: next((m for m in received[count:] if m.valid), None), 10.0,
              'a valid /tip_pose once camera_info is usable again')
+
+
+@pytest.mark.node
+def test_images_and_joint_states_are_taken_only_while_someone_wants_tip_poses(
+        ros_node, launch, wait_for) -> None:
+    health: dict[str, DiagnosticStatus] = {}
+    ros_node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS, lambda m: health.update(
+        {s.name: s for s in m.status}), 10)
+    launch('flexarm_vision', use_sim_time=False)
+
+    def taken(topic: str) -> bool:
+        return any(s.node_name == 'flexarm_vision'
+                   for s in ros_node.get_subscriptions_info_by_topic(topic))
+
+    measurements = 'flexarm_vision: measurements'
+    wait_for(lambda: measurements in health, 30.0, 'the vision node on /diagnostics')
+    assert not taken(topics.CAMERA_IMAGE) and not taken(topics.JOINT_STATES)
+    assert health[measurements].level == DiagnosticStatus.OK
+    assert health[measurements].message == 'idle: no subscriber of /tip_pose'
+    wanting = ros_node.create_subscription(TipPose, topics.TIP_POSE, lambda _: None, 10)
+    wait_for(lambda: taken(topics.CAMERA_IMAGE) and taken(topics.JOINT_STATES), 10.0,
+             'the vision node to subscribe to images and joint states')
+    ros_node.destroy_subscription(wanting)
+    wait_for(lambda: not taken(topics.CAMERA_IMAGE) and not taken(topics.JOINT_STATES), 10.0,
+             'the vision node to drop them')

@@ -249,7 +249,7 @@ def graph_campaigns(count: int, regions: list[str], frames: int | None) -> dict[
                     true_pose = np.array([truth[i][1:] for i in at[known]])
                     measured = np.array([[s.measured_pose.x, s.measured_pose.y,
                                           s.measured_pose.phi] for s in samples])[known]
-                    miss = measured - true_pose
+                    miss = measured - true_pose if known.any() else np.full((1, 3), np.nan)
                     scatter = 1e3 * np.hypot(*(miss[:, :2] - np.median(miss[:, :2], axis=0)).T)
                     out.setdefault(strategy, {})[region] = {
                         'collected': int(result.collected), 'skipped': int(result.skipped),

@@ -117,19 +117,23 @@ def arms(domain_id, tmp_path):
             graph.stop(timeout=10.0)
 
 
-def test_two_arms_learn_and_move_each_with_its_own_data_only(arms, ros_node):
+def test_two_arms_learn_and_move_each_with_its_own_data_only(arms, ros_node, wait_for):
     clients, tmp = arms
     latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
     heard: dict[str, dict[str, list]] = {ns: {'samples': [], 'models': [], 'active': [],
                                               'outcomes': []} for ns in ARMS}
+    matched = []
     for ns, lists in heard.items():
         for kind, message, topic, qos in (
                 ('samples', DeflectionSample, topics.SAMPLES, 100),
                 ('models', ModelInfo, topics.MODEL, latched),
                 ('active', ModelInfo, topics.ACTIVE_MODEL, latched),
                 ('outcomes', GoalOutcome, topics.OUTCOMES, 10)):
-            ros_node.create_subscription(message, topics.absolute(topic, ns),
-                                         lists[kind].append, qos)
+            matched.append(ros_node.create_subscription(
+                message, topics.absolute(topic, ns), lists[kind].append, qos))
+    # A sample published before its subscription matched would not be heard.
+    wait_for(lambda: all(s.get_publisher_count() for s in matched), 30.0,
+             "the arms' publishers matched")
     statuses: set[str] = set()
     ros_node.create_subscription(DiagnosticArray, '/diagnostics',
                                  lambda m: statuses.update(s.name for s in m.status), 10)

@@ -149,17 +149,14 @@ def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
 
 
 def _warm_up() -> None:
-    """Worker start: one compute thread (the graph needs the other core), torch and the GP
-    imported (else an active collection's first choices come late)."""
-    import sklearn.gaussian_process  # noqa: F401
-    import torch
+    """Worker start: one compute thread (the graph needs the other core), the training and
+    active-sampling code imported (else an active collection's first choices come late)."""
     from threadpoolctl import threadpool_limits
 
     import flexarm_control.active_sampling  # noqa: F401
     import flexarm_control.training  # noqa: F401
 
     threadpool_limits(1)
-    torch.set_num_threads(1)
 
 
 def dataset_name_error(name: str) -> str | None:

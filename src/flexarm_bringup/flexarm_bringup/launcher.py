@@ -253,21 +253,7 @@ def owned_shm(pid: int, shm_dir: Path = SHM_DIR) -> list[Path]:
     Asked of a named process instead of guessed from the whole folder: a file that merely
     looks unused may be one another participant of the machine is just creating.
     """
-    held: set[tuple[int, int]] = set()
-    try:
-        lines = Path('/proc/locks').read_text().splitlines()
-    except OSError:
-        lines = []
-    for line in lines:
-        fields = line.split()
-        if len(fields) < 6 or fields[1] != 'FLOCK' or '->' in fields:
-            continue
-        try:
-            if int(fields[4]) == pid:
-                major, minor, inode = fields[5].split(':')
-                held.add((os.makedev(int(major, 16), int(minor, 16)), int(inode)))
-        except ValueError:
-            continue
+    held = _flocks(pid)
     owned = []
     for lock in shm_dir.glob('fastrtps_*_el'):
         try:
@@ -284,14 +270,54 @@ def owned_shm(pid: int, shm_dir: Path = SHM_DIR) -> list[Path]:
 
 
 def remove_shm_of_dead(files: list[Path], shm_dir: Path = SHM_DIR) -> int:
-    """Remove ``files`` (:func:`owned_shm` of processes that are gone) that no live process
-    maps any more (a port file is shared by every participant listening on that port, so it
-    stays while another maps it); clear the list; how many were removed."""
-    mapped = _mapped_files(shm_dir)
-    kept = mapped | {str(shm_dir / f'sem.{Path(m).name}_mutex') for m in mapped}
-    removed = _unlink(*(f for f in files if str(f) not in kept))
+    """Remove ``files`` (:func:`owned_shm` of processes that are gone); clear the list; how
+    many were removed. A segment goes although others may still map it (they opened it to
+    write to its dead owner; their mappings outlive the name). A port stays while another
+    participant uses it (:func:`shm_in_use`): every listener on that port shares it."""
+    in_use = shm_in_use(shm_dir)
+    removed = _unlink(*(f for f in files
+                        if 'fastrtps_port' not in f.name or str(f) not in in_use))
     files.clear()
     return removed
+
+
+def shm_in_use(shm_dir: Path = SHM_DIR) -> set[str]:
+    """Files of ``shm_dir`` a live process maps or holds a lock on, with the lock and mutex
+    files of every mapped port."""
+    mapped = _mapped_files(shm_dir)
+    used = set(mapped)
+    for path in mapped:
+        used |= {f'{path}_el', str(shm_dir / f'sem.{Path(path).name}_mutex')}
+    held = _flocks()
+    for path in shm_dir.glob('fastrtps_*'):
+        try:
+            info = path.stat()
+        except OSError:
+            continue
+        if (info.st_dev, info.st_ino) in held:
+            used.add(str(path))
+    return used
+
+
+def _flocks(pid: int | None = None) -> set[tuple[int, int]]:
+    """(device, inode) of the files flock-ed by ``pid`` (by any process if None), from
+    /proc/locks."""
+    held: set[tuple[int, int]] = set()
+    try:
+        lines = Path('/proc/locks').read_text().splitlines()
+    except OSError:
+        return held
+    for line in lines:
+        fields = line.split()
+        if len(fields) < 6 or fields[1] != 'FLOCK' or '->' in fields:
+            continue
+        try:
+            if pid is None or int(fields[4]) == pid:
+                major, minor, inode = fields[5].split(':')
+                held.add((os.makedev(int(major, 16), int(minor, 16)), int(inode)))
+        except ValueError:
+            continue
+    return held
 
 
 def _unlink(*paths: Path) -> int:

@@ -6,6 +6,7 @@ import pytest
 
 from flexarm_bringup.launcher import owned_shm
 from flexarm_bringup.supervisor import Graph
+from flexarm_control import liveness
 
 pytestmark = pytest.mark.node
 
@@ -28,7 +29,7 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
                   report=reports.append)
     graph.start()
     try:
-        graph.wait_ready(60.0)
+        graph.wait_ready(liveness.limit(60.0))
         assert set(graph.nodes) == {'flexarm_sim', 'flexarm_vision', 'flexarm_learner',
                                     'flexarm_compensator', 'flexarm_state_publisher',
                                     'flexarm_scene', 'flexarm_recorder'}
@@ -43,7 +44,7 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
         assert graph.check() == ['flexarm_vision']
         assert any('flexarm_vision exited with code -9' in r for r in reports)
         assert vision.restarts == 1 and vision.process.pid != old_pid
-        graph.wait_ready(30.0)                           # /tip_pose is back
+        graph.wait_ready(liveness.limit(30.0))           # /tip_pose is back
 
         assert [p.name for p in left if p.exists() and "port" not in p.name] == []   # restart
         sim = graph.nodes['flexarm_sim']                 # restart: false

@@ -202,15 +202,6 @@ def launch(domain_id: int, tmp_path: Path) -> Iterator[Launcher]:
     launcher.stop_all()
 
 
-@pytest.fixture(scope='module')
-def launch_shared(domain_id: int, tmp_path_factory: pytest.TempPathFactory
-                  ) -> Iterator[Launcher]:
-    """Nodes shared by the tests of a module (one running graph), stopped when it ends."""
-    launcher = Launcher(domain_id, tmp_path_factory.mktemp('shared'))
-    yield launcher
-    launcher.stop_all()
-
-
 @pytest.fixture
 def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     """An rclpy node in its own context on the test's domain, spun in a background thread.

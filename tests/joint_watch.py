@@ -14,7 +14,6 @@ class JointWatch:
 
     def __init__(self) -> None:
         self.q: np.ndarray | None = None
-        self.count = 0            # joint states heard
         self.still_for = 0.0      # [s, sim time] since the joints last moved
         self._still_since = 0.0
 
@@ -23,5 +22,5 @@ class JointWatch:
         stamp = msg.header.stamp.sec + 1e-9 * msg.header.stamp.nanosec
         if self.q is None or np.max(np.abs(q - self.q)) > MOVED:
             self._still_since = stamp
-        self.q, self.count = q, self.count + 1
+        self.q = q
         self.still_for = stamp - self._still_since

@@ -47,7 +47,8 @@ ROBOT_NODES = {'sim': {'flexarm_sim'}, 'bridge': {'flexarm_bridge', 'flexarm_fak
 class StepTimer:
     """Monotonic times at which one joint4 step shows up at each stage after its command."""
 
-    def __init__(self) -> None:
+    def __init__(self, stages: tuple[str, ...]) -> None:
+        self._stages = stages          # a step is done once every one of them is marked
         self._lock = threading.Lock()
         self._step: tuple[float, float] | None = None       # (from, goal) of joint4
         self.marks: dict[str, float] = {}
@@ -67,8 +68,8 @@ class StepTimer:
         with self._lock:
             if self._step is not None and stage not in self.marks:
                 self.marks[stage] = t
-        if stage == 'joint_states':
-            self.done.set()
+            if all(s in self.marks for s in self._stages):
+                self.done.set()
 
 
 def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path,
@@ -83,7 +84,9 @@ def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path
     nodes = [NodeProcess(spec, env, run_dir / f'{spec.name}.log', overrides.get(spec.name))
              for spec in load_graph(robot)
              if not robot_only or spec.name in ROBOT_NODES[robot]]
-    timer = StepTimer()
+    # The relay marks its stages from its own thread, possibly after /joint_states (it relays
+    # first): a tapped step is complete only when all three are in.
+    timer = StepTimer(STAGES if tap else ('joint_states',))
 
     def on_frame(direction: str, t: float, frame: proto.Frame) -> None:
         if direction == TO_CONTROLLER and frame.type == proto.JOINT_COMMAND:

@@ -1,6 +1,7 @@
 """A TCP relay between the PC (``flexarm_bridge``) and a robot controller, for tests and
-benchmarks: it can cut the link, inject bytes towards the PC, and report every protocol frame
-that passes with the time it arrived (``time.monotonic``, comparable across processes).
+benchmarks: it can cut the link, inject bytes towards the PC, report every plain (version 1)
+protocol frame that passes with the time it arrived (``time.monotonic``, comparable across
+processes), and record the raw bytes of each connection (an eavesdropper's recording).
 """
 from __future__ import annotations
 
@@ -19,13 +20,16 @@ class LinkProxy:
     """PC -> ``127.0.0.1:listen_port`` -> relay -> ``127.0.0.1:target_port`` (controller)."""
 
     def __init__(self, listen_port: int, target_port: int,
-                 on_frame: FrameObserver | None = None) -> None:
+                 on_frame: FrameObserver | None = None, record: bool = False) -> None:
         self._server = socket.create_server(('127.0.0.1', listen_port))
         self._server.settimeout(0.2)
         self._target = target_port
         self._on_frame = on_frame
         self._pair: tuple[socket.socket, socket.socket] | None = None
         self.connections = 0
+        self._record = record
+        # with ``record``: per connection, the bytes that passed each way (by direction)
+        self.recorded: list[dict[str, bytearray]] = []
         self._running = True
         threading.Thread(target=self._accept, daemon=True).start()
 
@@ -45,16 +49,22 @@ class LinkProxy:
                 s.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             self._pair = (pc, controller)
             self.connections += 1
+            tape = {TO_CONTROLLER: bytearray(), TO_PC: bytearray()}
+            if self._record:
+                self.recorded.append(tape)
             for src, dst, direction in ((pc, controller, TO_CONTROLLER),
                                         (controller, pc, TO_PC)):
-                threading.Thread(target=self._pump, args=(src, dst, direction),
+                threading.Thread(target=self._pump, args=(src, dst, direction, tape[direction]),
                                  daemon=True).start()
 
-    def _pump(self, src: socket.socket, dst: socket.socket, direction: str) -> None:
+    def _pump(self, src: socket.socket, dst: socket.socket, direction: str,
+              tape: bytearray) -> None:
         decoder = proto.Decoder()
         try:
             while data := src.recv(65536):
                 arrived = time.monotonic()
+                if self._record:
+                    tape += data
                 dst.sendall(data)
                 if self._on_frame is not None:
                     for frame in decoder.feed(data)[0]:

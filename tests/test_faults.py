@@ -267,7 +267,7 @@ class RawPC:
     def send(self, frame_type: int, tamper: bool = False, **fields) -> int:
         from flexarm_bridge import controller_protocol as proto
         self.seq += 1
-        key = None if self.auth is None else self.auth.sending_key(frame_type in proto.HANDSHAKE)
+        key = None if self.auth is None else proto.frame_key(self.auth, frame_type, True)
         data = bytearray(proto.encode(frame_type, self.seq, key, **fields))
         if tamper:
             data[12] ^= 0x01                     # a bit of the payload
@@ -315,9 +315,8 @@ def test_only_a_pc_with_the_site_key_commands_the_arm(launch, domain_id, tmp_pat
 
     pc = RawPC(port, LinkAuth(load_key(key_file), PC))
     pc.listen(0.5)
-    hello, = pc.of_type(proto.HELLO)
-    pc.auth.start_session(hello.fields['nonce'])
-    pc.send(proto.AUTH, nonce=pc.auth.nonce)
+    assert pc.of_type(proto.HELLO)                 # taken by its decoder: answer it
+    pc.send(proto.AUTH, **pc.auth.answer())
     pc.listen(0.5)
     state = pc.of_type(proto.JOINT_STATE)[-1]
     assert not state.fields['status'] & proto.STATUS_MOVING    # the stranger moved nothing
@@ -325,7 +324,7 @@ def test_only_a_pc_with_the_site_key_commands_the_arm(launch, domain_id, tmp_pat
     target = [start[0] + 0.02, *start[1:]]
     valid = pc.send(proto.JOINT_COMMAND, positions=target)
     tampered = pc.send(proto.JOINT_COMMAND, tamper=True, positions=target)
-    pc.conn.sendall(proto.encode(proto.JOINT_COMMAND, valid, pc.auth.sending_key(False),
+    pc.conn.sendall(proto.encode(proto.JOINT_COMMAND, valid, pc.auth.send_key,
                                  positions=[start[0] - 0.2, *start[1:]]))    # replayed seq
     pc.listen(1.5)
     pc.conn.close()

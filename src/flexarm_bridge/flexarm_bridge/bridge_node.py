@@ -13,12 +13,17 @@ Link handling (a background thread does all socket I/O; ROS callbacks never bloc
 * link lost (closed, error, or no frame for ``heartbeat_timeout``) → logged, commands are
   dropped (not queued) while it is down, reconnect after ``retry_min``; after reconnecting the
   arm moves only on a fresh command — nothing is replayed. The controller holds the arm on
-  link loss (protocol). The backoff restarts from ``retry_min`` only once a controller's
-  HELLO was accepted, so one that accepts and drops connections is not hammered;
-* commands and joint states pass only once the HELLO of the connection has been accepted;
-* with ``link_key_file`` the link is authenticated (PROTOCOL.md, Authentication): the HELLO must
-  be tagged with the site key, the bridge answers with AUTH and tags every frame; without a key
-  the bridge refuses to start for a controller that is not on a loopback address.
+  link loss (protocol). The backoff restarts from ``retry_min`` only once a link came up, so
+  a controller that accepts and drops connections (or never proves the key) is not hammered;
+* the link is up ("linked": diagnostics OK, commands forwarded) from the connection's first
+  accepted JOINT_STATE: after the HELLO was accepted, and with a key, authenticated;
+* with ``link_key_file`` the link is authenticated (PROTOCOL.md, Authentication, version 3):
+  the bridge answers the HELLO with AUTH (its nonce and proof of the key), trusts the
+  controller only once its AUTH_OK proved the key for this connection's nonces, and from then
+  on tags every frame; only authenticated frames count as a sign of life, so the session must
+  start within ``heartbeat_timeout``. The controller's ERROR before the session (e.g. busy) is
+  logged and reported as unauthenticated information. Without a key the bridge refuses to start
+  for a controller that is not on a loopback address.
 * malformed frames → rejected and logged; the link survives, unless ``max_errors``
   consecutive frames are rejected, then it is reset.
 
@@ -31,6 +36,7 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from dataclasses import dataclass, field
 
 from rclpy.node import Node
 from sensor_msgs.msg import JointState
@@ -48,9 +54,10 @@ from flexarm_control.node_params import declare, declare_tree
 
 def link_status(node: str, controller: str, linked: bool, down_for: float, last_error: str,
                 connects: int, retry_max: float) -> Status:
-    """``<node>: controller link``: OK while linked (the controller's HELLO accepted); WARN
-    while reconnecting, i.e. down for at most ``retry_max`` (the longest backoff); ERROR once
-    down longer (or not linked that long after start): commands are dropped meanwhile."""
+    """``<node>: controller link``: OK while linked (a joint state of the connection accepted,
+    authenticated with a key); WARN while reconnecting, i.e. down for at most ``retry_max``
+    (the longest backoff); ERROR once down longer (or not linked that long after start):
+    commands are dropped meanwhile."""
     values = {'controller': controller, 'linked': linked,
               'down for [s]': 0.0 if linked else round(down_for, 1),
               'reconnects': max(connects - 1, 0), 'last error': last_error}
@@ -60,7 +67,28 @@ def link_status(node: str, controller: str, linked: bool, down_for: float, last_
         return status(node, 'controller link', WARN, f'reconnecting to {controller}'
                       + (f' ({last_error})' if last_error else ''), values, controller)
     return status(node, 'controller link', ERROR, f'link down for {down_for:.0f} s: '
-                  f'{last_error or "no HELLO from the controller"}', values, controller)
+                  f'{last_error or "no joint state from the controller"}', values, controller)
+
+
+@dataclass
+class Connection:
+    """One connection to the controller: its socket, authentication (with a site key), frames
+    and what the controller said before the link came up."""
+    sock: socket.socket
+    auth: LinkAuth | None
+    encoder: proto.Encoder = field(init=False)
+    hello: bool = False           # its HELLO accepted (version, joints)
+    heard: float = field(default_factory=time.monotonic)   # last sign of life
+    beat: float = field(default_factory=time.monotonic)    # last HEARTBEAT sent
+    refusal: str = ''             # the controller's ERROR before the link came up
+
+    def __post_init__(self) -> None:
+        self.encoder = proto.Encoder(self.auth)
+
+    def counts(self, frame: proto.Frame) -> bool:
+        """Whether ``frame`` is a sign of life: any valid frame without a key, else only
+        authenticated session frames (replayed, reflected or handshake frames never are)."""
+        return self.auth is None or frame.authenticated
 
 
 class BridgeNode(Node):
@@ -84,15 +112,13 @@ class BridgeNode(Node):
         except ValueError as exc:
             self.get_logger().fatal(f'refusing to connect: {exc}')
             raise SystemExit(1) from None
-        self._auth: LinkAuth | None = None        # of the current connection, with a site key
         self._pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
         self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS, self._on_command, 10)
-        self._lock = threading.Lock()         # guards _linked, _seq and every send
-        self._linked: socket.socket | None = None    # connected and its HELLO accepted
-        self._seq = 0
+        self._lock = threading.Lock()         # guards _linked and every send
+        self._linked: Connection | None = None    # the connection whose link is up
         self._commands = CommandLog()
         self._down_since: float | None = time.monotonic()   # None while linked
-        self._connects = 0            # HELLOs accepted
+        self._connects = 0            # links that came up
         self._last_error = ''         # why the link last failed
         self._running = True
         threading.Thread(target=self._link_loop, daemon=True).start()
@@ -122,16 +148,14 @@ class BridgeNode(Node):
             self.get_logger().error('joint command dropped: no link to the controller '
                                     '(send a fresh command once it is back)')
 
-    def _send(self, sock: socket.socket, frame_type: int, **fields) -> bool:
-        """Send one frame (hold ``_lock``); whether it went out (not before AUTH, if keyed)."""
-        key = None
-        if self._auth is not None:
-            key = self._auth.sending_key(frame_type in proto.HANDSHAKE)
-            if key is None:
-                return False
-        self._seq += 1
+    def _send(self, conn: Connection, frame_type: int, **fields) -> bool:
+        """Send one frame (hold ``_lock``); whether it went out (with a key, nothing but AUTH
+        before the session)."""
+        data = conn.encoder.encode(frame_type, **fields)
+        if data is None:
+            return False
         try:
-            sock.sendall(proto.encode(frame_type, self._seq, key, **fields))
+            conn.sock.sendall(data)
             return True
         except OSError:
             return False
@@ -153,14 +177,16 @@ class BridgeNode(Node):
             sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)   # small frames, now
             sock.settimeout(0.05)
             self.get_logger().info(f'connected to the controller at {self._host}:{self._port}')
-            reason = self._receive(sock)
+            conn = Connection(sock, None if self._site_key is None
+                              else LinkAuth(self._site_key, PC))
+            reason = self._receive(conn)
             with self._lock:
-                accepted, self._linked = self._linked is sock, None
+                linked, self._linked = self._linked is conn, None
             sock.close()
             if not self._running:
                 break
             self._last_error = reason
-            if accepted:
+            if linked:
                 delay = self._retry_min
                 self._down_since = time.monotonic()
             self.get_logger().error(f'link to the controller lost: {reason}; commands are not '
@@ -169,66 +195,63 @@ class BridgeNode(Node):
             time.sleep(delay)
             delay = min(2 * delay, self._retry_max)
 
-    def _receive(self, sock: socket.socket) -> str:
+    def _receive(self, conn: Connection) -> str:
         """Read frames until the link fails; the reason it did."""
-        with self._lock:
-            self._auth = None if self._site_key is None else LinkAuth(self._site_key, PC)
-        decoder = proto.Decoder(self._auth)
-        heard = sent = time.monotonic()
+        decoder = proto.Decoder(conn.auth)
         errors = 0
         while self._running:
             now = time.monotonic()
-            if now - sent >= self._heartbeat:
+            if now - conn.beat >= self._heartbeat:
                 with self._lock:
-                    self._send(sock, proto.HEARTBEAT, time=now)
-                sent = now
-            if now - heard > self._timeout:
-                return f'no frame for {self._timeout:.1f} s'
+                    self._send(conn, proto.HEARTBEAT, time=now)
+                conn.beat = now
+            if now - conn.heard > self._timeout:
+                return self._loss(conn, f'no frame for {self._timeout:.1f} s' if (
+                    conn.auth is None or conn.auth.established) else
+                    f'no authenticated session within {self._timeout:.1f} s')
             try:
-                data = sock.recv(65536)
+                data = conn.sock.recv(65536)
             except TimeoutError:
                 continue
             except OSError as exc:
-                return str(exc)
+                return self._loss(conn, str(exc))
             if not data:
-                return 'closed by the controller'
+                return self._loss(conn, 'closed by the controller')
             rejected = decoder.rejected
             frames, problems = decoder.feed(data)
             for problem in problems:
                 self.get_logger().warning(f'rejected from the controller: {problem}',
                                           throttle_duration_sec=1.0)
-            errors = 0 if frames else errors + decoder.rejected - rejected
+            live = [frame for frame in frames if conn.counts(frame)]
+            errors = 0 if live else errors + decoder.rejected - rejected
             if errors >= self._max_errors:
                 return f'{errors} consecutive malformed frames'
             for frame in frames:
-                heard = time.monotonic()
-                self._handle(frame, sock)
+                if conn.counts(frame):
+                    conn.heard = time.monotonic()
+                self._handle(frame, conn)
         return 'shutting down'
 
-    def _handle(self, frame: proto.Frame, sock: socket.socket) -> None:
+    @staticmethod
+    def _loss(conn: Connection, reason: str) -> str:
+        """``reason`` with what the controller said before the link came up, if it did."""
+        return f'{reason} ({conn.refusal})' if conn.refusal else reason
+
+    def _handle(self, frame: proto.Frame, conn: Connection) -> None:
         if frame.type == proto.HELLO:
-            version = proto.VERSION if self._auth is None else proto.AUTH_VERSION
-            if frame.fields['version'] != version or frame.fields['names'] != list(JOINT_NAMES):
-                self.get_logger().error(
-                    f'controller speaks version {frame.fields["version"]} with joints '
-                    f'{frame.fields["names"]}; need version {version} with {list(JOINT_NAMES)}')
-                return
-            with self._lock:
-                if self._linked is sock:
-                    self.get_logger().error('second HELLO on one connection ignored')
-                    return
-                if self._auth is not None:
-                    self._auth.start_session(frame.fields['nonce'])
-                    self._send(sock, proto.AUTH, nonce=self._auth.nonce)
-                self._linked = sock
-                self._down_since, self._connects = None, self._connects + 1
-            self.get_logger().info('controller HELLO accepted'
-                                   + ('' if self._auth is None else ', link authenticated')
-                                   + ': forwarding fresh commands')
-        elif frame.type == proto.JOINT_STATE and self._linked is sock:
+            self._hello(frame, conn)
+        elif frame.type == proto.AUTH_OK:           # its proof verified by the decoder
+            conn.heard, conn.beat = time.monotonic(), 0.0    # the session starts: beat at once
+            self.get_logger().info('controller proved the site key: link authenticated')
+        elif frame.type == proto.JOINT_STATE and conn.hello and conn.counts(frame):
             if len(frame.fields['positions']) != len(JOINT_NAMES):
                 self.get_logger().warning('JOINT_STATE with the wrong number of joints dropped')
                 return
+            if self._linked is not conn:
+                with self._lock:
+                    self._linked = conn
+                    self._down_since, self._connects = None, self._connects + 1
+                self.get_logger().info('linked: joint states flow, forwarding fresh commands')
             msg = JointState(name=list(JOINT_NAMES), position=frame.fields['positions'],
                              velocity=frame.fields['velocities'])
             msg.header.stamp = self.get_clock().now().to_msg()
@@ -240,8 +263,33 @@ class BridgeNode(Node):
             self.get_logger().error(f'controller refused command {frame.fields["acked"]} '
                                     f'(code {frame.fields["code"]})')
         elif frame.type == proto.ERROR:
-            self.get_logger().error(f'controller error {frame.fields["code"]}: '
-                                    f'{frame.fields["text"]}')
+            said = (f'controller error {frame.fields["code"]}'
+                    + ('' if conn.counts(frame) else ' (unauthenticated: before the session)')
+                    + f': {frame.fields["text"]}')
+            if self._linked is not conn:
+                conn.refusal = said
+            self.get_logger().error(said)
+
+    def _hello(self, frame: proto.Frame, conn: Connection) -> None:
+        """The controller's HELLO: check it; with a key, answer with AUTH (the decoder has
+        refused any HELLO after the first)."""
+        version = proto.VERSION if conn.auth is None else proto.AUTH_VERSION
+        if frame.fields['version'] != version or frame.fields['names'] != list(JOINT_NAMES):
+            self.get_logger().error(
+                f'controller speaks version {frame.fields["version"]} with joints '
+                f'{frame.fields["names"]}; need version {version} with {list(JOINT_NAMES)}')
+            return
+        if conn.hello:
+            self.get_logger().error('second HELLO on one connection ignored')
+            return
+        conn.hello = True
+        if conn.auth is None:
+            self.get_logger().info('controller HELLO accepted: waiting for its joint states')
+            return
+        with self._lock:
+            self._send(conn, proto.AUTH, **conn.auth.answer())
+        self.get_logger().info('controller HELLO accepted, AUTH sent: waiting for its proof '
+                               'of the site key')
 
     def destroy_node(self) -> None:
         self._running = False

@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from flexarm_bridge import controller_protocol as proto
-from flexarm_bridge.link_auth import CONTROLLER, LinkAuth
+from flexarm_bridge.link_auth import CONTROLLER, OPEN_KEY, PC, LinkAuth
 
 STATE = dict(time=12.5, positions=[0.1, 0.6, -0.5, -0.4], velocities=[0.0, 0.01, 0.0, -0.2],
              status=proto.STATUS_MOVING)
@@ -88,12 +88,26 @@ def test_random_bytes_never_raise_and_good_frames_get_through_after_them():
     assert [f.seq for f in frames][-50:] == list(range(50, 100))
 
 
-def test_protocol_document_example_is_what_the_codec_sends():
+def test_protocol_document_examples_are_what_the_reference_code_computes():
     document = (Path(__file__).parents[1] / 'PROTOCOL.md').read_text()
-    plain, tagged = re.findall(r'`(fa 57 [0-9a-f |]+)`', document)
-    assert bytes.fromhex(plain.replace('|', '')) == proto.encode(proto.HEARTBEAT, 5, time=1.0)
-    site = bytes(range(32))
-    assert bytes.fromhex(tagged.replace('|', '')) == proto.encode(proto.HEARTBEAT, 5, site,
-                                                                  time=1.0)
-    handshake_key = re.search(r'`K_hs` =\s+`([0-9a-f]{64})`', document).group(1)
-    assert LinkAuth(site, CONTROLLER).sending_key(True).hex() == handshake_key
+    plain, auth, auth_ok, tagged = (bytes.fromhex(f.replace('|', '')) for f in re.findall(
+        r'`(fa 57 [0-9a-f |]+)`', document))
+    assert plain == proto.encode(proto.HEARTBEAT, 5, time=1.0)
+
+    def vector(name: str) -> str:
+        return re.search(rf'`{name}` =\s+`([0-9a-f]+)`', document).group(1)
+
+    site, nc, np_ = bytes(range(32)), bytes(range(0xa0, 0xb0)), bytes(range(0xb0, 0xc0))
+    controller, pc = LinkAuth(site, CONTROLLER, nc), LinkAuth(site, PC, np_)
+    assert pc.on_hello(nc) is None
+    pc_auth = pc.answer()
+    assert controller.on_auth(**pc_auth) is None
+    controller_proof = controller.answer()
+    assert pc.on_auth_ok(**controller_proof) is None
+    assert pc_auth['proof'].hex() == vector('P_pc')
+    assert controller_proof['proof'].hex() == vector('P_c')
+    assert controller.send_key.hex() == pc.receive_key.hex() == vector('K_c→p')
+    assert pc.send_key.hex() == controller.receive_key.hex() == vector('K_p→c')
+    assert auth == proto.encode(proto.AUTH, 1, OPEN_KEY, **pc_auth)
+    assert auth_ok == proto.encode(proto.AUTH_OK, 2, OPEN_KEY, **controller_proof)
+    assert tagged == proto.encode(proto.HEARTBEAT, 5, pc.send_key, time=1.0)

@@ -1,4 +1,5 @@
-"""The authenticated controller link: handshake, tags, freshness, key files, loopback rule."""
+"""The authenticated controller link through the codec: handshake, tags, freshness, key files,
+loopback rule (the handshake state machines alone: test_link_handshake.py)."""
 import os
 import random
 import stat
@@ -10,6 +11,7 @@ from flexarm_bridge import link_auth
 from flexarm_bridge.link_auth import (
     CONTROLLER,
     KEY_BYTES,
+    OPEN_KEY,
     PC,
     LinkAuth,
     is_loopback,
@@ -25,35 +27,32 @@ COMMAND = dict(positions=[0.1, 0.6, -0.4, -0.3])
 
 def handshake(pc_key: bytes = SITE_KEY) -> tuple[LinkAuth, LinkAuth, proto.Decoder,
                                                    proto.Decoder]:
-    """Controller and PC after HELLO and AUTH: (controller, pc, its decoder, the PC's)."""
+    """Controller and PC after HELLO, AUTH and AUTH_OK, each through the other side's decoder,
+    as far as they get: (controller, pc, its decoder, the PC's)."""
     controller, pc = LinkAuth(SITE_KEY, CONTROLLER), LinkAuth(pc_key, PC)
     at_controller, at_pc = proto.Decoder(controller), proto.Decoder(pc)
-    hello = proto.encode(proto.HELLO, 1, controller.sending_key(True), version=2, names=NAMES,
-                         nonce=controller.nonce)
-    frames, errors = at_pc.feed(hello)
-    if frames:
-        pc.start_session(frames[0].fields['nonce'])
-    auth = proto.encode(proto.AUTH, 1, pc.sending_key(True), nonce=pc.nonce)
-    frames, _ = at_controller.feed(auth)
-    if frames:
-        controller.start_session(frames[0].fields['nonce'])
+    hello = proto.Encoder(controller).encode(proto.HELLO, version=proto.AUTH_VERSION,
+                                             names=NAMES, nonce=controller.nonce)
+    if at_pc.feed(hello)[0]:
+        if at_controller.feed(proto.Encoder(pc).encode(proto.AUTH, **pc.answer()))[0]:
+            at_pc.feed(proto.encode(proto.AUTH_OK, 2, OPEN_KEY, **controller.answer()))
     return controller, pc, at_controller, at_pc
 
 
 def test_a_session_carries_frames_both_ways():
     controller, pc, at_controller, at_pc = handshake()
     assert controller.established and pc.established
-    command = proto.encode(proto.JOINT_COMMAND, 2, pc.sending_key(False), **COMMAND)
+    command = proto.encode(proto.JOINT_COMMAND, 2, pc.send_key, **COMMAND)
     frames, errors = at_controller.feed(command)
     assert errors == [] and frames[0].fields == COMMAND and frames[0].seq == 2
-    state = proto.encode(proto.HEARTBEAT, 2, controller.sending_key(False), time=1.0)
+    state = proto.encode(proto.HEARTBEAT, 2, controller.send_key, time=1.0)
     frames, errors = at_pc.feed(state)
     assert errors == [] and frames[0].fields == {'time': 1.0}
 
 
 def test_tampered_replayed_reflected_and_foreign_frames_are_refused():
     controller, pc, at_controller, _ = handshake()
-    good = proto.encode(proto.JOINT_COMMAND, 5, pc.sending_key(False), **COMMAND)
+    good = proto.encode(proto.JOINT_COMMAND, 5, pc.send_key, **COMMAND)
     tampered = bytearray(good)
     tampered[12] ^= 0x01                                   # one bit of a joint angle
     frames, errors = at_controller.feed(bytes(tampered))
@@ -61,9 +60,9 @@ def test_tampered_replayed_reflected_and_foreign_frames_are_refused():
     assert at_controller.feed(good)[0]                      # the genuine one passes
     frames, errors = at_controller.feed(good)               # ... once
     assert frames == [] and 'replayed' in errors[0]
-    older = proto.encode(proto.JOINT_COMMAND, 4, pc.sending_key(False), **COMMAND)
+    older = proto.encode(proto.JOINT_COMMAND, 4, pc.send_key, **COMMAND)
     assert at_controller.feed(older)[0] == []               # reordered
-    reflected = proto.encode(proto.JOINT_COMMAND, 9, controller.sending_key(False), **COMMAND)
+    reflected = proto.encode(proto.JOINT_COMMAND, 9, controller.send_key, **COMMAND)
     assert at_controller.feed(reflected)[0] == []           # its own key, from the wire
     plain = proto.encode(proto.JOINT_COMMAND, 10, **COMMAND)
     frames, errors = at_controller.feed(plain)
@@ -90,12 +89,12 @@ def test_a_refused_frame_is_one_rejection_for_every_draw_of_nonces(monkeypatch):
             for kind in ('tampered', 'reflected', 'foreign'):
                 for together in (False, True):
                     seq += 2
-                    key = {'tampered': sender.sending_key(False), 'foreign': rng.randbytes(32),
-                           'reflected': own.sending_key(False)}[kind]
+                    key = {'tampered': sender.send_key, 'foreign': rng.randbytes(32),
+                           'reflected': own.send_key}[kind]
                     bad = bytearray(proto.encode(frame_type, seq, key, **fields))
                     if kind == 'tampered':       # one bit of the payload or the tag
                         bad[rng.randrange(proto.HEADER.size, len(bad))] ^= 1 << rng.randrange(8)
-                    good = proto.encode(frame_type, seq + 1, sender.sending_key(False), **fields)
+                    good = proto.encode(frame_type, seq + 1, sender.send_key, **fields)
                     rejected = decoder.rejected
                     if together:
                         frames, errors = decoder.feed(bytes(bad) + good)
@@ -115,7 +114,7 @@ def test_a_refused_frame_is_one_rejection_for_every_draw_of_nonces(monkeypatch):
 
 def test_a_frame_of_another_connection_is_worthless():
     _, old_pc, _, _ = handshake()
-    recorded = proto.encode(proto.JOINT_COMMAND, 100, old_pc.sending_key(False), **COMMAND)
+    recorded = proto.encode(proto.JOINT_COMMAND, 100, old_pc.send_key, **COMMAND)
     _, _, at_controller, _ = handshake()                   # a new connection: new nonces
     frames, errors = at_controller.feed(recorded)
     assert frames == [] and 'tag mismatch' in errors[0]
@@ -123,22 +122,23 @@ def test_a_frame_of_another_connection_is_worthless():
 
 def test_without_the_site_key_nothing_is_accepted():
     controller, pc, at_controller, at_pc = handshake(pc_key=bytes(KEY_BYTES))
-    assert not pc.established and not controller.established    # HELLO refused by the PC
-    at_controller = proto.Decoder(controller)
-    auth = proto.encode(proto.AUTH, 1, pc.sending_key(True), nonce=pc.nonce)
+    assert not pc.established and not controller.established    # its AUTH was refused
+    assert at_controller.rejected == 1 and at_pc.rejected == 0
+    auth = proto.encode(proto.AUTH, 1, OPEN_KEY, nonce=pc.nonce, proof=bytes(16))
     frames, errors = at_controller.feed(auth)
-    assert frames == [] and 'tag mismatch' in errors[0]    # its AUTH is refused
-    for key in (pc.sending_key(True), SITE_KEY):
+    assert frames == [] and 'proof does not match' in errors[0]
+    for key in (OPEN_KEY, SITE_KEY):
         command = proto.encode(proto.JOINT_COMMAND, 2, key, **COMMAND)
         frames, errors = at_controller.feed(command)
-        assert frames == [] and 'before the link was authenticated' in errors[-1]
+        assert frames == [] and 'before the session' in errors[-1]
+    assert proto.Encoder(pc).encode(proto.HEARTBEAT, time=1.0) is None   # nothing to send
     frames, errors = proto.Decoder().feed(proto.encode(proto.HEARTBEAT, 1, SITE_KEY, time=1.0))
     assert frames == [] and 'no link key' in errors[0]     # a PC without a key is told why
 
 
 def test_garbage_around_authenticated_frames_resynchronises():
     controller, pc, at_controller, _ = handshake()
-    frames = [proto.encode(proto.HEARTBEAT, seq, pc.sending_key(False), time=float(seq))
+    frames = [proto.encode(proto.HEARTBEAT, seq, pc.send_key, time=float(seq))
               for seq in range(2, 6)]
     stream = b'\xfaW\x02\x03junk' + frames[0] + bytes(range(256)) + b''.join(frames[1:])
     decoded = []

@@ -15,5 +15,5 @@ def test_the_link_is_ok_linked_warns_reconnecting_and_errs_down() -> None:
     down = link_status('flexarm_bridge', WHERE, False, 7.4, 'unreachable (refused)', 3, 5.0)
     assert down.level == ERROR and down.message == 'link down for 7 s: unreachable (refused)'
     never = link_status('flexarm_bridge', WHERE, False, 6.0, '', 0, 5.0)
-    assert never.level == ERROR and 'no HELLO' in never.message
+    assert never.level == ERROR and 'no joint state from the controller' in never.message
     assert dict(never.values)['reconnects'] == '0'

@@ -6,10 +6,13 @@ JOINT_COMMAND frames, so ``flexarm_bridge`` can stand between it and the graph. 
 world provides outside a robot controller stays on ROS: ``/clock``, the tip camera and the
 ground truth. Listens on loopback unless ``host`` says otherwise, and refuses to listen
 anywhere else without ``link_key_file`` (PROTOCOL.md, Authentication); with a key it speaks
-only the authenticated protocol and executes nothing before the PC's AUTH. One PC at a time: a
-second connection gets an ERROR frame (code 5, busy) and is closed at once, never queued. On
-link loss (peer closed, or no frame for ``heartbeat_timeout``, which also ends a connection
-that does not authenticate) it holds the arm, as PROTOCOL.md requires of a controller.
+only the authenticated protocol (version 3) and streams and executes nothing before the PC's
+AUTH proved the key. One PC at a time: another connection gets an ERROR frame (code 5, busy)
+and is closed at once, never queued, while the PC holding the link is authenticated or its
+handshake is younger than ``heartbeat_timeout``; a PC that has not authenticated by then is
+disconnected (at the latest when the next one connects), so a peer without the key cannot keep
+the slot. On link loss (peer closed, or no frame for ``heartbeat_timeout``; with a key only
+authenticated frames count) it holds the arm, as PROTOCOL.md requires of a controller.
 
 Health on ``/diagnostics``: the simulator's statuses, with the listening ``host:port`` as the
 controller's hardware id, and :func:`link_status`.
@@ -19,11 +22,12 @@ from __future__ import annotations
 import socket
 import threading
 import time
+from dataclasses import dataclass, field
 
 from builtin_interfaces.msg import Time as TimeMsg
 
 from flexarm_bridge import controller_protocol as proto
-from flexarm_bridge.link_auth import CONTROLLER, LinkAuth, site_key_for
+from flexarm_bridge.link_auth import CONTROLLER, OPEN_KEY, LinkAuth, site_key_for
 from flexarm_control.health_report import OK, WARN, Status, status
 from flexarm_control.kinematics import JOINT_NAMES
 from flexarm_control.node_main import run
@@ -48,6 +52,29 @@ def link_status(node: str, hardware_id: str, connected: bool, keyed: bool,
                   values, hardware_id)
 
 
+@dataclass
+class Peer:
+    """The PC of one connection: its socket, authentication (with a site key), and frames."""
+    conn: socket.socket
+    auth: LinkAuth | None
+    since: float = field(default_factory=time.monotonic)
+    encoder: proto.Encoder = field(init=False)
+
+    def __post_init__(self) -> None:
+        self.encoder = proto.Encoder(self.auth)
+
+    @property
+    def authenticated(self) -> bool:
+        """Whether the PC may command the arm: keyless (loopback), or its AUTH verified."""
+        return self.auth is None or self.auth.established
+
+
+def holds_slot(peer: Peer, now: float, timeout: float) -> bool:
+    """Whether ``peer`` keeps a new connection out: authenticated, or still within the time
+    it has to authenticate."""
+    return peer.authenticated or now - peer.since < timeout
+
+
 class FakeController(SimNode):
 
     def __init__(self) -> None:
@@ -66,10 +93,8 @@ class FakeController(SimNode):
             self.get_logger().fatal(f'refusing to listen: {exc}')
             raise SystemExit(1) from None
         self._hardware_id = f'{host}:{port}'
-        self._client: socket.socket | None = None
-        self._auth: LinkAuth | None = None        # of the current client, with a site key
-        self._send_lock = threading.RLock()
-        self._seq = 0
+        self._peer: Peer | None = None        # the PC holding the link (or handshaking)
+        self._send_lock = threading.RLock()   # guards _peer and every send
         self._server = socket.create_server((host, port), reuse_port=False)
         self._server.settimeout(0.2)
         self._running = True
@@ -79,103 +104,114 @@ class FakeController(SimNode):
 
     def statuses(self) -> list[Status]:
         """The simulator's statuses and the link to the PC (module docstring)."""
-        auth = self._auth
+        peer = self._peer
         return [*super().statuses(), link_status(
-            self.get_name(), self._hardware_id, self._client is not None,
-            self._site_key is not None, auth is not None and auth.established)]
+            self.get_name(), self._hardware_id, peer is not None, self._site_key is not None,
+            peer is not None and peer.auth is not None and peer.auth.established)]
 
     def _serve(self) -> None:
-        """Accept connections: the first one is served, any other refused while it lasts."""
+        """Accept connections: one PC is served, any other refused while it holds the slot."""
         while self._running:
             try:
-                conn, peer = self._server.accept()
+                conn, address = self._server.accept()
             except (TimeoutError, OSError):
                 continue
             conn.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
             with self._send_lock:            # HELLO goes out before any JOINT_STATE
-                if self._client is not None:
-                    self._refuse(conn, peer)
+                old = self._peer
+                if old is not None and holds_slot(old, time.monotonic(),
+                                                  self._heartbeat_timeout):
+                    self._refuse(conn, address)
                     continue
-                self.get_logger().info(f'PC connected from {peer}')
-                self._client = conn
-                if self._site_key is None:
-                    self._send(proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
+                if old is not None:
+                    self.get_logger().warning(
+                        f'PC dropped: not authenticated within {self._heartbeat_timeout:g} s')
+                    _shut(old.conn)           # its thread ends and leaves the new peer alone
+                self.get_logger().info(f'PC connected from {address}')
+                auth = None if self._site_key is None else LinkAuth(self._site_key, CONTROLLER)
+                peer = self._peer = Peer(conn, auth)
+                if auth is None:
+                    self._send(peer, proto.HELLO, version=proto.VERSION, names=list(JOINT_NAMES))
                 else:
-                    self._auth = LinkAuth(self._site_key, CONTROLLER)
-                    self._send(proto.HELLO, version=proto.AUTH_VERSION, names=list(JOINT_NAMES),
-                               nonce=self._auth.nonce)
-            threading.Thread(target=self._serve_client, args=(conn,), daemon=True).start()
+                    self._send(peer, proto.HELLO, version=proto.AUTH_VERSION,
+                               names=list(JOINT_NAMES), nonce=auth.nonce)
+            threading.Thread(target=self._serve_client, args=(peer,), daemon=True).start()
 
-    def _refuse(self, conn: socket.socket, peer: object) -> None:
-        """Tell a second PC that another one is connected, and close its connection."""
-        self.get_logger().warning(f'connection from {peer} refused: another PC is connected')
+    def _refuse(self, conn: socket.socket, address: object) -> None:
+        """Tell another PC that the slot is taken, and close its connection (the ERROR is
+        unauthenticated with a site key: there is no session to tag it with)."""
+        self.get_logger().warning(f'connection from {address} refused: another PC is connected')
+        key = None if self._site_key is None else OPEN_KEY
         try:
-            conn.sendall(proto.encode(proto.ERROR, 0, code=proto.E_BUSY,
+            conn.sendall(proto.encode(proto.ERROR, 0, key, code=proto.E_BUSY,
                                       text='another PC is connected (one at a time)'))
         except OSError:
             pass
         conn.close()
 
-    def _serve_client(self, conn: socket.socket) -> None:
-        conn.settimeout(0.1)
-        self._talk(conn)
+    def _serve_client(self, peer: Peer) -> None:
+        peer.conn.settimeout(0.1)
+        reason = self._talk(peer)
         with self._send_lock:
-            self._client, self._auth = None, None
-        conn.close()
-        self.hold()
-        self.get_logger().warning('link to the PC lost: arm held')
+            current = self._peer is peer
+            if current:
+                self._peer = None
+        peer.conn.close()
+        if current:
+            self.hold()
+            self.get_logger().warning(f'link to the PC lost ({reason}): arm held')
 
-    def _talk(self, conn: socket.socket) -> None:
-        decoder, heard = proto.Decoder(self._auth), time.monotonic()
-        while self._running and time.monotonic() - heard < self._heartbeat_timeout:
+    def _talk(self, peer: Peer) -> str:
+        """Serve one PC until the link fails; the reason it did. Without a key any valid frame
+        is a sign of life; with one only authenticated session frames are, and the session must
+        start within the heartbeat timeout of the connection (refused frames never count)."""
+        decoder, heard = proto.Decoder(peer.auth), peer.since
+        while self._running:
+            if time.monotonic() - heard >= self._heartbeat_timeout:
+                return (f'no frame for {self._heartbeat_timeout:g} s' if peer.authenticated
+                        else f'not authenticated within {self._heartbeat_timeout:g} s')
             try:
-                data = conn.recv(4096)
+                data = peer.conn.recv(4096)
             except TimeoutError:
                 continue
-            except OSError:
-                return
+            except OSError as exc:
+                return str(exc)
             if not data:
-                return
+                return 'closed by the PC'
             frames, errors = decoder.feed(data)
             for error in errors:
                 self.get_logger().warning(f'from the PC: {error}')
-                self._send(proto.ERROR, code=proto.E_MALFORMED, text=error)
+                self._send(peer, proto.ERROR, code=proto.E_MALFORMED, text=error)
             for frame in frames:
-                heard = time.monotonic()
-                if frame.type == proto.AUTH:
-                    self._authenticate(frame.fields['nonce'])
+                if peer.auth is None or frame.authenticated:
+                    heard = time.monotonic()
+                if frame.type == proto.AUTH:          # its proof verified by the decoder
+                    with self._send_lock:
+                        self._send(peer, proto.AUTH_OK, **peer.auth.answer())
+                    heard = time.monotonic()          # the session starts
+                    self.get_logger().info('PC authenticated')
                 elif frame.type == proto.JOINT_COMMAND:
                     reason = self.apply_command(frame.fields['positions'])
-                    self._send(proto.ACK, acked=frame.seq,
+                    self._send(peer, proto.ACK, acked=frame.seq,
                                code=proto.OK if reason is None else proto.E_LIMITS)
+        return 'shutting down'
 
-    def _authenticate(self, pc_nonce: bytes) -> None:
-        """The PC's AUTH: start the session (joint states flow, commands are accepted)."""
+    def _send(self, peer: Peer | None, frame_type: int, **fields) -> None:
+        """Send a frame to ``peer`` if it still holds the link; with a key nothing but
+        handshake frames and ERROR before its session (:class:`~proto.Encoder`)."""
         with self._send_lock:
-            if self._auth is None or self._auth.established:
-                self.get_logger().warning('AUTH ignored: the session is already established')
+            if peer is None or peer is not self._peer:
                 return
-            self._auth.start_session(pc_nonce)
-        self.get_logger().info('PC authenticated')
-
-    def _send(self, frame_type: int, **fields) -> None:
-        """Send a frame to the current PC; nothing but HELLO before its AUTH, if keyed."""
-        with self._send_lock:
-            if self._client is None:
+            data = peer.encoder.encode(frame_type, **fields)
+            if data is None:
                 return
-            key = None
-            if self._auth is not None:
-                key = self._auth.sending_key(frame_type in proto.HANDSHAKE)
-                if key is None:
-                    return
-            self._seq += 1
             try:
-                self._client.sendall(proto.encode(frame_type, self._seq, key, **fields))
+                peer.conn.sendall(data)
             except OSError:
                 pass      # the reader notices the broken link
 
     def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
-        self._send(proto.JOINT_STATE, time=now.sec + now.nanosec * 1e-9,
+        self._send(self._peer, proto.JOINT_STATE, time=now.sec + now.nanosec * 1e-9,
                    positions=state.joint_positions.tolist(),
                    velocities=state.joint_velocities.tolist(),
                    status=proto.STATUS_MOVING if state.is_moving else 0)
@@ -184,6 +220,14 @@ class FakeController(SimNode):
         self._running = False
         self._server.close()
         super().destroy_node()
+
+
+def _shut(conn: socket.socket) -> None:
+    """End a connection that another thread reads (it sees the end and closes it)."""
+    try:
+        conn.shutdown(socket.SHUT_RDWR)
+    except OSError:
+        pass          # already down
 
 
 def main(args: list[str] | None = None) -> None:

@@ -9,6 +9,9 @@
   (:class:`DomainPool`: taken for the whole run, and reserved the way domain_coordinator and
   ``flexarm up`` reserve one, so other runs on the machine skip it too); the domain is empty
   when the module starts (no process of this machine runs in it).
+- DDS transports: nodes get the Fast DDS profile of their discovery range from the launcher
+  (:mod:`flexarm_bringup.transport`); this process has none of its own, and the one a test's
+  in-process ``flexarm`` command sets is removed when the test ends.
 - Processes: every test stops the nodes it started and checks they were reaped; every process
   a module started (its scope token is inherited through the environment) is killed and reaped
   when the module ends, and the module fails if one was left behind.
@@ -153,6 +156,22 @@ def _no_process_left_behind(request: pytest.FixtureRequest) -> Iterator[None]:
                     f'{f" ({len(stuck)} could not be reaped)" if stuck else ""}: '
                     + '; '.join(f'{pid}: {cmd[:160]}' for pid, cmd in left.items()),
                     pytrace=False)
+
+
+@pytest.fixture(autouse=True)
+def _transport_env_restored() -> Iterator[None]:
+    """Undo the Fast DDS profile that ``flexarm``'s ``main`` called in this process puts in its
+    environment (:func:`flexarm_bringup.transport.apply`): a later test's processes of another
+    discovery range (tests/test_hosts.py: SUBNET) must not inherit it."""
+    from flexarm_bringup.transport import PROFILES_ENV, SKIP_CWD_ENV
+
+    saved = {key: os.environ.get(key) for key in (PROFILES_ENV, SKIP_CWD_ENV)}
+    yield
+    for key, value in saved.items():
+        if value is None:
+            os.environ.pop(key, None)
+        else:
+            os.environ[key] = value
 
 
 @pytest.fixture(scope='module')

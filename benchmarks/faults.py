@@ -18,15 +18,29 @@ every process of the graph is gone); recovered [s] from the fault until a fresh 
 collection) succeeds again, or the running one succeeded; samples lost (reported collected by
 the client, less the poses the learner logged as skipped, minus the complete records on disk,
 plus torn records); orphans (processes carrying the graph's environment marker that outlive
-what started them, after a bounded wait); stale shm (new /dev/shm files that no live process
-maps or holds open once the graph is down; a killed node's own files count for its scenario).
+what started them, after a bounded wait; at the end, every process of the graph or its
+commands still there once `flexarm up` has stopped); stale shm: the /dev/shm files this run's
+processes created that are still there once the graph and its commands are down and that
+no process uses, counted before anything is cleaned (:class:`ShmLedger`: every file a process
+of the graph or of its commands maps, holds open or locks, sampled every second and before each
+SIGKILL this harness sends, less the files that were there before the graph started), then
+removed; a file is counted for the scenario that killed its owner (or the second graph that
+made it), the rest for the graph's teardown (the scenario that stops `flexarm up`, else the
+graph's last row). A command still running when its scenario is done is ended as a user would
+(SIGTERM, then SIGKILL).
+
+Lifetimes: every process this harness starts gets SIGTERM when it dies, also by SIGKILL
+(``PR_SET_PDEATHSIG``, armed in the child before exec by the main thread, the one that lives as
+long as the run), and SIGTERM to this harness stops its graphs and commands and removes the
+shared memory they left, as the end of a run does.
 
     python benchmarks/faults.py [--only SCENARIOS] [--json]
 
 ``--only`` runs some of the scenarios, by key (:data:`KEYS`: ``compensator``, ``learner``,
 ``vision_goal``, ``vision_collection``, ``second_up``, ``sim``, ``sigterm_idle``;
 ``second_client``, ``bridge``, ``sigterm_goal``; ``sigkill_goal``), each in its graph; a graph
-none of them needs is not started. A smoke run of the harness: ``--only sigterm_idle``.
+none of them needs is not started. A smoke run of the harness: ``--only sigterm_idle``. A new
+scenario is a function ``(graph, row)`` and an entry of :data:`PLANS`.
 
 JSON (last line): ``lost_samples``, ``orphans``, ``stale_shm`` (sums), ``max_detect_s`` (over
 the scenarios that detected; ``undetected`` names the others), ``seconds`` and ``scenarios``.
@@ -45,14 +59,17 @@ import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, field
 from pathlib import Path
+from types import FrameType
 from typing import IO
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bringup.domains import reserved
+from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead, shm_in_use
 from flexarm_control.dataset import load_dataset
 from flexarm_control.params import load_config
+from flexarm_control.parent_death import terminate_with_parent
 from flexarm_control.paths import RUNS_DIR, repo_path
 
 FLEXARM = str(Path(sys.executable).with_name('flexarm'))
@@ -67,6 +84,8 @@ DETECT_S = 60.0
 RECOVER_S = 90.0
 TEARDOWN_S = 20.0
 SETTLE_S = 5.0         # for processes of a fault to go before orphans are counted
+STOP_S = 15.0          # for a command to end on SIGTERM (a goal cancelled, a graph stopped)
+SAMPLE_S = 1.0         # [s] between two samples of the shared memory the graph's processes use
 KILLED_SAMPLES = 10    # on disk before the learner is killed
 VISION_SAMPLES = 3     # on disk before the vision node is killed mid-collection
 
@@ -108,15 +127,25 @@ def _pids() -> list[int]:
     return [int(p.name) for p in Path('/proc').iterdir() if p.name.isdigit()]
 
 
-def marked(marker: str) -> set[int]:
-    """Live (not zombie) processes whose environment carries ``marker``."""
-    needle = f'{MARKER}={marker}'.encode()
-    found = set()
+def markers() -> dict[int, str]:
+    """Live (not zombie) processes whose environment carries a :data:`MARKER`: its value."""
+    needle, found = f'{MARKER}='.encode(), {}
     for pid in _pids():
+        environ = _read(Path(f'/proc/{pid}/environ'))
+        if needle not in environ:
+            continue
         stat = _stat(pid)
-        if stat and stat[1] != 'Z' and needle in _read(Path(f'/proc/{pid}/environ')).split(b'\0'):
-            found.add(pid)
+        value = next((v for v in environ.split(b'\0') if v.startswith(needle)), b'')
+        if stat and stat[1] != 'Z' and value:
+            found[pid] = value[len(needle):].decode(errors='replace')
     return found
+
+
+def marked(marker: str, family: bool = False) -> set[int]:
+    """Live processes carrying ``marker`` (``family``: or a marker ``<marker>-...``: the
+    graph's commands and second graph)."""
+    return {pid for pid, value in markers().items()
+            if value == marker or family and value.startswith(f'{marker}-')}
 
 
 def node_pid(marker: str, name: str) -> int:
@@ -166,76 +195,117 @@ def shm_inodes() -> dict[str, int]:
     return found
 
 
-def _held(pid: int) -> dict[str, int]:
-    """/dev/shm files a process holds open, by name, with their inodes."""
-    held = {}
-    fds = Path(f'/proc/{pid}/fd')
-    try:
-        links = list(fds.iterdir())
-    except OSError:
-        return held
-    for fd in links:
-        try:
-            target = os.readlink(fd)
-            if target.startswith(f'{SHM}/'):
-                held[Path(target.removesuffix(' (deleted)')).name] = fd.stat().st_ino
-        except OSError:
-            continue
-    return held
+def _flocked(pid: int) -> set[int]:
+    """Inodes of the /dev/shm files ``pid`` holds an flock on (/proc/locks)."""
+    device, inodes = SHM.stat().st_dev, set()
+    for line in _read(Path('/proc/locks')).decode(errors='replace').splitlines():
+        fields = line.split()
+        if len(fields) > 5 and fields[1] == 'FLOCK' and '->' not in fields \
+                and fields[4] == str(pid):
+            major, minor, inode = fields[5].split(':')
+            if os.makedev(int(major, 16), int(minor, 16)) == device:
+                inodes.add(int(inode))
+    return inodes
 
 
-def _mapped(pid: int) -> set[int]:
-    """Inodes of the /dev/shm files a process maps."""
-    inodes = set()
+def used_shm(pid: int, files: dict[str, int]) -> dict[str, int]:
+    """The /dev/shm files (of ``files``: name -> inode) that ``pid`` maps, holds open or
+    locks, with the mutex of every Fast DDS port it maps (nobody keeps that one open)."""
+    inodes = _flocked(pid)
     for line in _read(Path(f'/proc/{pid}/maps')).decode(errors='replace').splitlines():
         parts = line.split(maxsplit=5)
         if len(parts) == 6 and parts[5].startswith(f'{SHM}/'):
             inodes.add(int(parts[4]))
-    return inodes
+    try:
+        fds = list(Path(f'/proc/{pid}/fd').iterdir())
+    except OSError:
+        fds = []
+    for fd in fds:
+        try:
+            if os.readlink(fd).startswith(f'{SHM}/'):
+                inodes.add(fd.stat().st_ino)
+        except OSError:
+            continue
+    used = {name: inode for name, inode in files.items() if inode in inodes}
+    for name in list(used):
+        mutex = f'sem.{name}_mutex'
+        if name.startswith('fastrtps_port') and mutex in files:
+            used[mutex] = files[mutex]
+    return used
 
 
-def in_use() -> set[int]:
-    """Inodes of /dev/shm files that a live process maps or holds open."""
-    inodes = set()
-    for pid in _pids():
-        inodes |= _mapped(pid) | set(_held(pid).values())
-    return inodes
+@dataclass
+class ShmLedger:
+    """The /dev/shm files the processes of one graph (a marker family) created: each file one
+    of them uses (:func:`used_shm`) that was not there (same name and inode) before; with
+    the marker of the process that owns it (:func:`~flexarm_bringup.launcher.owned_shm`: the
+    files nobody removes once it dies), else of the first that used it.
+
+    Sampled every :data:`SAMPLE_S` and before every SIGKILL of the harness: a file is missed
+    only if its process made it and died on its own within a second.
+    """
+
+    family: str
+    before: dict[str, int] = field(default_factory=shm_inodes)
+    files: dict[str, tuple[int, str]] = field(default_factory=dict)   # name: inode, marker
+    _lock: threading.Lock = field(default_factory=threading.Lock)
+
+    def sample(self, pids: Iterable[int] | None = None) -> None:
+        """Note the files of ``pids`` (default: every process of the family)."""
+        found = markers()
+        now = shm_inodes()
+        with self._lock:
+            for pid in found if pids is None else pids:
+                marker = found.get(pid)
+                if marker is None or not (marker == self.family
+                                          or marker.startswith(f'{self.family}-')):
+                    continue
+                owned = {path.name for path in owned_shm(pid)}
+                for name, inode in used_shm(pid, now).items():
+                    if self.before.get(name) == inode:
+                        continue
+                    if name in owned or name not in self.files:
+                        self.files[name] = (inode, marker)
+
+    def left(self) -> dict[str, str]:
+        """The files still there (same inode) that no live process uses (a Fast DDS port is
+        one of a pool shared over time by every domain), with their markers."""
+        now, used = shm_inodes(), shm_in_use()
+        with self._lock:
+            return {name: marker for name, (inode, marker) in self.files.items()
+                    if now.get(name) == inode and str(SHM / name) not in used}
 
 
-def owned_shm(pid: int) -> set[str]:
-    """The /dev/shm files a process owns: those it holds open (Fast DDS lock files), the
-    segments and ports they lock with the ports' mutexes, and the other semaphores it maps."""
-    held = set(_held(pid))
-    owned = held | {name.removesuffix('_el') for name in held}
-    owned |= {f'sem.{name}_mutex' for name in owned
-              if name.startswith('fastrtps_port') and not name.endswith('_el')}
-    mapped = _mapped(pid)
-    return owned | {name for name, inode in shm_inodes().items()
-                    if name.startswith('sem.') and not name.startswith('sem.fastrtps_')
-                    and inode in mapped}
+class Sampler:
+    """Samples a :class:`ShmLedger` every :data:`SAMPLE_S` in a thread, until stopped."""
 
+    def __init__(self, ledger: ShmLedger) -> None:
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, args=(ledger,), daemon=True)
+        self._thread.start()
 
-def stale_shm(before: Iterable[str]) -> set[str]:
-    """Files of /dev/shm not in ``before`` that no live process maps or holds open (a Fast DDS
-    port's mutex, which nobody keeps open, lives as long as its port)."""
-    files, used, old = shm_inodes(), in_use(), set(before)
+    def _run(self, ledger: ShmLedger) -> None:
+        while not self._stop.wait(SAMPLE_S):
+            ledger.sample()
 
-    def live(name: str) -> bool:
-        port = re.fullmatch(r'sem\.(fastrtps_port\d+)_mutex', name)
-        return files.get(port[1] if port else name) in used
-    return {name for name in files if name not in old and not live(name)}
+    def stop(self) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 # --- commands -------------------------------------------------------------------------------
 class Command:
-    """A ``flexarm`` subprocess; its merged output lines with their arrival times."""
+    """A ``flexarm`` subprocess; its merged output lines with their arrival times. It gets
+    SIGTERM when this harness ends, however (started by the main thread)."""
 
-    def __init__(self, args: Iterable[str], env: dict[str, str]) -> None:
+    def __init__(self, args: Iterable[str], env: dict[str, str],
+                 ledger: ShmLedger | None = None) -> None:
         self.started = time.monotonic()
+        self.ledger = ledger
         self.process = subprocess.Popen(
             [FLEXARM, *args], env={**env, 'PYTHONUNBUFFERED': '1'}, stdin=subprocess.DEVNULL,
             stdout=subprocess.PIPE, stderr=subprocess.STDOUT, text=True, errors='replace',
-            start_new_session=True)
+            start_new_session=True, preexec_fn=terminate_with_parent)
         self.lines: list[tuple[float, str]] = []
         self._ended = False
         self._cond = threading.Condition()
@@ -276,9 +346,15 @@ class Command:
         lines = [line for line in self.text.splitlines() if line.strip()]
         return lines[-1].strip() if lines else ''
 
-    def kill(self) -> None:
+    def stop(self) -> None:
+        """End it if it still runs, as a user would: SIGTERM (a goal is cancelled, a graph
+        stopped), SIGKILL after ``STOP_S`` (its shared memory noted first); reap it."""
         if self.process.poll() is None:
-            self.process.kill()
+            self.process.terminate()
+            if self.wait_exit(STOP_S) is None:
+                if self.ledger is not None:
+                    self.ledger.sample(descendants(self.process.pid))
+                self.process.kill()
         try:
             self.process.wait(timeout=5.0)
         except subprocess.TimeoutExpired:
@@ -286,31 +362,35 @@ class Command:
 
 
 class Graph:
-    """One ``flexarm up`` with its marker, the shared memory before it, and its faults."""
+    """One ``flexarm up`` with its marker, the shared memory its processes create, and its
+    faults. Its commands carry ``<marker>-client``, a second graph ``<marker>-second``."""
 
     def __init__(self, label: str, domain: int, robot: str, tag: str) -> None:
         self.label, self.domain, self.robot = label, domain, robot
         self.marker = f'{tag}-{label}'
         self.env = dict(os.environ)
-        self.shm_before = set(shm_inodes())
+        self.ledger = ShmLedger(self.marker)
         self.datasets: list[Path] = []
         self.rows: list[Row] = []
         self.owned: list[tuple[Row, set[str]]] = []   # files of each killed node
+        self.made_by: dict[str, Row] = {}     # marker of processes a scenario started: its row
         self.at: tuple[float, float, float] | None = None   # target of the last goal
         self.up = self.start_up()
+        self._sampler = Sampler(self.ledger)
 
     def start_up(self, marker: str | None = None) -> Command:
         env = {**self.env, MARKER: marker or self.marker}
         return Command(['up', '--domain-id', str(self.domain), '--robot', self.robot,
                         '--rtf', str(RTF), '--timeout', str(READY_S),
-                        '--name', f'faults-{marker or self.marker}'], env)
+                        '--name', f'faults-{marker or self.marker}'], env, self.ledger)
 
     def wait_ready(self) -> None:
         if self.up.wait_line(r'graph ready in', READY_S) is None:
             raise RuntimeError(f'{self.label} graph not ready: {self.up.last_line()}')
 
     def command(self, *args: str) -> Command:
-        return Command([*args, '--domain-id', str(self.domain)], self.env)
+        return Command([*args, '--domain-id', str(self.domain)],
+                       {**self.env, MARKER: f'{self.marker}-client'}, self.ledger)
 
     def run(self, *args: str, timeout: float = MOVE_S) -> Command:
         """Run a command to its end (killed after ``timeout``)."""
@@ -318,14 +398,24 @@ class Graph:
         try:
             command.wait_exit(timeout)
         finally:
-            command.kill()
+            command.stop()
         return command
+
+    def kill(self, pids: Iterable[int]) -> None:
+        """SIGKILL ``pids`` (processes of the graph), their shared memory noted first."""
+        pids = list(pids)
+        self.ledger.sample(pids)
+        for pid in pids:
+            try:
+                os.kill(pid, signal.SIGKILL)
+            except OSError:
+                pass
 
     def kill_node(self, name: str, row: Row) -> float:
         """SIGKILL the node ``name``; the time of the kill."""
         pid = node_pid(self.marker, name)
-        self.owned.append((row, owned_shm(pid)))
-        os.kill(pid, signal.SIGKILL)
+        self.owned.append((row, {path.name for path in owned_shm(pid)}))
+        self.kill([pid])
         return time.monotonic()
 
     def reported_death(self, name: str, since: float) -> float | None:
@@ -348,7 +438,7 @@ class Graph:
         client = self.command('move', *map(str, self.at), '--mode', mode,
                               '--timeout', str(MOVE_S))
         if client.wait_line(r'\] moving', MOVE_S) is None:
-            client.kill()
+            client.stop()
             raise ScenarioError(f'the goal did not start moving: {client.last_line()}')
         return client
 
@@ -378,7 +468,9 @@ class Graph:
         return len(left)
 
     def stop(self, sig: int, row: Row) -> None:
-        """Signal ``flexarm up``; detection, orphans and stale files of the whole graph."""
+        """Signal ``flexarm up``; detection and orphans of the whole graph."""
+        if sig == signal.SIGKILL:
+            self.ledger.sample()
         os.kill(self.up.process.pid, sig)
         signalled = time.monotonic()
         gone = wait_until(lambda: not marked(self.marker), TEARDOWN_S)
@@ -390,31 +482,43 @@ class Graph:
                 row.add(line)
         for pid in left:
             row.add(f'left: {pid} {_read(Path(f"/proc/{pid}/cmdline"))[:80]!r}')
-        self.attribute_stale(row)
 
-    def attribute_stale(self, teardown: Row) -> None:
-        """Stale files to the scenario that killed their owner, the rest to ``teardown``."""
-        stale = stale_shm(self.shm_before)
+    def close(self, teardown: Row) -> None:
+        """Stop everything left of this graph and its commands (after it was measured): its
+        processes still there once ``flexarm up`` has stopped are ``teardown``'s orphans; then
+        the shared memory it left (:meth:`account`)."""
+        try:
+            self.up.stop()
+            wait_until(lambda: not marked(self.marker, family=True), SETTLE_S)
+            left = marked(self.marker, family=True)
+            teardown.orphans += len(left)
+            if left:
+                teardown.add(f'{len(left)} process(es) left at the end, killed')
+            self.kill(left)
+            wait_until(lambda: not marked(self.marker, family=True), SETTLE_S)
+        finally:
+            self._sampler.stop()
+            self.account(teardown)
+            for path in self.datasets:
+                path.unlink(missing_ok=True)
+
+    def account(self, teardown: Row) -> None:
+        """Count the shared memory the graph's processes left, per scenario (the one that
+        killed its owner, the second graph that made it, else ``teardown``), then remove it."""
+        left = self.ledger.left()
+        rest = set(left)
         for row, files in self.owned:
-            row.stale_shm += len(stale & files)
-            stale -= files
-        teardown.stale_shm += len(stale)
-        if stale:
-            teardown.add(f'stale: {sorted(stale)[:6]}')
-
-    def close(self) -> None:
-        """Stop everything left of this graph (after it was measured)."""
-        if self.up.process.poll() is None:
-            self.up.process.send_signal(signal.SIGTERM)
-            self.up.wait_exit(TEARDOWN_S)
-        self.up.kill()
-        for pid in marked(self.marker):
-            try:
-                os.kill(pid, signal.SIGKILL)
-            except OSError:
-                pass
-        for path in self.datasets:
-            path.unlink(missing_ok=True)
+            row.stale_shm += len(rest & files)
+            rest -= files
+        for name in list(rest):
+            if left[name] in self.made_by:
+                self.made_by[left[name]].stale_shm += 1
+                rest.remove(name)
+        teardown.stale_shm += len(rest)
+        if rest:
+            clients = sum(left[name] == f'{self.marker}-client' for name in rest)
+            teardown.add(f'stale: {sorted(rest)[:6]} ({clients} of the commands\' processes)')
+        remove_shm_of_dead([SHM / name for name in left])
 
 
 # --- scenarios ------------------------------------------------------------------------------
@@ -425,7 +529,7 @@ def server_killed_mid_goal(graph: Graph, node: str, mode: str, row: Row) -> None
         killed = graph.kill_node(node, row)
         exited = client.wait_exit(DETECT_S)
     finally:
-        client.kill()
+        client.stop()
     row.add(client.last_line())
     if exited is not None and client.process.returncode != 0:
         row.detected_s = exited - killed
@@ -444,7 +548,7 @@ def vision_killed_mid_goal(graph: Graph, row: Row) -> None:
         reported = graph.reported_death('flexarm_vision', killed)
         exited = client.wait_exit(MOVE_S)
     finally:
-        client.kill()
+        client.stop()
     row.detected_s = None if reported is None else reported - killed
     row.add(f'the goal: {client.last_line()}')
     if exited is not None and client.process.returncode == 0:
@@ -496,7 +600,7 @@ def learner_killed_mid_collection(graph: Graph, row: Row) -> None:
         killed = graph.kill_node('flexarm_learner', row)
         exited = client.wait_exit(DETECT_S)
     finally:
-        client.kill()
+        client.stop()
     if exited is not None and client.process.returncode != 0:
         row.detected_s = exited - killed
     progress = re.findall(r'(\d+)/\d+ \[', client.text)
@@ -528,7 +632,7 @@ def vision_killed_mid_collection(graph: Graph, row: Row) -> None:
         measured = wait_samples(path, before + 1, RECOVER_S)
         client.wait_exit(RECOVER_S)
     finally:
-        client.kill()
+        client.stop()
     row.detected_s = None if reported is None else reported - killed
     row.recovered_s = None if measured is None else measured - killed
     row.orphans = graph.orphans(graph.up.process.pid)
@@ -542,15 +646,16 @@ def vision_killed_mid_collection(graph: Graph, row: Row) -> None:
 
 
 def second_graph(graph: Graph, row: Row) -> None:
-    """A second ``flexarm up`` in the domain: refused, nothing of it left, the first serves."""
-    before = set(shm_inodes())
+    """A second ``flexarm up`` in the domain: refused, nothing of it left, the first serves
+    (what shared memory it left is counted with the graph's, :meth:`Graph.account`)."""
     marker = f'{graph.marker}-second'
+    graph.made_by[marker] = row
     second = graph.start_up(marker)
     try:
         started_graph = second.wait_line(r'graph ready in', DETECT_S)   # None once it exits
         exited = second.wait_exit(SETTLE_S)
     finally:
-        second.kill()
+        second.stop()
     if started_graph is None and exited is not None and second.process.returncode != 0:
         row.detected_s = exited - second.started
         row.add(second.last_line()[:120])
@@ -558,11 +663,7 @@ def second_graph(graph: Graph, row: Row) -> None:
         row.add('NOT refused: ' + ' | '.join(line[:70] for _, line in second.lines[:2]))
     wait_until(lambda: not marked(marker), SETTLE_S)
     row.orphans = len(marked(marker))
-    for pid in marked(marker):
-        os.kill(pid, signal.SIGKILL)
-    stale = stale_shm(before)
-    row.stale_shm = len(stale)
-    graph.shm_before |= stale            # counted here, not again at the teardown
+    graph.kill(marked(marker))
     row.recovered_s = graph.until_ok(lambda: graph.goal_ok('rigid'), second.started)
     died = [line for stamp, line in graph.up.lines
             if stamp >= second.started and 'exited with code' in line]
@@ -605,63 +706,87 @@ def stop_graph(graph: Graph, sig: int, mid_goal: bool, row: Row) -> None:
         graph.stop(sig, row)
     finally:
         if client is not None:
-            client.kill()
+            client.wait_exit(DETECT_S)       # it learns that its server is gone
+            client.stop()
             row.add(f'the goal: {client.last_line()}')
 
 
 # --- the run --------------------------------------------------------------------------------
-def attempt(graph: Graph, name: str, scenario: Callable[[Graph, Row], None]) -> Row:
+@dataclass(frozen=True)
+class Scenario:
+    """One fault: ``run(graph, row)`` injects it and fills the row (a ScenarioError, OSError,
+    RuntimeError or ValueError ends up in the row's note)."""
+
+    key: str                                # for --only
+    name: str                               # its row
+    run: Callable[[Graph, Row], None]
+    stops_graph: bool = False               # it stops `flexarm up`: its row is the teardown's
+
+
+@dataclass(frozen=True)
+class Plan:
+    """A graph (``robot`` entry of graph.yaml) and its scenarios, in the order they run."""
+
+    label: str
+    robot: str
+    scenarios: tuple[Scenario, ...]
+
+
+PLANS = (
+    Plan('sim', 'sim', (
+        Scenario('compensator', 'compensator killed mid-goal',
+                 lambda g, r: server_killed_mid_goal(g, 'flexarm_compensator', 'rigid', r)),
+        Scenario('learner', 'learner killed mid-collection', learner_killed_mid_collection),
+        Scenario('vision_goal', 'vision killed mid-goal (closed loop)', vision_killed_mid_goal),
+        Scenario('vision_collection', 'vision killed mid-collection',
+                 vision_killed_mid_collection),
+        Scenario('second_up', 'second flexarm up in the domain', second_graph),
+        Scenario('sim', 'simulator killed mid-goal',
+                 lambda g, r: server_killed_mid_goal(g, 'flexarm_sim', 'rigid', r)),
+        Scenario('sigterm_idle', 'SIGTERM of flexarm up (idle)',
+                 lambda g, r: stop_graph(g, signal.SIGTERM, False, r), stops_graph=True))),
+    Plan('bridge', 'bridge', (
+        Scenario('second_client', 'second controller client (TCP)', second_controller_client),
+        Scenario('bridge', 'bridge killed mid-goal',
+                 lambda g, r: server_killed_mid_goal(g, 'flexarm_bridge', 'rigid', r)),
+        Scenario('sigterm_goal', 'SIGTERM of flexarm up mid-goal (bridge)',
+                 lambda g, r: stop_graph(g, signal.SIGTERM, True, r), stops_graph=True))),
+    Plan('kill', 'sim', (
+        Scenario('sigkill_goal', 'SIGKILL of flexarm up mid-goal',
+                 lambda g, r: stop_graph(g, signal.SIGKILL, True, r), stops_graph=True),)),
+)
+KEYS = tuple(s.key for plan in PLANS for s in plan.scenarios)
+
+
+def attempt(graph: Graph, scenario: Scenario) -> Row:
     """Run one scenario; an error is reported in its row, not raised."""
-    row = Row(name)
+    row = Row(scenario.name)
     graph.rows.append(row)
     try:
-        scenario(graph, row)
+        scenario.run(graph, row)
     except (ScenarioError, OSError, RuntimeError, ValueError) as exc:
         row.add(f'error: {exc}')
     return row
 
 
-Scenario = Callable[[Graph, Row], None]
-# Per graph (label, robot): its scenarios in the order they run, each (key for --only, name,
-# what it does).
-GRAPHS: tuple[tuple[str, str, tuple[tuple[str, str, Scenario], ...]], ...] = (
-    ('sim', 'sim', (
-        ('compensator', 'compensator killed mid-goal',
-         lambda g, r: server_killed_mid_goal(g, 'flexarm_compensator', 'rigid', r)),
-        ('learner', 'learner killed mid-collection', learner_killed_mid_collection),
-        ('vision_goal', 'vision killed mid-goal (closed loop)', vision_killed_mid_goal),
-        ('vision_collection', 'vision killed mid-collection', vision_killed_mid_collection),
-        ('second_up', 'second flexarm up in the domain', second_graph),
-        ('sim', 'simulator killed mid-goal',
-         lambda g, r: server_killed_mid_goal(g, 'flexarm_sim', 'rigid', r)),
-        ('sigterm_idle', 'SIGTERM of flexarm up (idle)',
-         lambda g, r: stop_graph(g, signal.SIGTERM, False, r)))),
-    ('bridge', 'bridge', (
-        ('second_client', 'second controller client (TCP)', second_controller_client),
-        ('bridge', 'bridge killed mid-goal',
-         lambda g, r: server_killed_mid_goal(g, 'flexarm_bridge', 'rigid', r)),
-        ('sigterm_goal', 'SIGTERM of flexarm up mid-goal (bridge)',
-         lambda g, r: stop_graph(g, signal.SIGTERM, True, r)))),
-    ('kill', 'sim', (
-        ('sigkill_goal', 'SIGKILL of flexarm up mid-goal',
-         lambda g, r: stop_graph(g, signal.SIGKILL, True, r)),)),
-)
-KEYS = tuple(key for _, _, scenarios in GRAPHS for key, _, _ in scenarios)
-
-
-def run_graph(label: str, robot: str, tag: str,
-              scenarios: Iterable[tuple[str, str, Scenario]]) -> list[Row]:
+def run_graph(plan: Plan, tag: str, scenarios: Iterable[Scenario]) -> list[Row]:
+    """Start the plan's graph, run ``scenarios`` on it, stop it; their rows. What the graph
+    left at its end goes to the row of the scenario that stopped it, else to the last row."""
     with reserved() as domain:
-        graph = Graph(label, domain, robot, tag)
+        graph = Graph(plan.label, domain, plan.robot, tag)
+        teardown = None
         try:
             graph.wait_ready()
-            for _, name, scenario in scenarios:
-                attempt(graph, name, scenario)
+            for scenario in scenarios:
+                row = attempt(graph, scenario)
+                teardown = row if scenario.stops_graph else teardown
         except (RuntimeError, OSError) as exc:
-            graph.rows.append(Row(f'{label} graph', note=f'error: {exc}'))
+            graph.rows.append(Row(f'{plan.label} graph', note=f'error: {exc}'))
         finally:
-            graph.close()
-    print(f'# {robot} graph in ROS domain {domain}, logs in runs/faults-{graph.marker}/')
+            if teardown is None and not graph.rows:
+                graph.rows.append(Row(f'{plan.label} graph', note='interrupted'))
+            graph.close(teardown or graph.rows[-1])
+    print(f'# {plan.robot} graph in ROS domain {domain}, logs in runs/faults-{graph.marker}/')
     for row in graph.rows:
         print_row(row)
     return graph.rows
@@ -676,6 +801,13 @@ def print_row(row: Row) -> None:
           f'{row.lost_samples:>4} {row.orphans:>7} {row.stale_shm:>9}  {row.note}', flush=True)
 
 
+def _terminated(signum: int, frame: FrameType | None) -> None:
+    """SIGTERM: end the run as its end does (graphs stopped, their shared memory removed);
+    a second one cannot cut that short."""
+    signal.signal(signal.SIGTERM, signal.SIG_IGN)
+    raise SystemExit(128 + signum)
+
+
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--only', help=f'comma-separated scenarios of {", ".join(KEYS)} '
@@ -685,14 +817,15 @@ def main() -> None:
     only = set(args.only.split(',')) if args.only else set(KEYS)
     if only - set(KEYS):
         parser.error(f'unknown scenarios {sorted(only - set(KEYS))}; known: {", ".join(KEYS)}')
+    signal.signal(signal.SIGTERM, _terminated)
     started, tag = time.monotonic(), uuid.uuid4().hex[:8]
     print(f'{"scenario":<40} {"detected s":>10} {"recovered s":>11} {"lost":>4} '
           f'{"orphans":>7} {"stale shm":>9}  note', flush=True)
     rows: list[Row] = []
-    for label, robot, scenarios in GRAPHS:
-        chosen = [scenario for scenario in scenarios if scenario[0] in only]
+    for plan in PLANS:
+        chosen = [s for s in plan.scenarios if s.key in only]
         if chosen:
-            rows += run_graph(label, robot, tag, chosen)
+            rows += run_graph(plan, tag, chosen)
     detected = [r.detected_s for r in rows if r.detected_s is not None]
     summary = {'lost_samples': sum(r.lost_samples for r in rows),
                'orphans': sum(r.orphans for r in rows),

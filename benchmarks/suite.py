@@ -6,7 +6,9 @@ The clone is set up once (``scripts/setup.sh``: a new venv, minutes; not counted
 run executes the README's test command there (its set-up step then takes about a second).
 ``median_s`` and ``max_s`` are pytest's own times (set-up excluded), ``wall_s`` per run is the
 whole command. ``--hog`` keeps every core busy with a spinning process for the whole run: a
-loaded CI runner, where a suite that waits on guessed wall-clock times fails.
+loaded CI runner, where a suite that waits on guessed wall-clock times fails. The test command
+(bash execs its last command: pytest), the set-up and the busy loops end when this process
+ends, however (the tests' graphs end with pytest).
 
     python benchmarks/suite.py [--runs 5] [--hog] [--json]
     python benchmarks/suite.py --here --runs 1 --tests src/flexarm_control/test/test_modes.py
@@ -15,11 +17,13 @@ loaded CI runner, where a suite that waits on guessed wall-clock times fails.
 from __future__ import annotations
 
 import argparse
+import ctypes
 import json
 import multiprocessing
 import os
 import re
 import shlex
+import signal
 import statistics
 import subprocess
 import tempfile
@@ -29,6 +33,7 @@ from pathlib import Path
 ROOT = Path(__file__).resolve().parents[1]
 SUMMARY = re.compile(r'=+ (?P<counts>.*?) in (?P<seconds>[\d.]+)s')
 FAILED = re.compile(r'^(FAILED|ERROR) (\S+)', re.M)
+PRCTL = ctypes.CDLL(None, use_errno=True).prctl   # looked up before any fork
 
 
 def test_command(readme: Path) -> str:
@@ -48,7 +53,20 @@ def clean_env() -> dict[str, str]:
     return env
 
 
+def _die_with_parent(sig: int) -> None:
+    """``sig`` to this process when the thread that started it ends (PR_SET_PDEATHSIG; as
+    flexarm_control.parent_death, which this script, run outside the venv, cannot import)."""
+    PRCTL(1, int(sig), 0, 0, 0)
+
+
+def terminate_with_parent() -> None:
+    """A ``preexec_fn``: SIGTERM to the child when this harness ends, also by SIGKILL."""
+    _die_with_parent(signal.SIGTERM)
+
+
 def spin() -> None:
+    """A busy core until this harness ends (also by SIGKILL)."""
+    _die_with_parent(signal.SIGKILL)
     while True:
         pass
 
@@ -58,7 +76,8 @@ def run_once(tree: Path, command: str, log: Path) -> dict:
     start = time.monotonic()
     with open(log, 'w', encoding='utf-8') as out:
         code = subprocess.run(['bash', '-c', command], cwd=tree, env=clean_env(), stdout=out,
-                              stderr=subprocess.STDOUT, check=False).returncode
+                              stderr=subprocess.STDOUT, check=False,
+                              preexec_fn=terminate_with_parent).returncode
     wall = time.monotonic() - start
     text = log.read_text(encoding='utf-8', errors='replace')
     summaries = list(SUMMARY.finditer(text))
@@ -101,7 +120,8 @@ def main() -> None:
             print(f'fresh clone of {ROOT} HEAD in {tree}; setting up (not timed)', flush=True)
             with open(Path(tmp) / 'setup.log', 'w', encoding='utf-8') as out:
                 subprocess.run(['scripts/setup.sh'], cwd=tree, env=clean_env(), stdout=out,
-                               stderr=subprocess.STDOUT, check=True)
+                               stderr=subprocess.STDOUT, check=True,
+                               preexec_fn=terminate_with_parent)
         command = test_command(tree / 'README.md')
         if args.tests:
             command += ' ' + ' '.join(shlex.quote(a) for a in shlex.split(args.tests))

@@ -18,6 +18,8 @@ from typing import Any
 
 import pytest
 
+from flexarm_control.parent_death import terminate_with_parent
+
 REPO = Path(__file__).resolve().parents[1]
 TAIL = 3000    # [characters] of a failed run's output shown
 
@@ -114,7 +116,8 @@ def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:
         command += [smoke.domain, str(domain_id)]
     try:
         done = subprocess.run(command, cwd=REPO, capture_output=True, text=True,
-                              timeout=smoke.timeout, stdin=subprocess.DEVNULL)
+                              timeout=smoke.timeout, stdin=subprocess.DEVNULL,
+                              preexec_fn=terminate_with_parent)   # ends with this test
     except subprocess.TimeoutExpired as exc:
         pytest.fail(f'{smoke.name} still ran after {smoke.timeout:.0f} s (killed):\n'
                     f'{_tail(exc.stdout)}\n{_tail(exc.stderr)}')

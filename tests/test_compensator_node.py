@@ -141,7 +141,8 @@ def test_provenance_tolerances_and_dry_run(graph):
     spin_for(client, 1.0)
     np.testing.assert_array_equal(joints['q'], before)            # nothing moved
     versions = []
-    strict = client.move_to(*TARGET, mode='predictive', position_tolerance=1e-6, timeout=120,
+    # the floor (what the camera tells apart, 0.02 mm): this plan misses by some 0.04 mm
+    strict = client.move_to(*TARGET, mode='predictive', position_tolerance=2e-5, timeout=120,
                             feedback=lambda fb: versions.append(fb.model_version))
     assert strict.error_code == Result.TOLERANCE_NOT_MET, strict.error_string
     assert strict.measured and 'beyond the tolerance' in strict.error_string

@@ -7,9 +7,10 @@ stderr as ``flexarm COMMAND: …``; ``--json`` ends stdout with one line of JSON
 result and its ``exit_code``. Arguments are checked before anything connects. Whatever takes
 more than a moment shows progress on stderr (bars, waiting lines, goal feedback) unless
 ``--quiet`` or ``--json``. The graph must be running (``flexarm up``) for move/collect/train,
-in the same ROS_DOMAIN_ID. DDS discovery stays on this machine
-(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST) unless the environment sets another range or
-``flexarm up --discovery subnet`` widens it on purpose.
+in the same ROS_DOMAIN_ID. DDS stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST,
+and transports confined to shared memory and loopback: :mod:`flexarm_bringup.transport`) unless
+the environment sets another range or static peers, or ``flexarm up --discovery subnet`` widens
+it on purpose.
 
 Exit codes (:class:`flexarm_bringup.outcome_text.Exit`):
 
@@ -18,7 +19,11 @@ Exit codes (:class:`flexarm_bringup.outcome_text.Exit`):
     2    usage error: bad arguments, refused before connecting
     3    no graph answered within --wait, a server was lost mid-goal, or the goal outlasted
          --timeout (it was cancelled)
-    4    busy: another goal or collection runs; try again when it has ended
+    4    busy: another goal or collection runs; try again when it has ended (or end it with
+         flexarm cancel)
+    5    status: a node of the graph is down, or one reports an ERROR (e.g. a damaged
+         calibration file or model record: named, with the reason)
+    6    cancel: no goal was running, nothing was cancelled
     130  interrupted (Ctrl-C or SIGTERM): a running goal was cancelled and the command says
          where the arm stopped
 """
@@ -39,6 +44,7 @@ from pathlib import Path
 from types import FrameType
 from typing import Any
 
+from flexarm_bringup import transport
 from flexarm_bringup.outcome_text import (
     COLLECT_HINTS,
     EXIT_MEANINGS,
@@ -454,6 +460,41 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
     return out
 
 
+def _cancelled_text(goal: Any) -> str:
+    """What ``flexarm cancel`` ended: the goal, who sent it and what its result says."""
+    who = (f'sent by {goal.sender}' if goal.sender else
+           'its server does not record who sent it; clients of the action now: '
+           + (', '.join(goal.clients) or 'none'))
+    if goal.result is None:
+        text = _no_result()
+    else:
+        words = {topics.MOVE_TO_POSE: _move_interrupted, topics.COLLECT_SAMPLES:
+                 _collect_interrupted, topics.REFRESH_MODEL: lambda r: 'cancelled; the model '
+                 'is unchanged'}
+        name = next(n for n in words if goal.action.endswith('/' + n))
+        text = words[name](goal.result.result)
+    return f'{goal.action} goal {goal.goal_id[:8]} ({who}): {text}'
+
+
+@command
+def cmd_cancel(args: argparse.Namespace) -> dict[str, Any]:
+    """Cancel whatever goal runs on the arm (move, collect, refresh), whoever sent it."""
+    with _session(args, learner=False) as client:
+        with _elapsed('cancelling', args):
+            goals = client.cancel_all(timeout=args.wait)
+    rows = [{'action': g.action, 'goal_id': g.goal_id, 'sender': g.sender,
+             'clients': g.clients, 'error_code': None if g.result is None else
+             g.result.result.error_code, 'error_string': None if g.result is None else
+             g.result.result.error_string} for g in goals]
+    if not goals:
+        raise Outcome('nothing to cancel: no goal runs on '
+                      f'{_full(args, topics.MOVE_TO_POSE)} or the learner', Exit.NOTHING_TO_CANCEL,
+                      cancelled=rows)
+    for goal in goals:
+        print(_cancelled_text(goal))
+    return {'ok': True, 'cancelled': rows}
+
+
 @command
 def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
     """Show the payload the arm carries, or declare a new one [kg] (a tool picked up)."""
@@ -509,11 +550,13 @@ def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
 # --- graph and experiments --------------------------------------------------------------------
 @command
 def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
-    """Start the graph (one process per node), wait until ready, supervise until Ctrl-C."""
+    """Start the graph (one process per node), wait until ready, supervise until stopped."""
     import time
 
     from flexarm_bringup.experiment import reserved_domain
+    from flexarm_bringup.graph_status import FirstReports, GraphWatch
     from flexarm_bringup.supervisor import Graph
+    from flexarm_control import liveness
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
@@ -532,10 +575,12 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     optional = (('flexarm_recorder',) if args.record else ()) + (
         ('flexarm_foxglove',) if args.foxglove is not None else ())
     discovery = args.discovery.upper()
-    if discovery != 'LOCALHOST':
-        os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
-        print(f'DDS discovery widened to {discovery}: any host there that joins the ROS '
-              'domain can command this arm (these DDS wheels have no security)', flush=True)
+    # up's own participants (the readiness checks) share its nodes' range and transports
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
+    transport.apply(os.environ)
+    exposure = transport.warning(os.environ)
+    if exposure:
+        print(exposure, flush=True)
     with reserved_domain(args.domain_id) as domain:
         try:
             graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
@@ -548,6 +593,9 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
               f'{graph.run_dir}', flush=True)
         if graph.remote:
             print(_remote_text(graph.remote, discovery), flush=True)
+        reports = FirstReports(lambda: GraphWatch(domain, args.namespace),
+                               lambda line: print(line, flush=True))
+        hangup = _bind_lifetime(args.outlive_parent)
         try:
             graph.start()
             graph.wait_ready(args.timeout)
@@ -555,25 +603,54 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             arm = f' --namespace {args.namespace}' if args.namespace else ''
             print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
                   f'flexarm move 1450 -150 -45{arm}. Ctrl-C stops '
-                  f'{"the nodes of this host" if graph.remote else "everything"}.', flush=True)
-            print(_starting_model(domain, args.namespace), flush=True)
+                  f'{"the nodes of this host" if graph.remote else "everything"}'
+                  f'{"" if args.outlive_parent else LIFETIME_TEXT}.', flush=True)
+            watch = reports.expect(graph.nodes, liveness.limit(REPORT_WAIT))
+            print(_starting_model(watch), flush=True)
             if args.foxglove is not None:
                 print(_foxglove_text(args.foxglove), flush=True)
-            while True:
-                time.sleep(0.5)
-                graph.check()
+            while True:     # what goes wrong: a death, an ERROR in a (re)started node's reports
+                reports.step(0.5)
+                restarted = [n for n in graph.check() if not graph.nodes[n].reported]
+                if restarted:
+                    reports.expect(restarted, liveness.limit(RESTART_REPORT_WAIT))
         except KeyboardInterrupt:
             pass
         finally:
+            reports.close()
             codes = graph.stop()
+            if hangup:
+                signal.signal(signal.SIGHUP, signal.SIG_DFL)
             print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
     return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
+
+
+LIFETIME_TEXT = ', and so does the end of the process that started this one (--outlive-parent)'
+# [s, wall; liveness-scaled] for the first /diagnostics report of a node of a ready graph, of a
+# restarted one (it imports, starts and is discovered first)
+REPORT_WAIT = 5.0
+RESTART_REPORT_WAIT = 20.0
+
+
+def _bind_lifetime(outlive_parent: bool) -> bool:
+    """Tie ``up`` (and so its graph) to what started it, unless ``outlive_parent``: the kernel
+    sends SIGTERM when the starting process (thread) ends, a harness killed at its time budget
+    included, and SIGTERM stops the graph as Ctrl-C does. Under init or a service manager that
+    changes nothing (the parent outlives the service). A hang-up (the terminal closed) stops it
+    too, unless ignored (``nohup``). Whether SIGHUP's handler was set (to undo at the end)."""
+    from flexarm_control.parent_death import signal_on_parent_death
+
+    signal_on_parent_death(0 if outlive_parent else signal.SIGTERM)
+    if signal.getsignal(signal.SIGHUP) != signal.SIG_DFL:
+        return False
+    signal.signal(signal.SIGHUP, _interrupt)   # the default ends the process without a stop
+    return True
 
 
 def _remote_text(remote: tuple[str, ...], discovery: str) -> str:
     """What `up --only` expects from the other hosts, and whether DDS can reach them."""
     text = f'the rest of the graph must run on other hosts: {", ".join(remote)}'
-    if discovery == 'LOCALHOST' and not os.environ.get('ROS_STATIC_PEERS'):
+    if not transport.exposed(os.environ | {transport.RANGE_ENV: discovery}):
         text += ('; but DDS discovery stays on this machine: use --discovery subnet or set '
                  'ROS_STATIC_PEERS to the other hosts')
     return text
@@ -588,32 +665,19 @@ def _foxglove_text(port: int) -> str:
             f'(Foxglove WebSocket) and import the layout {config_path("foxglove_layout.json")}')
 
 
-def _starting_model(domain: int, namespace: str = '', listen: float = 3.0) -> str:
+def _starting_model(watch: Any, listen: float = 3.0) -> str:
     """Which model the compensator of a just-started graph runs (it loads the learner's
-    current one within a moment of start-up)."""
-    import time
+    current one within a moment of start-up), or why there is none."""
+    from flexarm_bringup.graph_status import model_summary, starting_model_text
+    from flexarm_control import liveness
 
-    import rclpy
-    from rclpy.context import Context
+    def learner() -> Any:
+        return watch.statuses.get('flexarm_learner: model')
 
-    from flexarm_bringup.graph_status import model_line, model_summary
-    from flexarm_control.client import FlexarmClient
-
-    context = Context()
-    rclpy.init(context=context, domain_id=domain)
-    client = FlexarmClient('flexarm_up_model', context=context, namespace=namespace)
-    try:
-        end = time.monotonic() + listen
-        while client.active_model is None and time.monotonic() < end:
-            client.spin_once(0.05)
-        summary = model_summary(client.active_model)
-    finally:
-        client.destroy_node()
-        rclpy.try_shutdown(context=context)
-    if summary is None:
-        return ('model driving the arm: none yet (PREDICTIVE goals are refused until '
-                '`flexarm train`; CLOSED_LOOP starts from the rigid plan)')
-    return model_line('model driving the arm', summary)
+    watch.spin(liveness.limit(listen), until=lambda: watch.active_model is not None
+               or starting_model_text(None, learner()) is not None)
+    return (starting_model_text(model_summary(watch.active_model), learner())
+            or 'model driving the arm: none yet (the compensator has loaded none so far)')
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
@@ -714,25 +778,34 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
 
 @command
 def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
-    """What runs in the domain and which model drives the arm (also without a graph)."""
+    """What runs in the domain, which model drives the arm, and what is wrong (exit 5)."""
     import rclpy
 
-    from flexarm_bringup.graph_status import query, status_text, supervisor_record
+    from flexarm_bringup.graph_status import (
+        graph_problems,
+        query,
+        status_text,
+        supervisor_record,
+    )
     from flexarm_control.client import init_client
 
     client = init_client(args.domain_id, args.namespace)
     try:
         with _elapsed('asking the graph', args):
-            status = query(client)
+            status = query(client, args.namespace)
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
     record = supervisor_record(RUNS_DIR, status['domain_id'], args.namespace)
+    status['problems'] = graph_problems(status['errors'], record)
     print(status_text(status, record))
     status['supervisor'] = record
     if not any(status['nodes'].values()):
         raise Outcome(f'no flexarm graph in ROS_DOMAIN_ID={status["domain_id"]}: start one '
                       'with `flexarm up`, or pass --domain-id', Exit.NO_GRAPH, **status)
+    if status['problems']:
+        raise Outcome(f'the graph has {len(status["problems"])} problem(s): see PROBLEMS above',
+                      Exit.DEGRADED, **status)
     return {'ok': True, **status}
 
 
@@ -1005,11 +1078,17 @@ def _up_arguments(p: argparse.ArgumentParser) -> None:
                    help='site key of the controller link (flexarm keygen); required when the '
                         'controller is not on this machine')
     p.add_argument('--discovery', choices=['localhost', 'subnet'], default='localhost',
-                   help='DDS discovery range; subnet exposes the graph to the network')
+                   help='DDS range (default: this machine only); subnet: anyone on the '
+                        'network can command the arm (no DDS-Security in these wheels)')
     p.add_argument('--only', type=lambda text: tuple(text.split(',')), default=(),
                    metavar='NODES', help='start only these nodes of config/graph.yaml, comma-'
                    'separated, flexarm_ prefix optional (e.g. sim,vision); the rest of the '
                    'graph runs on other hosts of the domain (default: the whole graph)')
+    p.add_argument('--outlive-parent', action='store_true',
+                   help='keep the graph running after the process that started `up` has '
+                        'ended, e.g. `nohup flexarm up --outlive-parent &` (default: it stops '
+                        'with that process as on Ctrl-C, so a script, test or shell that dies '
+                        'leaves no graph behind; a terminal closing stops it unless nohup)')
 
 
 def _experiment_arguments(p: argparse.ArgumentParser) -> None:
@@ -1068,6 +1147,7 @@ SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | N
     'train': (_train_arguments, True),
     'refresh': (_refresh_arguments, True),
     'payload': (_payload_arguments, True),
+    'cancel': (lambda p: None, True),
     'demo': (_experiment_arguments, False),
     'benchmark': (_benchmark_arguments, False),
     'study': (_study_arguments, None),
@@ -1123,6 +1203,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     except SystemExit as exc:        # --help (0), or a usage error argparse has printed (2)
         return int(exc.code or 0)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    transport.apply(os.environ)    # before any participant: Fast DDS reads its profile once
     # SIGTERM stops a command like Ctrl-C does: a running goal is cancelled and a graph it
     # started is shut down (its nodes run in sessions of their own and do not get the signal).
     # Both go through _interrupt, which keeps them out of rclpy's message conversions.

@@ -1,24 +1,37 @@
 """What ``flexarm status`` reports: a running graph seen from outside, with or without one.
 
 :func:`query` asks the graph of the client's ROS domain (node discovery, the latched model
-topics of the learner and the compensator, a second of ``/joint_states``, the payload and bag
-parameters); :func:`supervisor_record` finds the ``flexarm up`` that runs the domain (its run
-folder's ``graph.json``: node processes and restarts); :func:`status_text` formats the result
-for humans (mm and deg). Everything in the returned dict is SI and JSON-able. A graph split
-over hosts (``flexarm up --only``) is seen as far as the client's discovery range reaches:
-the nodes of every host with ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (or ROS_STATIC_PEERS), and
-the supervisor record is this machine's, which names its own part and the remote one.
+topics of the learner and the compensator, a second of ``/joint_states``, every node's
+``/diagnostics``, the payload and bag parameters); :func:`supervisor_record` finds the
+``flexarm up`` that runs the domain (its run folder's ``graph.json``: node processes, restarts
+and exit codes); :func:`graph_problems` says what is wrong: a node of the record whose process
+is gone, and every ERROR a node reports (a damaged calibration file or model record names the
+file and the reason there: the node that reads a file is the one that knows, on any host);
+:func:`status_text` formats the result for humans (mm and deg). Everything in the returned
+dict is SI and JSON-able. A graph split over hosts (``flexarm up --only``) is seen as far as
+the client's discovery range reaches: the nodes of every host with
+ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (or ROS_STATIC_PEERS), and the supervisor record is this
+machine's, which names its own part and the remote one (a node that died on another host is
+seen only as missing).
+
+:class:`FirstReports` is the same view for ``flexarm up``: it says each ERROR of its nodes'
+first reports (at start and after a restart: a node reads its files when it starts) and which
+model the graph starts with.
 """
 from __future__ import annotations
 
+import functools
 import json
 import math
 import os
 import time
+from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass, field
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
@@ -26,17 +39,102 @@ from sensor_msgs.msg import JointState
 
 from flexarm_bringup.launcher import load_graph, load_optional
 from flexarm_bringup.supervisor import RECORD
-from flexarm_control import topics
+from flexarm_control import liveness, topics
+from flexarm_control.health_report import ERROR, LEVEL_NAMES
 from flexarm_control.predictors.base import read_model
 from flexarm_msgs.msg import ModelHealth, ModelInfo
 
 CONTROLLERS = {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}
+NOT_DIAGNOSED = frozenset({'flexarm_foxglove'})   # publishes nothing on /diagnostics
+DIAGNOSTICS_WAIT = 3.0   # [s, wall; liveness-scaled] for every running node's first report
+LATCHED = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 
 
+@functools.cache
 def graph_node_names() -> list[str]:
     """Every node name config/graph.yaml knows, controller entries first."""
     names = [s.name for robot in ('sim', 'bridge') for s in load_graph(robot)]
     return list(dict.fromkeys(names + list(load_optional())))
+
+
+@dataclass(frozen=True)
+class Heard:
+    """A status of ``/diagnostics`` as last heard."""
+
+    level: int
+    message: str
+    values: Mapping[str, str] = field(default_factory=dict)
+
+
+def arm_status_name(name: str, namespace: str) -> str | None:
+    """A ``/diagnostics`` status name without the arm's namespace if a flexarm node of the arm
+    in ``namespace`` reports it (``arm1/flexarm_vision: camera_info`` -> ``flexarm_vision:
+    camera_info`` for ``arm1``), else None: another arm's, or not a flexarm node's."""
+    ns = namespace.strip('/')
+    own = name.removeprefix(f'{ns}/') if ns else name
+    if ns and own == name:
+        return None
+    return own if own.split(': ', 1)[0] in graph_node_names() else None
+
+
+def heard(msg: DiagnosticArray, namespace: str) -> dict[str, Heard]:
+    """The statuses of one ``/diagnostics`` message that the arm in ``namespace`` reports."""
+    found = {}
+    for s in msg.status:
+        name = arm_status_name(s.name, namespace)
+        if name is not None:
+            level = s.level[0] if isinstance(s.level, bytes) else int(s.level)
+            found[name] = Heard(level, s.message, {v.key: v.value for v in s.values})
+    return found
+
+
+def reporting_nodes(statuses: Mapping[str, Heard]) -> set[str]:
+    """The nodes that ``statuses`` come from."""
+    return {name.split(': ', 1)[0] for name in statuses}
+
+
+def process_alive(pid: int) -> bool:
+    """Whether ``pid`` is a process of this machine that has not ended (zombies have)."""
+    try:
+        return Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0] != 'Z'
+    except (OSError, IndexError):
+        return False
+
+
+def graph_problems(errors: Mapping[str, str], record: Mapping[str, Any] | None,
+                   alive: Callable[[int], bool] = process_alive) -> list[str]:
+    """What is wrong with the graph, a line each: the nodes of the supervisor ``record`` whose
+    process is gone (the supervisor restarts only some, and a dead one is otherwise merely
+    absent from discovery), then the ERROR statuses ``errors`` (name: message; a node's own
+    word on what is broken)."""
+    problems = []
+    for name, node in (record or {}).get('nodes', {}).items():
+        code, pid = node.get('exit_code'), node.get('pid')
+        if code is not None:
+            problems.append(f'{name} is down: it exited with code {code} and was not '
+                            f'restarted (its log: {Path(record["run_dir"]) / name}.log)')
+        elif pid is None or not alive(pid):
+            problems.append(f'{name} is down: its process {pid} is gone')
+    return problems + [f'{name}: {message}' for name, message in sorted(errors.items())]
+
+
+class ErrorLog:
+    """What ``flexarm up`` has said of the ERROR statuses: each once when it appears or
+    changes, and once when it is over."""
+
+    def __init__(self) -> None:
+        self._said: dict[str, str] = {}
+
+    def update(self, statuses: Mapping[str, Heard]) -> list[str]:
+        """Lines for the ERRORs of ``statuses`` not said yet, and the ones that are over."""
+        lines = []
+        for name, h in sorted(statuses.items()):
+            if h.level == ERROR and self._said.get(name) != h.message:
+                self._said[name] = h.message
+                lines.append(f'PROBLEM {name}: {h.message}')
+            elif h.level != ERROR and self._said.pop(name, None) is not None:
+                lines.append(f'resolved {name}: {LEVEL_NAMES[h.level]} {h.message}')
+        return lines
 
 
 def supervisor_record(runs_dir: Path, domain_id: int, namespace: str = ''
@@ -96,33 +194,42 @@ def _age(meta: dict[str, Any]) -> float | None:
     return (datetime.now(UTC) - created).total_seconds()
 
 
-def query(client: Any, listen: float = 1.0) -> dict[str, Any]:
-    """The status of the graph in ``client``'s domain (``client``: a FlexarmClient)."""
-    latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-    heard: dict[str, Any] = {'joint_states': 0}
+def query(client: Any, namespace: str = '', listen: float = 1.0) -> dict[str, Any]:
+    """The status of the graph in ``client``'s domain (``client``: a FlexarmClient of the arm
+    in ``namespace``)."""
+    got: dict[str, Any] = {'joint_states': 0}
+    statuses: dict[str, Heard] = {}
     subscriptions = [
         client.create_subscription(ModelInfo, topics.MODEL,
-                                   lambda m: heard.__setitem__('learner', m), latched),
+                                   lambda m: got.__setitem__('learner', m), LATCHED),
         client.create_subscription(ModelHealth, topics.MODEL_HEALTH,
-                                   lambda m: heard.__setitem__('health', m), latched),
+                                   lambda m: got.__setitem__('health', m), LATCHED),
         client.create_subscription(JointState, topics.JOINT_STATES,
-                                   lambda _: heard.__setitem__('joint_states',
-                                                               heard['joint_states'] + 1), 10)]
+                                   lambda _: got.__setitem__('joint_states',
+                                                             got['joint_states'] + 1), 10),
+        client.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
+                                   lambda m: statuses.update(heard(m, namespace)), 10)]
     running = _discover(client)
-    heard['joint_states'] = 0
+    got['joint_states'] = 0
     end = time.monotonic() + listen
     while time.monotonic() < end:
         client.spin_once(0.05)
+    reporting = (running & set(graph_node_names())) - NOT_DIAGNOSED
+    end = time.monotonic() + liveness.limit(DIAGNOSTICS_WAIT)
+    while reporting - reporting_nodes(statuses) and time.monotonic() < end:
+        client.spin_once(0.05)        # a node's report comes once a second
     nodes = {name: name in running for name in graph_node_names()}
     controller = next((kind for name, kind in CONTROLLERS.items() if nodes.get(name)), None)
     status = {
         'domain_id': client.context.get_domain_id(),
         'nodes': nodes,
         'controller': controller,
-        'joint_state_rate_hz': heard['joint_states'] / listen,
-        'learner_model': model_summary(heard.get('learner')),
+        'joint_state_rate_hz': got['joint_states'] / listen,
+        'learner_model': model_summary(got.get('learner')),
         'active_model': model_summary(client.active_model),
-        'model_health': health_summary(heard.get('health')),
+        'model_health': health_summary(got.get('health')),
+        'errors': {name: h.message for name, h in sorted(statuses.items())
+                   if h.level == ERROR},
         'payload_kg': {'learner': _parameter(client, 'flexarm_learner', 'payload')
                        if nodes['flexarm_learner'] else None,
                        'simulated': _parameter(client, 'flexarm_sim', 'plant.payload')
@@ -260,4 +367,109 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
     lines.append('payload: ' + (', '.join(known) or 'unknown'))
     lines.append(f'recording: bags/{status["bag"]}' if status['bag'] else 'recording: no')
+    problems = status.get('problems') or []
+    lines.append('PROBLEMS:' + ''.join(f'\n  {p}' for p in problems) if problems
+                 else 'problems: none')
     return '\n'.join(lines)
+
+
+class GraphWatch:
+    """The arm's ``/diagnostics`` statuses and the compensator's active model, heard by a
+    node of its own (one context; spun by the caller, so signals stay Python's)."""
+
+    def __init__(self, domain_id: int, namespace: str = '') -> None:
+        import rclpy
+        from rclpy.context import Context
+        from rclpy.executors import SingleThreadedExecutor
+        from rclpy.signals import SignalHandlerOptions
+
+        self._context = Context()
+        rclpy.init(context=self._context, domain_id=domain_id,
+                   signal_handler_options=SignalHandlerOptions.NO)
+        ns = namespace.strip('/')
+        self._node = rclpy.create_node('flexarm_up_watch', context=self._context,
+                                       namespace=f'/{ns}' if ns else '')
+        self.statuses: dict[str, Heard] = {}
+        self.active_model: ModelInfo | None = None
+        self._node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
+                                       lambda m: self.statuses.update(heard(m, ns)), 10)
+        self._node.create_subscription(ModelInfo, topics.ACTIVE_MODEL,
+                                       lambda m: setattr(self, 'active_model', m), LATCHED)
+        self._executor = SingleThreadedExecutor(context=self._context)
+        self._executor.add_node(self._node)
+
+    def spin(self, seconds: float, until: Callable[[], bool] = lambda: False) -> None:
+        """Take what comes for ``seconds``, or until ``until()`` holds."""
+        end = time.monotonic() + seconds
+        while not until() and time.monotonic() < end:
+            self._executor.spin_once(timeout_sec=min(0.1, max(0.0, end - time.monotonic())))
+
+    def forget(self, nodes: Iterable[str]) -> None:
+        """Drop what ``nodes`` said so far (restarted: what they say now counts)."""
+        for name in [n for n in self.statuses if n.split(': ', 1)[0] in set(nodes)]:
+            del self.statuses[name]
+
+    def close(self) -> None:
+        import rclpy
+
+        self._executor.shutdown()
+        self._node.destroy_node()
+        rclpy.try_shutdown(context=self._context)
+
+
+class FirstReports:
+    """``flexarm up``'s ear on ``/diagnostics``: open while nodes' first reports are due (after
+    the graph is ready, after a node's restart), each ERROR said as it comes (:class:`ErrorLog`).
+
+    A node reads its files (tool calibration, model record) when it starts, so its first
+    reports say what is damaged; a participant held for ``up``'s whole life would instead leave
+    its shared memory behind whenever ``up`` is killed with SIGKILL.
+    """
+
+    def __init__(self, listen: Callable[[], GraphWatch], say: Callable[[str], None]) -> None:
+        self._listen, self._say = listen, say
+        self.watch: GraphWatch | None = None
+        self._due: dict[str, float] = {}       # node: until when its first report is awaited
+        self._errors = ErrorLog()
+
+    def expect(self, nodes: Iterable[str], within: float) -> GraphWatch:
+        """Listen until each of ``nodes`` has reported, for ``within`` seconds at most."""
+        nodes = [n for n in nodes if n not in NOT_DIAGNOSED]
+        if self.watch is None:
+            self.watch = self._listen()
+        self.watch.forget(nodes)
+        self._due.update(dict.fromkeys(nodes, time.monotonic() + within))
+        return self.watch
+
+    def step(self, seconds: float) -> None:
+        """Listen (or wait) ``seconds``; say what is new; stop listening once nothing is due."""
+        if self.watch is None:
+            time.sleep(seconds)
+            return
+        self.watch.spin(seconds)
+        for line in self._errors.update(self.watch.statuses):
+            self._say(line)
+        heard_from, now = reporting_nodes(self.watch.statuses), time.monotonic()
+        self._due = {n: t for n, t in self._due.items() if n not in heard_from and t > now}
+        if not self._due:
+            self.close()
+
+    def close(self) -> None:
+        if self.watch is not None:
+            self.watch.close()
+            self.watch = None
+
+
+def starting_model_text(active: dict[str, Any] | None, learner: Heard | None) -> str | None:
+    """``flexarm up``'s line on the model the graph starts with: the compensator's ``active``
+    model; without one, the learner's ``model`` status (an ERROR says why there is none, e.g.
+    a damaged model record); None while it is too early to tell (the learner announced a model
+    the compensator has not loaded yet, or has not reported)."""
+    if active is not None:
+        return model_line('model driving the arm', active)
+    if learner is None or (learner.level != ERROR and learner.values.get('version')):
+        return None
+    if learner.level == ERROR:
+        return 'model driving the arm: none: the learner could not announce one (PROBLEM below)'
+    return ('model driving the arm: none yet (PREDICTIVE goals are refused until `flexarm '
+            'train`; CLOSED_LOOP starts from the rigid plan)')

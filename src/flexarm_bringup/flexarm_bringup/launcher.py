@@ -21,6 +21,7 @@ from typing import IO, Any
 
 import yaml
 
+from flexarm_bringup.transport import transport_env
 from flexarm_control.params import config_path
 from flexarm_control.parent_death import signal_on_parent_death
 
@@ -81,11 +82,13 @@ def select_nodes(names: Sequence[str], only: Iterable[str]) -> list[str]:
 def ros_env(domain_id: int, log_dir: Path | None = None,
             base: Mapping[str, str] | None = None,
             discovery: str = 'LOCALHOST') -> dict[str, str]:
-    """Environment of a node process: isolated domain, discovery range, own log dir.
+    """Environment of a node process: isolated domain, discovery range and the transports
+    that go with it, own log dir.
 
     ``discovery`` (ROS_AUTOMATIC_DISCOVERY_RANGE) is LOCALHOST unless the caller widens it on
     purpose: the DDS of the PyPI wheels has no security plugins, so every participant that
-    discovers the graph can publish commands to it.
+    reaches the graph can publish commands to it. With LOCALHOST every transport stays on
+    this machine too (:mod:`flexarm_bringup.transport`).
     """
     if discovery not in DISCOVERY_RANGES:
         raise ValueError(f'discovery range {discovery!r}; choose one of {DISCOVERY_RANGES}')
@@ -96,7 +99,7 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     env['PYTHONUNBUFFERED'] = '1'
     if log_dir is not None:
         env['ROS_LOG_DIR'] = str(log_dir)
-    return env
+    return transport_env(env)
 
 
 def node_command(spec: NodeSpec, overrides_file: Path | None = None, namespace: str = ''

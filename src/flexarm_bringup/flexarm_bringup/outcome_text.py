@@ -18,6 +18,8 @@ class Exit(IntEnum):
     USAGE = 2
     NO_GRAPH = 3
     BUSY = 4
+    DEGRADED = 5
+    NOTHING_TO_CANCEL = 6
     INTERRUPTED = 130
 
 
@@ -27,12 +29,18 @@ EXIT_MEANINGS = {
     Exit.USAGE: 'usage error: bad arguments, refused before connecting',
     Exit.NO_GRAPH: 'no graph answered within --wait, a server was lost mid-goal, or the goal '
                    'outlasted --timeout (it was cancelled)',
-    Exit.BUSY: 'busy: another goal or collection runs; try again when it has ended',
+    Exit.BUSY: 'busy: another goal or collection runs; try again when it has ended (or end it '
+               'with flexarm cancel)',
+    Exit.DEGRADED: 'status: a node of the graph is down, or one reports an ERROR (e.g. a '
+                   'damaged calibration file or model record: named, with the reason)',
+    Exit.NOTHING_TO_CANCEL: 'cancel: no goal was running, nothing was cancelled',
     Exit.INTERRUPTED: 'interrupted (Ctrl-C or SIGTERM): a running goal was cancelled',
 }
 
 MOVE_HINTS = {
-    'INVALID_GOAL': 'give finite numbers and tolerances >= 0',
+    'INVALID_GOAL': 'give finite numbers, phi within -180..180 deg, tolerances 0 (the '
+                    'default) or within the bounds the reason names, and at most as many '
+                    'corrections as it names',
     'UNREACHABLE': 'choose a target the arm can reach (the regions of config/learner.yaml '
                    'are inside its reach); --mode rigid tells whether the rigid arm reaches it',
     'NO_MODEL': 'train a model first (flexarm collect 40 --region A --dataset A; flexarm train '
@@ -43,7 +51,8 @@ MOVE_HINTS = {
                          '--max-iterations (CLOSED_LOOP), or retrain the model',
     'CONTROLLER_TIMEOUT': 'the joints did not follow the command: check the controller '
                           '(flexarm up reports a node that died) and /joint_states',
-    'CANCELED': 'another client cancelled the goal; the arm stopped where it was',
+    'CANCELED': 'the goal was cancelled (flexarm cancel, another client, or the server: the '
+                'reason says why); the arm stopped where it was',
     'OUTSIDE_LEARNED_DATA': 'collect samples around this target and train again, or pass '
                             '--allow-extrapolation to run it with a warning',
 }
@@ -95,7 +104,7 @@ def is_busy(reason: str) -> bool:
 def busy_text(server: str) -> str:
     """What a busy server means for the operator."""
     return (f'busy: another goal is running on {server} (one at a time); wait until it has '
-            'ended (or cancel it with Ctrl-C in its shell), then try again')
+            'ended, or end it with `flexarm cancel`, then try again')
 
 
 def failure_text(name: str, reason: str, hints: Mapping[str, str], moved: bool) -> str:

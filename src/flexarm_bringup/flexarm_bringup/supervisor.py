@@ -15,7 +15,8 @@ A node that dies is reported with its exit code and the last lines of its log, a
 graph.yaml says so (at most ``max_restarts`` times); the rest keeps running. :meth:`Graph.stop`
 shuts everything down (SIGINT, SIGTERM, SIGKILL) and removes stale Fast DDS shared-memory
 files. The run folder's ``graph.json`` (:data:`RECORD`) says which supervisor runs which
-node processes in which domain, and how often each was restarted (``flexarm status``).
+node processes in which domain, how often each was restarted and the exit code of one that
+stays down (``flexarm status`` names a node whose process is gone).
 
 Several arms: a graph with a ``namespace`` runs every node under ``/<namespace>`` (its names are
 relative: :mod:`flexarm_control.topics`), with the learner's data and model folders and the
@@ -247,6 +248,9 @@ class Graph:
                 self._report(f'node {name} restarted ({node.restarts}/{self.max_restarts})')
             else:
                 node.reported = True
+                why = (f'restarted {node.restarts} times already' if node.spec.restart
+                       else 'graph.yaml does not restart it')
+                self._report(f'node {name} stays down ({why}): the graph runs without it')
         if dead:
             self._write_record()
         return dead

@@ -2,7 +2,18 @@
 import json
 import os
 
-from flexarm_bringup.graph_status import graph_node_names, status_text, supervisor_record
+from flexarm_bringup.graph_status import (
+    ErrorLog,
+    FirstReports,
+    Heard,
+    arm_status_name,
+    graph_node_names,
+    graph_problems,
+    starting_model_text,
+    status_text,
+    supervisor_record,
+)
+from flexarm_control.health_report import ERROR, OK, WARN
 
 MODEL = {'version': '4', 'kind': 'gp', 'dataset': 'B', 'payloads': [0.0], 'samples': 40,
          'validation': '5-fold cross-validation', 'max_error': [1e-4, 2e-4, 1e-5],
@@ -53,3 +64,97 @@ def test_an_empty_domain_says_how_to_start_a_graph():
     text = status_text(empty, None)
     assert 'no flexarm graph in this domain' in text and 'flexarm up' in text
     assert 'controller: none' in text and 'payload: unknown' in text
+
+
+def test_statuses_of_this_arm_are_told_from_other_arms_and_other_software():
+    assert arm_status_name('flexarm_vision: camera_info', '') == 'flexarm_vision: camera_info'
+    assert arm_status_name('arm1/flexarm_vision: camera_info', '') is None
+    assert arm_status_name('arm1/flexarm_vision: camera_info', '/arm1') == (
+        'flexarm_vision: camera_info')
+    assert arm_status_name('arm2/flexarm_vision: camera_info', 'arm1') is None
+    assert arm_status_name('flexarm_vision: camera_info', 'arm1') is None
+    assert arm_status_name('joy_node: joystick', '') is None
+
+
+def test_problems_name_dead_nodes_of_the_record_then_errors():
+    record = {'run_dir': '/runs/x', 'nodes': {
+        'flexarm_sim': {'pid': 10, 'restarts': 0, 'exit_code': -9},
+        'flexarm_vision': {'pid': 11, 'restarts': 1, 'exit_code': None},
+        'flexarm_learner': {'pid': 12, 'restarts': 0, 'exit_code': None}}}
+    errors = {'flexarm_vision: tool calibration': '/c/tool_camera.json is damaged (x)'}
+    problems = graph_problems(errors, record, alive=lambda pid: pid == 12)
+    assert problems == [
+        'flexarm_sim is down: it exited with code -9 and was not restarted (its log: '
+        '/runs/x/flexarm_sim.log)',
+        'flexarm_vision is down: its process 11 is gone',
+        'flexarm_vision: tool calibration: /c/tool_camera.json is damaged (x)']
+    assert graph_problems({}, None) == []
+
+
+def test_each_error_is_said_once_and_when_it_is_over():
+    log = ErrorLog()
+    broken = Heard(ERROR, 'file damaged')
+    assert log.update({'flexarm_vision: tool calibration': broken,
+                       'flexarm_sim: controller': Heard(WARN, 'moving')}) == [
+        'PROBLEM flexarm_vision: tool calibration: file damaged']
+    assert log.update({'flexarm_vision: tool calibration': broken}) == []
+    assert log.update({'flexarm_vision: tool calibration': Heard(ERROR, 'other reason')}) == [
+        'PROBLEM flexarm_vision: tool calibration: other reason']
+    assert log.update({'flexarm_vision: tool calibration': Heard(OK, 'from file')}) == [
+        'resolved flexarm_vision: tool calibration: OK from file']
+    assert log.update({'flexarm_vision: tool calibration': Heard(OK, 'from file')}) == []
+
+
+def test_the_starting_model_waits_for_the_compensator_unless_the_learner_has_none():
+    announced = Heard(OK, 'model v4 (gp) announced', {'version': '4'})
+    assert starting_model_text(None, None) is None                 # nothing heard yet
+    assert starting_model_text(None, announced) is None            # loading it
+    assert starting_model_text(MODEL, announced).startswith('model driving the arm: v4 gp')
+    assert 'none yet' in starting_model_text(None, Heard(OK, 'no model yet', {'version': ''}))
+    damaged = Heard(ERROR, 'no model announced: current.json is damaged', {'version': ''})
+    assert 'could not announce one (PROBLEM below)' in starting_model_text(None, damaged)
+
+
+def test_problems_end_the_status_text():
+    assert status_text(status(), None).endswith('problems: none')
+    text = status_text(status(problems=['flexarm_sim is down: it exited with code -9']), None)
+    assert text.endswith('PROBLEMS:\n  flexarm_sim is down: it exited with code -9')
+
+
+class FakeWatch:
+    """A GraphWatch whose statuses the test sets; spinning only counts."""
+
+    def __init__(self) -> None:
+        self.statuses: dict[str, Heard] = {}
+        self.spins, self.closed = 0, False
+
+    def spin(self, seconds: float) -> None:
+        self.spins += 1
+
+    def forget(self, nodes) -> None:
+        self.statuses = {n: h for n, h in self.statuses.items() if n.split(': ')[0] not in nodes}
+
+    def close(self) -> None:
+        self.closed = True
+
+
+def test_first_reports_listen_until_each_node_has_reported_once():
+    watches, said = [], []
+    reports = FirstReports(lambda: watches.append(FakeWatch()) or watches[-1], said.append)
+    watch = reports.expect(['flexarm_vision', 'flexarm_learner', 'flexarm_foxglove'], 60.0)
+    watch.statuses['flexarm_vision: tool calibration'] = Heard(ERROR, 'damaged')
+    reports.step(0.5)
+    assert said == ['PROBLEM flexarm_vision: tool calibration: damaged'] and not watch.closed
+    watch.statuses['flexarm_learner: model'] = Heard(OK, 'no model yet')
+    reports.step(0.5)                      # the foxglove bridge reports nothing: not awaited
+    assert watch.closed and reports.watch is None
+    reports.step(0.01)                     # not listening: no new participant either
+    assert len(watches) == 1
+    again = reports.expect(['flexarm_vision'], 60.0)     # restarted: listens anew
+    again.statuses['flexarm_vision: tool calibration'] = Heard(OK, 'correction from file')
+    reports.step(0.5)
+    assert said[-1] == 'resolved flexarm_vision: tool calibration: OK correction from file'
+    assert again.closed and len(watches) == 2
+    late = reports.expect(['flexarm_learner'], 0.0)      # never reports: given up
+    reports.step(0.5)
+    assert late.closed

@@ -2,9 +2,13 @@
 
 Planning (:mod:`flexarm_control.planning`) and the model health call ``predict``,
 ``data_distance`` and ``position_std`` with joints only. :class:`AtPayload` passes the current
-payload [kg] to a model that takes it as an input (its ``payload_input`` setting) and nothing to
-one that does not; for the former the payload counts in the distance from the learned data, so
-a payload far outside the trained ones is refused like any other extrapolation.
+payload [kg] to a model that predicts at the payload it is given
+(:attr:`~flexarm_control.predictors.Predictor.carries_payload`: it takes the payload as an input,
+its ``payload_input`` setting, or carries it physically, the grey-box) and nothing to one that
+does not, which predicts at the payloads it was trained at (planning refuses it at another,
+:func:`~flexarm_control.planning.payload_beyond`). For a model with the input the payload
+counts in the distance from the learned data, so a payload far outside the trained ones is
+refused like any other extrapolation; one that carries it physically is not limited by it.
 """
 from __future__ import annotations
 
@@ -17,7 +21,8 @@ class AtPayload:
     def __init__(self, predictor: Predictor, payload: float) -> None:
         self.predictor = predictor
         self.payload = float(payload)
-        self._given = self.payload if predictor.settings['payload_input'] else None
+        self.carried = predictor.carries_payload   # whether the model predicts at ``payload``
+        self._given = self.payload if self.carried else None
 
     def predict(self, joints: np.ndarray) -> np.ndarray:
         return self.predictor.predict(joints, self._given)

@@ -16,6 +16,8 @@ the timeout. A timeout
 or a Ctrl-C (KeyboardInterrupt) while a goal runs cancels it (bounded wait) before the
 exception goes on, so the arm stops; Ctrl-C raises :class:`GoalInterrupted` (a
 KeyboardInterrupt) with the cancelled goal's result, e.g. where the arm stopped.
+:meth:`FlexarmClient.cancel_all` cancels whatever goal runs on the arm, whoever sent it
+(``flexarm cancel``).
 :func:`init_client` leaves SIGINT to Python: rclpy's own handler would shut the context down
 before the cancel could be sent.
 Units are SI (m, rad); converting from mm/deg is the caller's (the CLI's) business.
@@ -24,9 +26,11 @@ from __future__ import annotations
 
 import contextlib
 import json
+import os
 import time
 import uuid
 from collections.abc import Callable, Iterable, Mapping
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -44,6 +48,7 @@ from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from flexarm_control import liveness, topics
+from flexarm_control.goal_owner import own_participant, participant, send_goal_writers, sender_of
 from flexarm_control.modes import Mode
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
@@ -85,7 +90,19 @@ class GoalInterrupted(KeyboardInterrupt):
         self.accepted, self.result = accepted, result
 
 
+@dataclass(frozen=True)
+class CanceledGoal:
+    """A goal :meth:`FlexarmClient.cancel_all` cancelled."""
+
+    action: str          # the action's full name, e.g. /move_to_pose
+    goal_id: str         # hex
+    result: Any          # its result (status and result), None if none came in time
+    sender: str          # who sent it, as the server recorded it ('' if it does not)
+    clients: list[str]   # the action's clients now, this one left out
+
+
 _UNKNOWN = 'unknown node'
+ALL_GOALS = UUID(uuid=[0] * 16)   # a cancel request for this id (and stamp 0): every goal
 
 
 def _known(names: Iterable[str]) -> list[str]:
@@ -322,6 +339,40 @@ class FlexarmClient(Node):
         """Cancel the goal in progress (if any) and wait for the server to acknowledge."""
         if self._goal_handle is not None:
             self._spin_until(self._goal_handle.cancel_goal_async(), timeout, 'cancel')
+
+    def cancel_all(self, timeout: float = 10.0) -> list[CanceledGoal]:
+        """Cancel every goal that runs on the arm's action servers (MoveToPose, and
+        CollectSamples and RefreshModel when the learner serves them), whoever sent them, and
+        wait (bounded by ``CANCEL_WAIT``) for their results. Call after
+        :meth:`wait_until_ready` (``learner=False`` is enough: the learner's servers are
+        waited for when discovery knows the learner)."""
+        deadline = time.monotonic() + timeout
+        learner = ('flexarm_learner', self.get_namespace()) in \
+            self.get_node_names_and_namespaces()
+        canceled = []
+        for client in (self._move, self._collect, self._refresh):
+            if not client.server_is_ready() and not (learner and client.wait_for_server(
+                    timeout_sec=max(0.0, deadline - time.monotonic()))):
+                continue
+            self._wait_responsive(client, deadline)
+            response = self._spin_until(
+                ClientGoalHandle(client, ALL_GOALS, None).cancel_goal_async(),
+                deadline - time.monotonic(), f'the cancel of {client._action_name}')
+            action = topics.absolute(client._action_name, self.get_namespace())
+            writers = send_goal_writers(self, action)
+            me = own_participant(writers, topics.absolute(self.get_name(),
+                                                          self.get_namespace()), os.getpid())
+            clients = sorted({name for gid, name in writers if participant(gid) != me})
+            for info in response.goals_canceling:
+                future = ClientGoalHandle(client, info.goal_id, None).get_result_async()
+                with contextlib.suppress(TimeoutError):
+                    self._spin_until(future, CANCEL_WAIT, 'the cancelled result')
+                result = future.result() if future.done() else None
+                canceled.append(CanceledGoal(
+                    action, bytes(info.goal_id.uuid).hex(), result,
+                    sender_of(result.result.error_string) if result is not None else '',
+                    clients))
+        return canceled
 
     def destroy_node(self) -> None:
         self._move.destroy()

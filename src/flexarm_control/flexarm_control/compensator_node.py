@@ -22,17 +22,26 @@ one, and a roll back (``/learner/use_model``) is a new announcement with a new s
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
 arriving together can both pass that check: execution decides, and the one that finds the
 other executing is aborted (INVALID_GOAL, "busy") before anything moves. Every accepted goal
-is validated before anything moves and aborted with an error code and reason if invalid; an
-unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never with an
-empty result. Cancel holds the arm at its current joint positions (the result's
-``joint_positions`` are those).
+is validated before anything moves, against the bounds of :mod:`flexarm_control.goal_bounds`
+too, and aborted with an error code and reason if invalid; an unexpected error aborts the
+goal with INVALID_GOAL and "internal error: ...", never with an empty result. Cancel holds the
+arm at its current joint positions (the result's ``joint_positions`` are those).
+
+No goal holds the arm for ever: the server ends a goal itself (aborted with CANCELED, "canceled
+by the server: <why>", the arm held) when it outlasts its time limit (the arm's time,
+:func:`~flexarm_control.goal_bounds.time_limit`) or when every client that may have sent it
+has left the graph (:mod:`flexarm_control.goal_owner`: the candidates are taken at acceptance,
+looked for every ``SENDER_CHECK`` s while it runs). A canceled goal's result names them
+("goal sent by /node"), which is how ``flexarm cancel`` tells who sent the goal it cancelled;
+the ``goals`` diagnostics name them while it runs.
 
 Payload: the payload the arm carries comes on the latched ``/payload`` (std_msgs/Float64 [kg],
 the learner's ``payload`` parameter: ``flexarm payload KG``). A model that takes it as an input
-is run at it (:class:`~flexarm_control.at_payload.AtPayload`); a model without that input,
-trained at other payloads, or one with it beyond its trained range, adds a warning to the
-result (:func:`~flexarm_control.model_store.payload_warning`). Until a payload is known, a
-payload-aware model is not used.
+is run at it (:class:`~flexarm_control.at_payload.AtPayload`), and so is a model that carries
+it physically (the grey-box's gravity moments); either adds a warning beyond its trained range
+(:func:`~flexarm_control.model_store.payload_warning`). A model that does neither is refused at a
+payload it was not trained at unless the goal allows extrapolation (planning). Until a payload
+is known, a payload-carrying model is not used.
 
 Model health (:mod:`flexarm_control.model_health`): every measured tip checks the model in use
 (measured − predicted deflection at the reported joints), per working region; the statistics
@@ -77,6 +86,7 @@ from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.compensator import Compensator, Plan
 from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.goal_bounds import GoalBounds, GoalWatch, goal_error, time_limit
 from flexarm_control.goal_execution import (
     CANCELED,
     CONTROLLER_TIMEOUT,
@@ -87,6 +97,7 @@ from flexarm_control.goal_execution import (
     GoalSpec,
     execute,
 )
+from flexarm_control.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
 from flexarm_control.health_report import ERROR, OK, WARN, Status, status
 from flexarm_control.kinematics import ArmGeometry, UnreachableError, forward, pose_error
 from flexarm_control.model_health import HealthSettings, ModelHealth
@@ -121,21 +132,6 @@ def _nanoseconds(stamp: TimeMsg) -> int:
 
 def planar(pose: np.ndarray) -> PlanarPose:
     return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
-
-
-def goal_error(goal: Goal) -> str | None:
-    """Why a goal is malformed (before any kinematics), or None."""
-    values = {'target.x': goal.target.x, 'target.y': goal.target.y,
-              'target.phi': goal.target.phi, 'position_tolerance': goal.position_tolerance,
-              'angle_tolerance': goal.angle_tolerance}
-    bad = [name for name, v in values.items() if not math.isfinite(v)]
-    if bad:
-        return f'non-finite {", ".join(bad)}'
-    if goal.mode >= len(Mode):
-        return f'unknown mode {goal.mode}'
-    if goal.position_tolerance < 0 or goal.angle_tolerance < 0:
-        return 'tolerances must be >= 0 (0 = server default)'
-    return None
 
 
 def model_status(node: str, info: ModelInfo | None, load_error: str,
@@ -204,6 +200,12 @@ class CompensatorNode(Node):
         self._max_corrections = declare(
             self, 'max_corrections', 5, 'default CLOSED_LOOP corrective moves after the first')
         motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
+        self._bounds = GoalBounds.nominal()
+        reason = self._bounds.tolerance_error(self._pos_tol, self._ang_tol) or (
+            None if 1 <= self._max_corrections <= self._bounds.max_corrections else
+            f'max_corrections must be 1..{self._bounds.max_corrections}')
+        if reason is not None:
+            raise ValueError(f'default goal settings out of bounds: {reason}')
         self._limits = DataLimits(
             declare(self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than '
                     'this from the learning samples [typical sample spacings]'),
@@ -226,7 +228,11 @@ class CompensatorNode(Node):
         self._load_error = ''          # why the last announced model was not loaded
         self._busy = threading.Lock()
         self._goal_counts = {'succeeded': 0, 'failed': 0, 'canceled': 0}
-        self._executing = ''           # the goal in progress: trial name and mode
+        self._executing = ''           # the goal in progress: trial name, mode and sender
+        self._action = topics.absolute(topics.MOVE_TO_POSE, self.get_namespace())
+        self._owners: dict[bytes, Owner] = {}    # of accepted goals, by goal id, until run
+        self._processes = ProcTable()
+        self._host: bytes | None = None          # a gid of this node (its host, for owners)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
         self._health_pub = self.create_publisher(HealthMsg, topics.MODEL_HEALTH, latched)
@@ -244,7 +250,7 @@ class CompensatorNode(Node):
             self, MoveToPose, topics.MOVE_TO_POSE,
             execute_callback=self._goals.wrap(self._execute),
             goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
-            callback_group=self._group)
+            handle_accepted_callback=self._on_accepted, callback_group=self._group)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses)
 
     def statuses(self) -> list[Status]:
@@ -325,18 +331,32 @@ class CompensatorNode(Node):
             return GoalResponse.REJECT
         return GoalResponse.ACCEPT
 
+    def _on_accepted(self, handle: ServerGoalHandle) -> None:
+        """Note who may have sent the goal (:mod:`flexarm_control.goal_owner`), then run it."""
+        if self._host is None:
+            self._host = next((bytes(i.endpoint_gid) for i in self.get_publishers_info_by_topic(
+                f'{self._action}/_action/status') if i.node_name == self.get_name()
+                and i.node_namespace == self.get_namespace()), None)
+        self._owners[bytes(handle.goal_id.uuid)] = owner_at_acceptance(
+            send_goal_writers(self, self._action), self._host, self._processes)
+        handle.execute()
+
+    def _sender_left(self, owner: Owner) -> bool:
+        return owner.gone(send_goal_writers(self, self._action), self._processes.alive)
+
     # --- execution --------------------------------------------------------------------------
     def _execute(self, handle: ServerGoalHandle) -> Result:
         goal: Goal = handle.request
+        owner = self._owners.pop(bytes(handle.goal_id.uuid), Owner())
         if not self._busy.acquire(blocking=False):   # lost a race past _on_goal
             result = Result(error_code=Result.INVALID_GOAL,
                             error_string='busy: another goal is executing (one at a time)')
         else:
             mode = Mode(goal.mode).label if goal.mode < len(Mode) else f'mode {goal.mode}'
-            self._executing = f'{goal.trial or "(no trial name)"} ({mode})'
+            self._executing = f'{goal.trial or "(no trial name)"} ({mode}), {owner.text()}'
             try:
                 with self._arm.attached():
-                    result = self._run(handle, goal)
+                    result = self._run(handle, goal, owner)
             except Exception as exc:   # last resort: a reason for the client, never empty
                 self.get_logger().error(f'goal failed: {traceback.format_exc()}')
                 result = Result(error_code=Result.INVALID_GOAL,
@@ -344,7 +364,10 @@ class CompensatorNode(Node):
             finally:
                 self._executing = ''
                 self._busy.release()
-        finish_goal(handle, result.error_code, Result.CANCELED)
+        if result.error_code == Result.CANCELED and not handle.is_cancel_requested:
+            handle.abort()                # the server ended it: no cancel request to answer
+        else:
+            finish_goal(handle, result.error_code, Result.CANCELED)
         outcome = {Result.SUCCESSFUL: 'succeeded', Result.CANCELED: 'canceled'}
         self._goal_counts[outcome.get(result.error_code, 'failed')] += 1
         if result.error_code not in (Result.SUCCESSFUL, Result.CANCELED):
@@ -352,7 +375,7 @@ class CompensatorNode(Node):
         self._publish_outcome(goal, result)
         return result
 
-    def _run(self, handle: ServerGoalHandle, goal: Goal) -> Result:
+    def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner) -> Result:
         result = Result()
         target = np.array([goal.target.x, goal.target.y, goal.target.phi])
 
@@ -360,14 +383,15 @@ class CompensatorNode(Node):
             result.error_code, result.error_string = code, reason
             return result
 
-        reason = goal_error(goal)
+        reason = goal_error(target, goal.mode, goal.position_tolerance, goal.angle_tolerance,
+                            goal.max_corrections, self._bounds)
         if reason is not None:
             return fail(Result.INVALID_GOAL, reason)
         loaded, info = self._model or (None, None)
         predictor, unusable = None, ''
-        if loaded is not None and loaded.settings['payload_input'] and self._payload is None:
-            unusable = (f'model {info.version} takes the payload as an input and no /payload '
-                        'has come (`flexarm payload KG`)')
+        if loaded is not None and loaded.carries_payload and self._payload is None:
+            unusable = (f'model {info.version} predicts at the payload the arm carries and no '
+                        '/payload has come (`flexarm payload KG`)')
         elif loaded is not None:
             predictor = AtPayload(loaded, self._payload or 0.0)
         if not self._arm.wait_for_joints(5.0):
@@ -384,7 +408,8 @@ class CompensatorNode(Node):
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         try:
             planned = plan_goal(self._compensator, mode, target, predictor, self._limits,
-                                goal.allow_extrapolation)
+                                goal.allow_extrapolation,
+                                trained_payloads=list(info.payloads) if info else [])
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
@@ -396,7 +421,7 @@ class CompensatorNode(Node):
         self._goal_model_version = result.model_version
         if planned.uses_model:
             fit = [info.warning, payload_warning(list(info.payloads),
-                                                 loaded.settings['payload_input'],
+                                                 loaded.carries_payload,
                                                  predictor.payload)]
             notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
                          if any(fit) else '')
@@ -413,17 +438,35 @@ class CompensatorNode(Node):
         if any(notes):
             self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: '
                                    f'{"; ".join(filter(None, notes))}')
+        started = self._arm.arm_time()
+        watch = GoalWatch(
+            time_limit(1 + (spec.max_corrections if closed else 0), self._geometry,
+                       self._motion.settings),
+            lambda: (self._arm.arm_time() - started).nanoseconds * 1e-9,
+            lambda: self._sender_left(owner))
+
+        def stop() -> bool:
+            return handle.is_cancel_requested or watch()
+
+        def ended_by(reason: str) -> str:
+            return (f'canceled by the server: {watch.reason}' if watch.reason else 'canceled'
+                    ) + f'; {reason}; {owner.text()}'
+
+        if stop():
+            result.joint_positions = self._arm.positions().tolist()
+            return fail(Result.CANCELED, ended_by('nothing moved'))
 
         def progress(phase: str, move: int, plan: Plan, measured: np.ndarray | None) -> None:
             self._feedback(handle, move, phase, plan.commanded_pose, planned, measured, target)
 
         observe = ((lambda q, measured: self._observe(predictor, q, measured))
                    if predictor is not None else (lambda q, measured: None))
-        run = execute(spec, plan, self._motion, self._compensator,
-                      lambda: handle.is_cancel_requested, progress, observe)
+        run = execute(spec, plan, self._motion, self._compensator, stop, progress, observe)
         result.error_code = OUTCOMES[run.status]
         if run.status == SUCCEEDED:
             notes.append(run.reason)
+        elif run.status == CANCELED:
+            notes.insert(0, ended_by('arm held'))
         else:
             notes.insert(0, run.reason)
         with self._health_lock:

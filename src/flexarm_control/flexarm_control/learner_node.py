@@ -90,6 +90,7 @@ from flexarm_control.model_store import (
     next_version,
     provenance,
     read_current,
+    unloadable_text,
     write_current,
 )
 from flexarm_control.node_main import Offload, finish_goal, run
@@ -628,15 +629,19 @@ class LearnerNode(Node):
         return response
 
     def _announce_current(self) -> None:
+        """Announce the model ``current.json`` names; if it cannot be, say why (the ``model``
+        status turns ERROR: ``flexarm status`` and ``flexarm up`` show it)."""
         try:
             current = read_current(self._model_dir)
             if current is None:
                 return
             info = self._model_info(current['version'], Path(current['path']))
-        except (DamagedRecord, ValueError, OSError) as exc:
+        except DamagedRecord as exc:
             self._announce_error = str(exc)
-            self.get_logger().error(f'no model announced: {exc}; train to make a new one, or '
-                                    '`flexarm model use VERSION`')
+        except (ValueError, OSError) as exc:        # the model file it names
+            self._announce_error = unloadable_text(self._model_dir, current, str(exc))
+        if self._announce_error:
+            self.get_logger().error(f'no model announced: {self._announce_error}')
             return
         self._announce(info)
         self.get_logger().info(f'announced the current model v{info.version} ({info.kind}, '

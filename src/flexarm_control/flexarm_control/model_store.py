@@ -3,7 +3,9 @@
 ``current.json`` names the model the learner announces. It is written atomically, but a user
 may still edit or truncate it by hand: a record that does not read as
 ``{"version": "<int>", "kind": str, "path": str}`` counts as no record (the learner starts
-without announcing a model and says why), never as a crash. Version numbers only grow: the next
+without announcing a model and says why, naming the file, the reason and the versions still on
+disk: "no model" would send the operator to train again when ``flexarm model use`` would do),
+never as a crash. Version numbers only grow: the next
 one is past the current record and past every ``*-v<N>.model`` file in the directory, so a lost
 or damaged record can never make a new model overwrite an older one.
 
@@ -31,7 +33,23 @@ _MODEL_VERSION = re.compile(r'-v(\d+)\.model$')
 
 
 class DamagedRecord(ValueError):
-    """``current.json`` exists but is not a valid record."""
+    """``current.json`` exists but is not a valid record (the message: :func:`damaged_text`)."""
+
+
+def versions_on_disk(model_dir: Path) -> list[int]:
+    """Versions of the ``*-v<N>.model`` files in ``model_dir``, ascending."""
+    return sorted({int(m.group(1)) for p in Path(model_dir).glob('*.model')
+                   if (m := _MODEL_VERSION.search(p.name))})
+
+
+def damaged_text(what: str, reason: str, versions: Sequence[int]) -> str:
+    """'<what> is damaged (<reason>); versions on disk: v1, v2 (...)': what is broken, and
+    what the operator can make current instead of training again."""
+    if not versions:
+        return f'{what} is damaged ({reason}); no model files on disk: collect and train'
+    listed = ', '.join(f'v{v}' for v in versions)
+    return (f'{what} is damaged ({reason}); versions on disk: {listed} (`flexarm model use '
+            f'{versions[-1]}` makes one current)')
 
 
 def read_current(model_dir: Path) -> dict | None:
@@ -42,12 +60,21 @@ def read_current(model_dir: Path) -> dict | None:
     except FileNotFoundError:
         return None
     except (OSError, ValueError) as exc:
-        raise DamagedRecord(f'{path}: {exc}') from exc
+        raise DamagedRecord(damaged_text(str(path), str(exc), versions_on_disk(model_dir))
+                            ) from exc
     if not (isinstance(record, dict)
             and all(isinstance(record.get(key), str) for key in ('version', 'kind', 'path'))
             and record['version'].isdecimal()):
-        raise DamagedRecord(f'{path}: not a record of version, kind and path')
+        raise DamagedRecord(damaged_text(str(path), 'not a record of version, kind and path',
+                                         versions_on_disk(model_dir)))
     return record
+
+
+def unloadable_text(model_dir: Path, record: dict, reason: str) -> str:
+    """Why the model ``record`` (of ``current.json``) names cannot be announced, with the
+    versions on disk."""
+    return damaged_text(f'{Path(model_dir) / CURRENT}: its model v{record["version"]} '
+                        f'({record["path"]})', reason, versions_on_disk(model_dir))
 
 
 def write_current(model_dir: Path, version: int, kind: str, path: str,
@@ -58,8 +85,7 @@ def write_current(model_dir: Path, version: int, kind: str, path: str,
 
 def next_version(model_dir: Path) -> int:
     """One past the highest version in the record or in the model files' names."""
-    versions = [int(m.group(1)) for p in Path(model_dir).glob('*.model')
-                if (m := _MODEL_VERSION.search(p.name))]
+    versions = versions_on_disk(model_dir)
     try:
         current = read_current(model_dir)
     except DamagedRecord:

@@ -35,8 +35,8 @@ def refreshed(predictor: Predictor, geometry: ArmGeometry, joints: np.ndarray,
     """``predictor`` corrected to the measured ``deflections`` (M, 3) at ``joints`` (M, 4)
     carrying ``payload`` (M,) [kg], as ``version``."""
     joints = np.asarray(joints, dtype=float)
-    predicted = predictor.predict(
-        joints, np.asarray(payload, dtype=float) if predictor.settings['payload_input'] else None)
+    predicted = predictor.predict(   # the correction must not learn a sag the model carries
+        joints, np.asarray(payload, dtype=float) if predictor.carries_payload else None)
     correction = fit_correction((geometry.link3, geometry.link4, geometry.offset), joints,
                                 deflections, predicted)
     return predictor.corrected(correction, version)

@@ -38,9 +38,9 @@ def miscalibrated(q: np.ndarray) -> np.ndarray:
             - kinematic.perturbed_pose(GEOMETRY, q, np.zeros(kinematic.KINEMATIC)))
 
 
-def sagging(q: np.ndarray) -> np.ndarray:
+def sagging(q: np.ndarray, payload: float = 0.0) -> np.ndarray:
     """... and with compliant joints 3 and 4 and a bending fourth arm."""
-    m = greybox.load_arm().moments(q, 0.0)
+    m = greybox.load_arm().moments(q, payload)
     turns = np.column_stack([np.zeros(len(q)), 4e-5 * m[:, 2], 2.4e-4 * m[:, 3],
                              8e-4 * m[:, 3]])
     shifts = np.column_stack([np.zeros((len(q), 2)), 3.4e-4 * m[:, 3]])
@@ -82,6 +82,9 @@ def test_picks_the_greybox_for_a_sagging_arm(gravity: AutoPredictor) -> None:
     query = random_joints(100, seed=13)
     np.testing.assert_array_equal(gravity.predict(query), gravity.chosen.predict(query))
     assert np.abs(gravity.predict(query) - sagging(query)).max() < 3e-5
+    assert gravity.payload_physical       # the chosen grey-box carries the payload
+    np.testing.assert_array_equal(gravity.predict(query, 5.0), gravity.chosen.predict(query, 5.0))
+    assert np.abs(gravity.predict(query, 5.0) - sagging(query, 5.0)).max() < 1e-4   # 22 mm more
 
 
 def test_save_load_round_trip(gravity: AutoPredictor, tmp_path: Path) -> None:

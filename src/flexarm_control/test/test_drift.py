@@ -107,6 +107,20 @@ def test_a_correction_from_eight_samples_mends_a_changed_arm(world, change):
     assert mended.metadata['version'] == '2' and model.corrections == []   # the old one kept
 
 
+def test_a_refresh_at_another_payload_corrects_what_a_carrying_model_misses_there(world):
+    """The grey-box carries the payload: a refresh at 5 kg must not learn the 5 kg sag again."""
+    joints = world.joints('A', 20, 0)
+    model = make_predictor('greybox').fit(joints, world.plant.deflection(joints),
+                                          np.zeros(len(joints)))
+    heavy = world.plant.with_payload(5.0)
+    fresh = world.joints('A', 8, 2)
+    mended = refreshed(model, world.geometry, fresh, heavy.deflection(fresh), np.full(8, 5.0),
+                       '2')
+    held_out = world.joints('A', 100, 3, 'random')
+    miss = AtPayload(mended, 5.0).predict(held_out) - heavy.deflection(held_out)
+    assert np.hypot(*miss[:, :2].T).max() < 0.05e-3
+
+
 def test_a_corrected_model_round_trips_and_corrections_compose(world, tmp_path):
     joints = world.joints('A', 20, 0)
     model = make_predictor('gp').fit(joints, world.plant.deflection(joints))

@@ -7,6 +7,7 @@ from flexarm_control.model_store import (
     CURRENT,
     DamagedRecord,
     arm_fingerprint,
+    damaged_text,
     find_model,
     fit_warning,
     list_models,
@@ -14,6 +15,8 @@ from flexarm_control.model_store import (
     payload_warning,
     provenance,
     read_current,
+    unloadable_text,
+    versions_on_disk,
     write_current,
 )
 
@@ -35,9 +38,21 @@ def test_damaged_record_is_refused_and_model_files_keep_versions_growing(tmp_pat
     (tmp_path / CURRENT).write_text(text)
     (tmp_path / 'good-rbf-v7.model').write_bytes(b'')
     (tmp_path / 'notes-v99.txt').write_bytes(b'')
-    with pytest.raises(DamagedRecord):
+    with pytest.raises(DamagedRecord, match=rf'{tmp_path / CURRENT} is damaged \(.+\); '
+                       r'versions on disk: v7 \(`flexarm model use 7`'):
         read_current(tmp_path)
     assert next_version(tmp_path) == 8
+
+
+def test_what_is_damaged_names_the_versions_still_on_disk(tmp_path):
+    for name in ('a-gp-v10.model', 'b-rbf-v2.model', 'notes-v5.txt', 'x.model'):
+        (tmp_path / name).write_bytes(b'')
+    assert versions_on_disk(tmp_path) == [2, 10]
+    assert damaged_text('f', 'why', []) == ('f is damaged (why); no model files on disk: '
+                                            'collect and train')
+    text = unloadable_text(tmp_path, {'version': '3', 'path': '/m/a-gp-v3.model'}, 'gone')
+    assert text.startswith(f'{tmp_path / CURRENT}: its model v3 (/m/a-gp-v3.model) is damaged '
+                           '(gone); versions on disk: v2, v10')
 
 
 def test_record_ahead_of_the_files_wins(tmp_path):

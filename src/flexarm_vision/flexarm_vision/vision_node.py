@@ -26,11 +26,13 @@ lateral m, angle rad] (:class:`~flexarm_control.tool_calibration.ToolCorrection`
 error in the tool frame, measured against a reference by ``flexarm calibrate``). Its value
 comes from the site's calibration file (``tool_calibration_file``, written by ``flexarm
 calibrate``) when there is one, else zeros; ``flexarm calibrate`` also sets the parameter on
-the running node. A damaged file is reported and the node runs uncorrected.
+the running node. A damaged file is reported, in the log and as an ERROR on ``/diagnostics``
+(which ``flexarm status`` and ``flexarm up`` show: a log line alone went unseen while every pose
+was off by the camera's error), and the node runs uncorrected.
 
 Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
 :func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
-nobody asks for tip poses) and :func:`camera_info_status`.
+nobody asks for tip poses), :func:`camera_info_status` and :func:`calibration_status`.
 """
 from __future__ import annotations
 
@@ -132,6 +134,18 @@ def idle_status(node: str, camera: str) -> Status:
                   hardware_id=camera)
 
 
+def calibration_status(node: str, camera: str, path: str, problem: str, in_use: str) -> Status:
+    """``<node>: tool calibration``: ERROR while the calibration file ``path`` is damaged
+    (``problem``: it names the file and the reason), OK otherwise; ``in_use`` says where the
+    correction in use came from."""
+    values = {'file': path, 'correction from': in_use, 'problem': problem}
+    if problem:
+        return status(node, 'tool calibration', ERROR, f'{problem}; poses are reported '
+                      f'{"uncorrected" if in_use == "none" else f"with the {in_use} correction"}',
+                      values, camera)
+    return status(node, 'tool calibration', OK, f'correction from {in_use}', values, camera)
+
+
 def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info: bool,
                        problem: str) -> Status:
     """``<node>: camera_info``: ERROR while the camera_info is refused (every image is then
@@ -182,18 +196,29 @@ class VisionNode(Node):
 
     def _stored_correction(self) -> ToolCorrection:
         """The correction of the site's calibration file, zeros without a usable one."""
-        path = repo_path(declare(self, 'tool_calibration_file', 'calibration/tool_camera.json',
-                                 'tool calibration written by flexarm calibrate (relative: to '
-                                 'the repository)'))
-        try:
-            record = read_calibration(path)
-        except (ValueError, OSError) as exc:
-            self.get_logger().error(f'{exc}; poses are reported uncorrected')
-            return ToolCorrection()
+        self._calibration_file = str(repo_path(declare(
+            self, 'tool_calibration_file', 'calibration/tool_camera.json',
+            'tool calibration written by flexarm calibrate (relative: to the repository)')))
+        record = self._read_calibration()
+        self._correction_from = 'none' if record is None else self._calibration_file
+        if self._calibration_problem:
+            self.get_logger().error(f'{self._calibration_problem}; poses are reported '
+                                    'uncorrected')
         if record is None:
             return ToolCorrection()
-        self.get_logger().info(f'tool calibration from {path}: {record["correction"]}')
+        self.get_logger().info(f'tool calibration from {self._calibration_file}: '
+                               f'{record["correction"]}')
         return record['correction']
+
+    def _read_calibration(self) -> dict | None:
+        """The calibration file's record (None: none, or damaged: ``_calibration_problem``
+        says why)."""
+        self._calibration_problem = ''
+        try:
+            return read_calibration(self._calibration_file)
+        except (ValueError, OSError) as exc:
+            self._calibration_problem = str(exc)
+            return None
 
     def _measure(self, wanted: bool) -> None:
         """Subscribe the inputs when ``/tip_pose`` gains its first subscriber, drop them when
@@ -213,14 +238,17 @@ class VisionNode(Node):
                                          raw=True)]
 
     def statuses(self) -> list[Status]:
-        """The node's health (module docstring): measurements, camera_info."""
+        """The node's health (module docstring): measurements, camera_info, tool
+        calibration."""
         name = self.get_name()
         return [measurement_status(name, self._camera_id,
                                    self._recent.summary(time.monotonic()), HEALTH_WINDOW,
                                    self._last_invalid) if self._inputs else
                 idle_status(name, self._camera_id),
                 camera_info_status(name, self._camera_id, self._estimator.camera.intrinsics,
-                                   self._info_used, self._info_problem)]
+                                   self._info_used, self._info_problem),
+                calibration_status(name, self._camera_id, self._calibration_file,
+                                   self._calibration_problem, self._correction_from)]
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         for param in params:
@@ -230,6 +258,8 @@ class VisionNode(Node):
                 except (ValueError, TypeError) as exc:
                     return SetParametersResult(successful=False, reason=str(exc))
                 self.get_logger().info(f'tool correction now {self._correction}')
+                self._correction_from = 'parameter'
+                self._read_calibration()     # flexarm calibrate has just rewritten it
         return SetParametersResult(successful=True)
 
     def _on_info(self, msg: CameraInfo) -> None:

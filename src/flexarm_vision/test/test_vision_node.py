@@ -16,6 +16,7 @@ from flexarm_msgs.msg import TipPose
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_model import Intrinsics
 from flexarm_vision.vision_node import (
+    calibration_status,
     camera_info_status,
     image_to_array,
     info_intrinsics,
@@ -134,6 +135,19 @@ def test_camera_info_health_errs_while_refused() -> None:
     assert dict(configured.values)['fx [px]'] == f'{i.fx:.6g}'
     refused = camera_info_status('flexarm_vision', '', i, True, "model 'equidistant' refused")
     assert refused.level == ERROR and refused.message == "model 'equidistant' refused"
+
+
+def test_a_damaged_calibration_file_is_an_error_naming_it() -> None:
+    path = '/site/calibration/tool_camera.json'
+    fine = calibration_status('flexarm_vision', 'cam', path, '', path)
+    assert fine.level == OK and fine.name == 'flexarm_vision: tool calibration'
+    assert fine.message == f'correction from {path}' and fine.hardware_id == 'cam'
+    problem = f'tool calibration {path} is damaged (truncated); run flexarm calibrate again'
+    damaged = calibration_status('flexarm_vision', 'cam', path, problem, 'none')
+    assert damaged.level == ERROR
+    assert damaged.message == f'{problem}; poses are reported uncorrected'
+    set_since = calibration_status('flexarm_vision', 'cam', path, problem, 'parameter')
+    assert set_since.level == ERROR and set_since.message.endswith('the parameter correction')
 
 
 @pytest.mark.node

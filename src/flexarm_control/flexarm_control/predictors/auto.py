@@ -75,6 +75,11 @@ class AutoPredictor(Predictor):
         self._require_fitted()
         return self._chosen
 
+    @property
+    def payload_physical(self) -> bool:
+        """The chosen model's."""
+        return self.chosen.payload_physical
+
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
         from flexarm_control.training import NO_SCREENING, fit_robust

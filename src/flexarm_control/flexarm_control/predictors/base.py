@@ -10,7 +10,12 @@ and outputs are z-scored with the training set's mean and standard deviation; an
 is constant in the training set (e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as
 nothing can be learned about it. The learned kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only
 ever see the normalised space; the ``physical`` ones (:mod:`.kinematic`, :mod:`.greybox`,
-:mod:`.auto`) model the arm and take the joints and the payload in SI units instead.
+:mod:`.auto`) model the arm and take the joints and the payload in SI units instead — the
+payload whenever it is given, as an input or not: a model of how the payload loads the arm
+(:attr:`Predictor.payload_physical`, the grey-box's gravity moments) predicts at a payload
+from samples at another. :attr:`Predictor.carries_payload` says whether a model predicts at
+the payload it is given, either way; one that does not predicts at the payloads it was trained
+at, whatever it is asked.
 
 Learned-data support: the model keeps its normalised training inputs, and
 :meth:`Predictor.data_distance` says how far a query lies from them — the distance to the
@@ -151,8 +156,8 @@ class Predictor(ABC):
     # keeps the defaults), unless the user sets them.
     cv_overrides: ClassVar[dict[str, Any]] = {}
     # True: the kind is fitted and queried on the joints (N, 4) and the payload (N,) [kg] (None
-    # unless ``payload_input``) in SI units (:meth:`_fit_physical`, :meth:`_predict_physical`),
-    # not on the normalised space.
+    # unless given) in SI units (:meth:`_fit_physical`, :meth:`_predict_physical`), not on the
+    # normalised space.
     physical: ClassVar[bool] = False
 
     def __init__(self, settings: Mapping[str, Any] | None = None) -> None:
@@ -187,11 +192,13 @@ class Predictor(ABC):
 
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
-        """Fit on joints (N, 4), payload (N,) or None and deflections (N, 3) (``physical``)."""
+        """Fit on joints (N, 4), payload (N,) or None (not given) and deflections (N, 3)
+        (``physical``)."""
         raise NotImplementedError
 
     def _predict_physical(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
-        """Deflections (M, 3) at joints (M, 4) and payload (M,) or None (``physical``)."""
+        """Deflections (M, 3) at joints (M, 4) and payload (M,) or None (not given)
+        (``physical``)."""
         raise NotImplementedError
 
     @abstractmethod
@@ -205,6 +212,18 @@ class Predictor(ABC):
     @property
     def fitted(self) -> bool:
         return self._normalisation is not None
+
+    @property
+    def payload_physical(self) -> bool:
+        """Whether the model carries the payload physically (how it loads the arm), so that it
+        predicts at a payload it has no samples of without taking it as an input."""
+        return False
+
+    @property
+    def carries_payload(self) -> bool:
+        """Whether the model predicts at the payload it is given: as an input
+        (``payload_input``) or physically (:attr:`payload_physical`)."""
+        return self.settings['payload_input'] or self.payload_physical
 
     def fit(self, joints: np.ndarray, deflections: np.ndarray,
             payload: np.ndarray | None = None) -> Predictor:
@@ -292,15 +311,15 @@ class Predictor(ABC):
         q, p, single = self._query(joints, payload)
         return self._model_inputs(q, p), single
 
-    @staticmethod
-    def _model_inputs(joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
+    def _model_inputs(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
         x = model_inputs(joints)
-        return x if payload is None else np.column_stack([x, payload])
+        return np.column_stack([x, payload]) if self.settings['payload_input'] else x
 
     def _query(self, joints: np.ndarray, payload: np.ndarray | float | None,
                ) -> tuple[np.ndarray, np.ndarray | None, bool]:
-        """Joints (N, 4), payload (N,) (None unless ``payload_input``) and whether a single
-        (4,) query was given; ValueError for a wrong shape or a value not finite."""
+        """Joints (N, 4), payload (N,) (None unless ``payload_input``, or given to a
+        ``physical`` kind) and whether a single (4,) query was given; ValueError for a wrong
+        shape or a value not finite."""
         q = np.asarray(joints, dtype=float)
         single = q.ndim == 1
         if single:
@@ -309,9 +328,9 @@ class Predictor(ABC):
             raise ValueError(f'joints must have shape ({JOINTS},) or (N, {JOINTS}), '
                              f'got {np.shape(joints)}')
         p = None
-        if self.settings['payload_input']:
-            if payload is None:
-                raise ValueError(f'this {self.kind} predictor takes the payload as an input')
+        if self.settings['payload_input'] and payload is None:
+            raise ValueError(f'this {self.kind} predictor takes the payload as an input')
+        if payload is not None and (self.settings['payload_input'] or self.physical):
             p = np.asarray(payload, dtype=float)
             if p.ndim == 0:
                 p = np.full(len(q), float(p))

@@ -1,0 +1,113 @@
+"""Which Fast DDS transports a process gets: confined to this machine unless widened."""
+import os
+import xml.etree.ElementTree as ET
+from pathlib import Path
+
+import pytest
+
+from flexarm_bringup.launcher import ros_env
+from flexarm_bringup.transport import (
+    PEERS_ENV,
+    PROFILES_ENV,
+    RANGE_ENV,
+    SKIP_CWD_ENV,
+    apply,
+    exposed,
+    localhost_profile,
+    transport_env,
+    warning,
+)
+
+FASTDDS = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
+
+
+def test_the_localhost_profile_replaces_the_builtin_transports_by_shm_and_loopback():
+    root = ET.parse(localhost_profile()).getroot()
+    participant = root.find(f'.//{FASTDDS}participant')
+    assert participant is not None and participant.get('is_default_profile') == 'true'
+    rtps = participant.find(f'{FASTDDS}rtps')
+    assert rtps.findtext(f'{FASTDDS}useBuiltinTransports') == 'false'
+    used = [t.text for t in rtps.iterfind(f'{FASTDDS}userTransports/{FASTDDS}transport_id')]
+    descriptors = {d.findtext(f'{FASTDDS}transport_id'): d
+                   for d in root.iterfind(f'.//{FASTDDS}transport_descriptor')}
+    assert sorted(descriptors[t].findtext(f'{FASTDDS}type') for t in used) == ['SHM', 'UDPv4']
+    for t in used:
+        if descriptors[t].findtext(f'{FASTDDS}type') == 'UDPv4':
+            allowed = [a.text for a in descriptors[t].iter(f'{FASTDDS}address')]
+            assert allowed == ['127.0.0.1']
+
+
+@pytest.mark.parametrize('env, expected', [
+    ({RANGE_ENV: 'LOCALHOST'}, False),
+    ({RANGE_ENV: 'localhost '}, False),
+    ({RANGE_ENV: 'OFF'}, False),
+    ({RANGE_ENV: 'SUBNET'}, True),
+    ({RANGE_ENV: 'SYSTEM_DEFAULT'}, True),
+    ({}, True),                                          # rcl's default range is SUBNET
+    ({RANGE_ENV: 'LOCALHOST', PEERS_ENV: '10.0.0.2'}, True),
+    ({RANGE_ENV: 'LOCALHOST', PEERS_ENV: ' '}, False),
+])
+def test_exposed_means_a_range_beyond_localhost_or_static_peers(env, expected):
+    assert exposed(env) is expected
+
+
+def test_localhost_gets_the_profile_and_no_profile_of_the_working_directory():
+    env = transport_env({RANGE_ENV: 'LOCALHOST', 'PATH': '/bin'})
+    assert env == {RANGE_ENV: 'LOCALHOST', 'PATH': '/bin', PROFILES_ENV: localhost_profile(),
+                   SKIP_CWD_ENV: '1'}
+    assert Path(env[PROFILES_ENV]).is_file()
+
+
+def test_a_widened_range_drops_flexarms_profile_but_keeps_the_users():
+    confined = transport_env({RANGE_ENV: 'LOCALHOST'})
+    assert transport_env(confined | {RANGE_ENV: 'SUBNET'}) == {RANGE_ENV: 'SUBNET'}
+    assert transport_env(confined | {PEERS_ENV: '10.0.0.2'}) == {
+        RANGE_ENV: 'LOCALHOST', PEERS_ENV: '10.0.0.2'}
+    users = {RANGE_ENV: 'LOCALHOST', PROFILES_ENV: '/site/dds.xml'}
+    assert transport_env(users) == users
+    assert transport_env(users | {RANGE_ENV: 'SUBNET'}) == users | {RANGE_ENV: 'SUBNET'}
+
+
+def test_apply_changes_the_environment_in_place():
+    environ = {RANGE_ENV: 'LOCALHOST', 'PATH': '/bin'}
+    apply(environ)
+    assert environ[PROFILES_ENV] == localhost_profile() and environ[SKIP_CWD_ENV] == '1'
+    environ[RANGE_ENV] = 'SUBNET'
+    apply(environ)
+    assert environ == {RANGE_ENV: 'SUBNET', 'PATH': '/bin'}
+
+
+def test_warning_says_anyone_on_the_network_can_command_the_arm():
+    assert warning(transport_env({RANGE_ENV: 'LOCALHOST'})) is None
+    subnet = warning({RANGE_ENV: 'SUBNET'})
+    assert subnet.startswith('WARNING') and 'discovery range SUBNET' in subnet
+    assert 'anyone on that network' in subnet and 'can command the arm' in subnet
+    assert 'no DDS-Security' in subnet
+    assert f'{PEERS_ENV}=10.0.0.2' in warning({RANGE_ENV: 'LOCALHOST', PEERS_ENV: '10.0.0.2'})
+    users = warning({RANGE_ENV: 'LOCALHOST', PROFILES_ENV: '/site/dds.xml'})
+    assert '/site/dds.xml' in users and 'decide who can reach the graph' in users
+
+
+def test_node_environments_follow_their_discovery_range():
+    base = {'PATH': '/bin', PROFILES_ENV: localhost_profile(), SKIP_CWD_ENV: '1'}
+    assert ros_env(3, base={'PATH': '/bin'})[PROFILES_ENV] == localhost_profile()
+    subnet = ros_env(3, base=base, discovery='SUBNET')
+    assert PROFILES_ENV not in subnet and SKIP_CWD_ENV not in subnet
+
+
+def test_the_cli_confines_its_own_process_before_any_command(monkeypatch):
+    from flexarm_bringup import cli
+
+    for name, value in ((RANGE_ENV, ''), (PROFILES_ENV, ''), (SKIP_CWD_ENV, '0')):
+        monkeypatch.setenv(name, value)       # restored after the test
+        monkeypatch.delenv(name)
+    monkeypatch.delenv(PEERS_ENV, raising=False)
+    seen = {}
+
+    def run(args):
+        seen.update(os.environ)
+        return {}, cli.Exit.OK
+
+    monkeypatch.setattr(cli, '_run', run)
+    assert cli.main(['status']) == cli.Exit.OK
+    assert seen[RANGE_ENV] == 'LOCALHOST' and seen[PROFILES_ENV] == localhost_profile()

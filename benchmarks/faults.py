@@ -6,9 +6,12 @@ own, and nodes are killed with SIGKILL. Three graphs, one fault after another on
 
 * simulator graph: compensator killed mid-goal, learner killed mid-collection, vision killed
   mid-goal (CLOSED_LOOP, which measures) and mid-collection, a second `flexarm up` in the same
-  domain, simulator killed mid-goal, then SIGTERM of `flexarm up` (idle);
+  domain, a peer on another host (a network namespace) commanding the arm, a goal abandoned by
+  its client (killed while the arm moves), simulator killed mid-goal, then SIGTERM of `flexarm
+  up` (idle);
 * bridge graph (fake controller + bridge): a second controller client on the controller's TCP
-  port, bridge killed mid-goal, then SIGTERM of `flexarm up` mid-goal;
+  port, a keyless peer replaying a recorded handshake against a keyed controller, bridge
+  killed mid-goal, then SIGTERM of `flexarm up` mid-goal;
 * simulator graph: SIGKILL of `flexarm up` mid-goal.
 
 Per scenario: detected [s] from the fault until the user learns of it (the command whose
@@ -37,13 +40,18 @@ shared memory they left, as the end of a run does.
     python benchmarks/faults.py [--only SCENARIOS] [--json]
 
 ``--only`` runs some of the scenarios, by key (:data:`KEYS`: ``compensator``, ``learner``,
-``vision_goal``, ``vision_collection``, ``second_up``, ``sim``, ``sigterm_idle``;
-``second_client``, ``bridge``, ``sigterm_goal``; ``sigkill_goal``), each in its graph; a graph
+``vision_goal``, ``vision_collection``, ``second_up``, ``remote``, ``abandoned``, ``sim``,
+``sigterm_idle``; ``second_client``, ``replay``, ``bridge``, ``sigterm_goal``;
+``sigkill_goal``), each in its graph; a graph
 none of them needs is not started. A smoke run of the harness: ``--only sigterm_idle``. A new
 scenario is a function ``(graph, row)`` and an entry of :data:`PLANS`.
 
 JSON (last line): ``lost_samples``, ``orphans``, ``stale_shm`` (sums), ``max_detect_s`` (over
-the scenarios that detected; ``undetected`` names the others), ``seconds`` and ``scenarios``.
+the scenarios that detected; ``undetected`` names the others), ``remote_moves`` (1 if the remote
+peer moved the arm), ``replay_accepted`` (handshakes the keyed controller accepted from the
+replayer), ``abandoned_goal_s`` (from the client's SIGKILL until the compensator cancelled its
+goal; each None when its scenario did not run or could not, e.g. ``remote`` without network
+namespaces), ``seconds`` and ``scenarios``.
 """
 from __future__ import annotations
 
@@ -65,12 +73,27 @@ from types import FrameType
 from typing import IO
 
 from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_bringup.domains import reserved
-from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead, shm_in_use
+from flexarm_bringup.launcher import (
+    NodeProcess,
+    load_graph,
+    owned_shm,
+    remove_shm_of_dead,
+    ros_env,
+    shm_in_use,
+    stop_all,
+)
 from flexarm_control.dataset import load_dataset
 from flexarm_control.params import load_config
 from flexarm_control.parent_death import terminate_with_parent
 from flexarm_control.paths import RUNS_DIR, repo_path
+
+# The attackers are test tooling in tests/ (no package): put tests/ on the path.
+TESTS = Path(__file__).resolve().parents[1] / 'tests'
+sys.path.insert(0, str(TESTS))
+from link_attacks import replay_accepted  # noqa: E402
+from remote_peer import remote_attack, unavailable  # noqa: E402
 
 FLEXARM = str(Path(sys.executable).with_name('flexarm'))
 MARKER = 'FLEXARM_FAULT_RUN'
@@ -102,6 +125,10 @@ class Row:
     lost_samples: int = 0
     orphans: int = 0
     stale_shm: int = 0
+    detects: bool = True         # a fault the user must learn of (else an attack refused)
+    remote_moves: int | None = None     # the arm moved for a peer on another host (0/1)
+    replay_accepted: int | None = None  # replayed or reflected handshakes a controller took
+    abandoned_goal_s: float | None = None   # from its client's death until it was cancelled
     note: str = ''
 
     def add(self, text: str) -> None:
@@ -699,6 +726,61 @@ def second_controller_client(graph: Graph, row: Row) -> None:
             f'closed after {closed - start:.3f} s' if closed else 'NOT closed'))
 
 
+def remote_peer(graph: Graph, row: Row) -> None:
+    """A peer on another host (a network namespace joined by a veth pair) names this one in
+    ROS_STATIC_PEERS and publishes joint commands: it must see no node and move nothing."""
+    row.detects = False
+    reason = unavailable()
+    if reason:
+        raise ScenarioError(f'not run: {reason}')
+    attack = remote_attack(graph.domain)
+    row.remote_moves = int(bool(attack['moved']))
+    row.add(f"the peer saw {len(attack['nodes_seen'])} node(s), published "
+            f"{attack['commands_published']} command(s); the arm "
+            f"{'MOVED' if attack['moved'] else 'did not move'}")
+
+
+def abandoned_goal(graph: Graph, row: Row) -> None:
+    """A raw client sends a long CLOSED_LOOP goal and is killed while the arm moves: the
+    compensator must cancel the goal (tests/abandoned_goal.py, in a process of its own)."""
+    done = subprocess.run(
+        [sys.executable, str(TESTS / 'abandoned_goal.py'), '--domain-id',
+         str(graph.domain)], env={**graph.env, MARKER: f'{graph.marker}-client'},
+        capture_output=True, text=True, timeout=MOVE_S, stdin=subprocess.DEVNULL,
+        preexec_fn=terminate_with_parent)
+    if done.returncode != 0:
+        raise ScenarioError(f'the abandoning client failed: {done.stderr.strip()[-500:]}')
+    row.abandoned_goal_s = json.loads(done.stdout.strip().splitlines()[-1])['abandoned_goal_s']
+    row.detected_s = row.abandoned_goal_s
+    row.add(f'goal cancelled {row.abandoned_goal_s:.2f} s after its client died')
+
+
+def replayed_handshakes(graph: Graph, row: Row) -> None:
+    """A keyless peer replays a genuine session recorded on the wire (and reflects the
+    controller's own frames) against a controller with a site key: a fake controller of its
+    own on a free port, since the graph's holds its bridge's link (tests/link_attacks.py)."""
+    row.detects = False
+    run_dir = RUNS_DIR / f'faults-{graph.marker}' / 'replay'
+    run_dir.mkdir(parents=True, exist_ok=True)
+    key = make_key(run_dir / 'site.key')
+    with socket.socket() as probe:
+        probe.bind(('127.0.0.1', 0))
+        port = probe.getsockname()[1]
+    spec = next(s for s in load_graph('bridge') if s.name == 'flexarm_fake_controller')
+    controller = NodeProcess(
+        spec, {**ros_env(graph.domain, run_dir / 'ros_log'), MARKER: f'{graph.marker}-client'},
+        run_dir / 'fake_controller.log', {'port': port, 'link_key_file': str(key)})
+    controller.start()
+    try:
+        if wait_until(lambda: 'controller protocol v' in controller.log_tail(50),
+                      READY_S) is None:
+            raise ScenarioError(f'the keyed controller did not listen: {controller.log_tail()}')
+        row.replay_accepted = replay_accepted(port, load_key(key))
+        row.add(f'{row.replay_accepted} replayed handshake(s) accepted')
+    finally:
+        stop_all([controller])
+
+
 def stop_graph(graph: Graph, sig: int, mid_goal: bool, row: Row) -> None:
     """Signal ``flexarm up`` (mid-goal or idle); every process of the graph must go."""
     client = graph.long_goal('rigid') if mid_goal else None
@@ -741,12 +823,15 @@ PLANS = (
         Scenario('vision_collection', 'vision killed mid-collection',
                  vision_killed_mid_collection),
         Scenario('second_up', 'second flexarm up in the domain', second_graph),
+        Scenario('remote', 'remote peer commands the arm', remote_peer),
+        Scenario('abandoned', 'goal abandoned by its client', abandoned_goal),
         Scenario('sim', 'simulator killed mid-goal',
                  lambda g, r: server_killed_mid_goal(g, 'flexarm_sim', 'rigid', r)),
         Scenario('sigterm_idle', 'SIGTERM of flexarm up (idle)',
                  lambda g, r: stop_graph(g, signal.SIGTERM, False, r), stops_graph=True))),
     Plan('bridge', 'bridge', (
         Scenario('second_client', 'second controller client (TCP)', second_controller_client),
+        Scenario('replay', 'replayed controller handshakes', replayed_handshakes),
         Scenario('bridge', 'bridge killed mid-goal',
                  lambda g, r: server_killed_mid_goal(g, 'flexarm_bridge', 'rigid', r)),
         Scenario('sigterm_goal', 'SIGTERM of flexarm up mid-goal (bridge)',
@@ -792,6 +877,11 @@ def run_graph(plan: Plan, tag: str, scenarios: Iterable[Scenario]) -> list[Row]:
     return graph.rows
 
 
+def worst(values: Iterable[float | None]) -> float | None:
+    """The largest of the values measured (None if no scenario measured one)."""
+    return max((v for v in values if v is not None), default=None)
+
+
 def seconds(value: float | None) -> str:
     return '-' if value is None else f'{value:.2f}'
 
@@ -826,12 +916,14 @@ def main() -> None:
         chosen = [s for s in plan.scenarios if s.key in only]
         if chosen:
             rows += run_graph(plan, tag, chosen)
-    detected = [r.detected_s for r in rows if r.detected_s is not None]
+    detected = [r.detected_s for r in rows if r.detects and r.detected_s is not None]
     summary = {'lost_samples': sum(r.lost_samples for r in rows),
                'orphans': sum(r.orphans for r in rows),
                'stale_shm': sum(r.stale_shm for r in rows),
                'max_detect_s': max(detected, default=None),
-               'undetected': [r.scenario for r in rows if r.detected_s is None],
+               'undetected': [r.scenario for r in rows if r.detects and r.detected_s is None],
+               **{key: worst([getattr(r, key) for r in rows])
+                  for key in ('remote_moves', 'replay_accepted', 'abandoned_goal_s')},
                'seconds': time.monotonic() - started,
                'scenarios': [asdict(r) for r in rows]}
     print(f"{len(rows)} scenarios in {summary['seconds']:.0f} s: lost samples "

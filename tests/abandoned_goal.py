@@ -28,7 +28,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
-from flexarm_bringup.launcher import ros_env
+from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead, ros_env
 from flexarm_control import liveness, topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome
@@ -107,9 +107,13 @@ class GoalSender:
                 return line
 
     def kill(self) -> None:
-        """SIGKILL (no goodbye to DDS, no cancel) and reap it."""
+        """SIGKILL (no goodbye to DDS, no cancel) and reap it; then remove the shared memory
+        it owned, which a SIGKILLed participant leaves behind."""
         if self.process.poll() is None:
+            owned = owned_shm(self.process.pid)
             self.process.send_signal(signal.SIGKILL)
+            self.process.wait()
+            remove_shm_of_dead(owned)
         self.process.wait()
 
 

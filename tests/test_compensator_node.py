@@ -370,8 +370,8 @@ def broken(*_):
 
 def test_an_unexpected_error_aborts_with_a_reason(in_process):
     node, client, outcomes = in_process
-    node._model = (SimpleNamespace(settings={'payload_input': False}, predict=broken,
-                                   data_distance=broken, position_std=broken),
+    node._model = (SimpleNamespace(settings={'payload_input': False}, carries_payload=False,
+                                   predict=broken, data_distance=broken, position_std=broken),
                    ModelInfo(version='7'))
     result = client.move_to(*TARGET, mode='predictive', timeout=30)
     assert result.error_code == Result.INVALID_GOAL
@@ -389,7 +389,7 @@ def test_a_compensation_without_solution_is_aborted(in_process):
     # reached, though the model claims to know the region.
     flat = lambda q: np.stack([0 * q[..., 0], -forward(geometry, q)[..., 1] - 0.3,  # noqa
                                0 * q[..., 0]], axis=-1)
-    node._model = (SimpleNamespace(settings={'payload_input': False},
+    node._model = (SimpleNamespace(settings={'payload_input': False}, carries_payload=False,
                                    predict=lambda q, payload: flat(q),
                                    data_distance=lambda q, payload: 0.5,
                                    position_std=lambda q, payload: 0.0), ModelInfo(version='7'))

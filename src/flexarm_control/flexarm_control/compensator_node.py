@@ -449,8 +449,9 @@ class CompensatorNode(Node):
             return handle.is_cancel_requested or watch()
 
         def ended_by(reason: str) -> str:
+            named = owner.named(send_goal_writers(self, self._action))
             return (f'canceled by the server: {watch.reason}' if watch.reason else 'canceled'
-                    ) + f'; {reason}; {owner.text()}'
+                    ) + f'; {reason}; {named.text()}'
 
         if stop():
             result.joint_positions = self._arm.positions().tolist()

@@ -25,7 +25,7 @@ from __future__ import annotations
 
 import re
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Protocol
 
@@ -134,6 +134,18 @@ class Owner:
         if not names:
             return 'sender unknown'
         return 'goal sent by ' + ('one of ' if len(names) > 1 else '') + ', '.join(names)
+
+    def named(self, writers: Iterable[Endpoint]) -> Owner:
+        """The candidates with the names ``writers`` give them now: a node discovery had not
+        named yet at acceptance ('?') is named once it has."""
+        known: dict[bytes, set[str]] = {}
+        for gid, name in writers:
+            if name != '?':
+                known.setdefault(participant(gid), set()).add(name)
+        return Owner(tuple(
+            replace(c, name=', '.join(sorted(known[c.participant])))
+            if '?' in c.name.split(', ') and c.participant in known else c
+            for c in self.candidates))
 
     def gone(self, writers: Iterable[Endpoint], alive: Callable[[Process], bool]) -> bool:
         """Whether no candidate remains among the action's ``writers`` (never for an owner

@@ -119,3 +119,13 @@ def test_the_proc_table_knows_live_and_ended_processes():
     child.stdin.close()
     child.wait()
     assert not table.alive(process)
+
+
+def test_a_sender_discovery_had_not_named_at_acceptance_is_named_later():
+    sender = gid(4242)
+    owner = owner_at_acceptance([(sender, '?')], HOST, Table(p4242=7))
+    assert owner.text() == 'goal sent by ?'
+    named = owner.named([(sender, '/goal_sender'), (gid(99), '/other')])
+    assert named.text() == 'goal sent by /goal_sender'
+    assert named.candidates[0].processes == owner.candidates[0].processes
+    assert owner.named([(sender, '?')]).text() == 'goal sent by ?'

@@ -68,6 +68,7 @@ from __future__ import annotations
 import math
 import threading
 import traceback
+from dataclasses import replace
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -111,7 +112,7 @@ from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_control.sampling import regions_from_dict
 from flexarm_control.scene_msgs import pose_stamped
 from flexarm_msgs.action import MoveToPose
-from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, PredictionMetrics, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
 
 GOAL_THREADS = 2   # the goal executing and one that lost the race past the busy check
@@ -211,6 +212,11 @@ class CompensatorNode(Node):
                     'this from the learning samples [typical sample spacings]'),
             declare(self, 'max_prediction_std', 0.3e-3, "[m] PREDICTIVE refuses joints where "
                     "the model's std of the predicted tip position exceeds this"))
+        self._sanity_factor = declare(
+            self, 'sanity_factor', 5.0, "PREDICTIVE without a tolerance fails beyond this many "
+            "times the model's validated max error (or sanity_floor, if larger)")
+        self._sanity_floor = declare(self, 'sanity_floor', 1.0e-3,
+                                     '[m] the smallest sanity bound of a PREDICTIVE goal')
         model_path = declare(self, 'model_path', '',
                              'predictor loaded at start ("" = wait for /learner/model)')
         self._health = ModelHealth(
@@ -341,6 +347,12 @@ class CompensatorNode(Node):
             send_goal_writers(self, self._action), self._host, self._processes)
         handle.execute()
 
+    def _sanity_bound(self, metrics: PredictionMetrics) -> float:
+        """[m] The largest miss a PREDICTIVE goal of this model may measure and succeed: a
+        multiple of its validated max position error, at least the floor."""
+        validated = math.hypot(metrics.max_error_x, metrics.max_error_y)
+        return max(self._sanity_floor, self._sanity_factor * validated)
+
     def _sender_left(self, owner: Owner) -> bool:
         return owner.gone(send_goal_writers(self, self._action), self._processes.alive)
 
@@ -425,6 +437,8 @@ class CompensatorNode(Node):
                                                  predictor.payload)]
             notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
                          if any(fit) else '')
+        if mode == Mode.PREDICTIVE and not planned.extrapolated:
+            spec = replace(spec, sanity_bound=self._sanity_bound(info.metrics))
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations

@@ -5,6 +5,9 @@ compensator node; the plan itself is :mod:`flexarm_control.planning`).
 * RIGID and PREDICTIVE end after that one move. They check the measured error only when the
   goal gave a tolerance (``checked``): beyond it the goal ends ``tolerance_not_met``, without a
   measurement ``measurement_failed``; unchecked, a missing measurement is only noted.
+* A PREDICTIVE goal without a tolerance still has a ``sanity_bound``: a measured miss far beyond
+  what its model promised (its validated error) means the model does not fit the arm as it is
+  now, and the goal ends ``tolerance_not_met`` saying so instead of succeeding.
 * CLOSED_LOOP corrects the commanded pose by the measured error
   (:meth:`~flexarm_control.compensator.Compensator.correct`) until the measured error is within
   the tolerance, with at most ``max_corrections`` corrective moves after the first.
@@ -46,6 +49,7 @@ class GoalSpec:
     position_tolerance: float  # [m] CLOSED_LOOP: always; RIGID/PREDICTIVE: 0 = not checked
     angle_tolerance: float     # [rad] as position_tolerance
     max_corrections: int       # CLOSED_LOOP corrective moves after the first
+    sanity_bound: float = 0.0  # [m] PREDICTIVE without a tolerance: a larger miss fails (0: none)
 
     @property
     def checked(self) -> bool:
@@ -117,8 +121,14 @@ def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensa
         position, angle = pose_error(spec.target, measured)
         if spec.mode != Mode.CLOSED_LOOP:
             missed = _beyond_tolerance(spec, position, angle)
-            return ended(TOLERANCE_NOT_MET, 'measured error beyond the tolerance: ' + missed
-                         ) if missed else ended(SUCCEEDED, '')
+            if missed:
+                return ended(TOLERANCE_NOT_MET, 'measured error beyond the tolerance: ' + missed)
+            if not spec.checked and spec.sanity_bound and position > spec.sanity_bound:
+                return ended(TOLERANCE_NOT_MET, (
+                    f'measured error {position * 1e3:.3f} mm is beyond the sanity bound '
+                    f'{spec.sanity_bound * 1e3:.3f} mm of what the model promised: it does not '
+                    'fit the arm as it is now (refresh or retrain it)'))
+            return ended(SUCCEEDED, '')
         if position <= spec.position_tolerance and angle <= spec.angle_tolerance:
             return ended(SUCCEEDED, '')
         if move > spec.max_corrections:

@@ -58,6 +58,7 @@ class Planned:
     prediction_std: float  # [m] the model's std of the predicted tip position there
     note: str              # warning or fallback for the operator ('' if none)
     uses_model: bool = False   # whether the plan came from the predictor (not the rigid one)
+    extrapolated: bool = False  # the model predicts beyond its learned data (goal allowed it)
 
 
 @dataclass(frozen=True)
@@ -134,7 +135,8 @@ def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
         why and f'the joints to command lie beyond the learned data: {why}', payload]))
     if allow_extrapolation:
         return Planned(plan, distance, std, f'warning: {beyond}; extrapolated, the prediction '
-                                            'may be wrong there', uses_model=True)
+                                            'may be wrong there', uses_model=True,
+                       extrapolated=True)
     if closed:
         return rigid_start(beyond, distance, std)
     where = ' and '.join(filter(None, [why and 'there', payload and 'at this payload']))

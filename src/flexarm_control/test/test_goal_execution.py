@@ -41,13 +41,14 @@ def world():
                                 approach=np.zeros(4)))     # one command per move here
 
 
-def run(world, mode, tolerance=(0.0, 0.0), corrections=5, arm_setup=None, plan=None):
+def run(world, mode, tolerance=(0.0, 0.0), corrections=5, arm_setup=None, plan=None,
+        sanity_bound=0.0):
     compensator, plant, settings = world
     arm = FakeArm(plant, START)
     if arm_setup:
         arm_setup(arm)
     motion = ArmMotion(arm, compensator.geometry, settings)
-    spec = GoalSpec(TARGET, mode, *tolerance, corrections)
+    spec = GoalSpec(TARGET, mode, *tolerance, corrections, sanity_bound)
     phases = []
     plan = plan or compensator.rigid(TARGET)
     execution = execute(spec, plan, motion, compensator, arm.abort,
@@ -79,6 +80,21 @@ def test_predictive_moves_once_and_checks_only_a_given_tolerance(world):
     checked, _, _ = run(world, Mode.RIGID, (1e-3, 0.0))
     assert checked.status == TOLERANCE_NOT_MET
     assert checked.reason.startswith('measured error beyond the tolerance: position')
+
+
+def test_a_miss_beyond_the_sanity_bound_is_not_success(world):
+    # the rigid plan stands in for a model that does not fit the arm: it misses by ~18 mm
+    compensator = world[0]
+    unfit = run(world, Mode.PREDICTIVE, plan=compensator.rigid(TARGET), sanity_bound=1e-3)[0]
+    assert unfit.status == TOLERANCE_NOT_MET and unfit.moves == 1
+    assert unfit.reason.startswith('measured error 1') and 'sanity bound 1.000 mm' in unfit.reason
+    assert 'does not fit the arm' in unfit.reason
+    within = run(world, Mode.PREDICTIVE, plan=compensator.rigid(TARGET), sanity_bound=30e-3)[0]
+    assert within.status == SUCCEEDED
+    # a tolerance the goal gave replaces the bound
+    loose = run(world, Mode.PREDICTIVE, (25e-3, 0.0), plan=compensator.rigid(TARGET),
+                sanity_bound=1e-3)[0]
+    assert loose.status == SUCCEEDED
 
 
 def test_a_missing_measurement_fails_only_a_checked_goal(world):

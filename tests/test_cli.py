@@ -58,8 +58,9 @@ class Cli:
             lines.append(line.rstrip('\n'))
 
     def wait_line(self, text: str, timeout: float) -> None:
+        """Until a line of stdout or stderr (goal feedback) holds ``text``."""
         deadline = time.monotonic() + liveness.limit(timeout)
-        while not any(text in line for line in self.out):
+        while not any(text in line for line in self.out + self.err):
             if time.monotonic() > deadline or self.process.poll() is not None:
                 self.process.kill()
                 pytest.fail(f'no line with {text!r} within {timeout} s: {self.out} {self.err}')
@@ -184,8 +185,8 @@ def test_refusals_name_their_code_in_mm_with_a_hint(launch, domain_id, capsys):
 
     assert main(['move', *A1, '--mode', 'rigid', *graph]) == Exit.OK     # no camera here
     captured = capsys.readouterr()
-    assert 'moved in 1 move(s), not measured' in captured.out, captured
-    assert '[1] moving' in captured.out
+    assert 'moved (uncompensated) in 1 move(s), not measured' in captured.out, captured
+    assert '[1] moving' in captured.err and '[1] moving' not in captured.out
 
 
 def test_training_says_why_it_failed_and_what_it_made(launch, domain_id, tmp_path,

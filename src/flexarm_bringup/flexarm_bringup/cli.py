@@ -66,6 +66,7 @@ COMMANDS: dict[str, Callable[[argparse.Namespace], dict[str, Any]]] = {}
 UINT32_MAX = 2 ** 32 - 1
 MAX_DOMAIN_ID = 232       # the largest ROS_DOMAIN_ID whose DDS ports exist
 _GENERATED_MESSAGE = re.compile(r'[/\\](?:msg|srv|action)[/\\]_\w+\.py$')   # rosidl's Python
+RIGID_START = 'CLOSED_LOOP started from the rigid solution'   # plan_goal's note: no model
 _RESIGNAL = 0.005         # [s] until a signal that came during a message conversion is resent
 
 
@@ -264,13 +265,25 @@ def _measured_text(pose: Any, position_error: float, angle_error: float) -> str:
 
 
 def _show_feedback(fb: Any) -> None:
+    """A goal's feedback line: progress, so on stderr (stdout holds the result only)."""
     measured = (' ' + _measured_text(fb.measured_pose, fb.position_error, fb.angle_error)
                 if fb.measured else '')
-    print(f'  [{fb.iteration}] {fb.phase}{measured}', flush=True)
+    print(f'  [{fb.iteration}] {fb.phase}{measured}', file=sys.stderr, flush=True)
+
+
+def _is_rigid(result: Any) -> bool:
+    """Whether a successful MoveToPose result is of a RIGID goal. The result does not carry
+    the mode. Only RIGID and CLOSED_LOOP without a model to trust plan with neither a model
+    (``model_version`` '') nor compensation steps; that CLOSED_LOOP goal notes ``RIGID_START``
+    in ``error_string`` (:func:`flexarm_control.planning.plan_goal`) and may make corrective
+    moves, where RIGID makes one."""
+    return (not result.model_version and result.compensation_iterations == 0
+            and result.iterations <= 1 and RIGID_START not in result.error_string)
 
 
 def _move_text(result: Any) -> str:
-    """A MoveToPose result in words: reached (how well), refused or failed (why)."""
+    """A MoveToPose result in words: reached (how well), refused or failed (why). A RIGID
+    goal only 'moved (uncompensated)': it makes no promise of accuracy to reach."""
     from flexarm_msgs.action import MoveToPose
 
     if result.error_code != MoveToPose.Result.SUCCESSFUL:
@@ -278,12 +291,12 @@ def _move_text(result: Any) -> str:
                             result.error_string, MOVE_HINTS, moved=result.iterations > 0)
     if result.iterations == 0:                  # a dry run: the plan, nothing moved
         return _plan_text(result)
-    reached = (f'reached in {result.iterations} move(s): ' + _measured_text(
+    rigid = _is_rigid(result)
+    verb = 'moved (uncompensated)' if rigid else 'reached' if result.measured else 'moved'
+    reached = f'{verb} in {result.iterations} move(s)' + (': ' + _measured_text(
         result.measured_pose, result.position_error, result.angle_error) if result.measured
-        else f'moved in {result.iterations} move(s), not measured')
-    reached += f' ({_model_text(result.model_version)})'
-    learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
-               f'std {mm(result.prediction_std):.3f} mm'
+        else ', not measured') + ('' if rigid else f' ({_model_text(result.model_version)})')
+    learned = (_learned_text(result.data_distance, result.prediction_std)
                if result.data_distance or result.prediction_std else '')
     notes = f'; {human_units(result.error_string)}' if result.error_string else ''
     return reached + learned + notes
@@ -293,11 +306,18 @@ def _model_text(version: str) -> str:
     return f'model v{version}' if version else 'rigid plan, no model'
 
 
+def _learned_text(distance: float, std: float) -> str:
+    """How far from the learned data a plan lies; the model's std only where it has one
+    (GP: > 0; kinds without a posterior give 0, which is no claim of certainty)."""
+    return (f'; {distance:.2f} sample spacings from the learned data'
+            + (f', model std {mm(std):.3f} mm' if std > 0 else ''))
+
+
 def _plan_text(result: Any) -> str:
     """A dry run's plan: what would be commanded, and from which model."""
     q, d, c = result.joint_positions, result.predicted_deflection, result.commanded_pose
-    learned = (f'; {result.data_distance:.2f} sample spacings from the learned data, model '
-               f'std {mm(result.prediction_std):.3f} mm' if result.model_version else '')
+    learned = (_learned_text(result.data_distance, result.prediction_std)
+               if result.model_version else '')
     notes = human_units(result.error_string.replace('dry run: nothing moved', '').strip('; '))
     return (f'plan ({_model_text(result.model_version)}; nothing moved): command '
             f'{pose_text((c.x, c.y, c.phi))} to the rigid model, joints {deg(q[0]):.3f} deg, '
@@ -508,7 +528,7 @@ def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
 
 @command
 def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
-    """Train a predictor (mlp, rbf, gp) on a dataset; prints the validation metrics."""
+    """Train a deflection predictor on a dataset; prints the validation metrics."""
     _check_kind(args.kind)
     _check_dataset(args.dataset)
     what = f'training {args.kind or "the default kind"} on dataset {args.dataset or "default"}'
@@ -943,12 +963,14 @@ def _output_options(parser: argparse.ArgumentParser, default: Any) -> None:
                         help='no progress output (bars, waiting lines, goal feedback)')
 
 
-def _graph_options(parser: argparse.ArgumentParser, wait: bool) -> None:
-    """--domain-id, and --wait for commands that talk to a running graph."""
+def _graph_options(parser: argparse.ArgumentParser, graph: str) -> None:
+    """--domain-id: of the graph a command starts ('start': a free one by default) or of the
+    running graph it talks to ('running', 'wait': the environment's, as rclpy takes it); and
+    --wait for the servers of the commands that send them requests ('wait')."""
     parser.add_argument('--domain-id', type=_domain, default=None, metavar='N', help=(
-        'ROS_DOMAIN_ID of the graph (default: the environment\'s, else 0)' if wait else
-        'ROS_DOMAIN_ID to start the graph in (default: a free one)'))
-    if wait:
+        'ROS_DOMAIN_ID to start the graph in (default: a free one)' if graph == 'start' else
+        'ROS_DOMAIN_ID of the running graph (default: the environment\'s, else 0)'))
+    if graph == 'wait':
         parser.add_argument('--wait', type=_positive, default=30.0, metavar='S',
                             help='[s] to wait for the graph\'s servers to answer')
         _namespace_option(parser)
@@ -1008,15 +1030,19 @@ def _move_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _collect_arguments(p: argparse.ArgumentParser) -> None:
+    learner = _learner_config()         # its defaults, read so that the help cannot drift
     p.add_argument('count', type=_positive_int, metavar='N', help='samples to collect')
     p.add_argument('--region', default='',
-                   help='region preset of config/learner.yaml (default: the learner\'s, AB)')
+                   help='region preset of config/learner.yaml (default: the learner\'s, '
+                        f'{learner["default_region"]})')
     p.add_argument('--strategy', default='',
                    help='sobol | halton | lhs | random | active (each pose where the model '
-                        'so far is least sure; default: the learner\'s, sobol)')
+                        'so far is least sure; default: the learner\'s, '
+                        f'{learner["default_strategy"]})')
     p.add_argument('--seed', type=_natural, default=0, help='seed of the sampling strategy')
     p.add_argument('--dataset', default='',
-                   help='dataset name: data/NAME.jsonl (default: the learner\'s, default)')
+                   help='dataset name: data/NAME.jsonl (default: the learner\'s, '
+                        f'{learner["default_dataset"]})')
     p.add_argument('--payload', type=_non_negative, metavar='KG',
                    help='[kg] declare the payload the arm carries first (stored with every '
                         'sample; default: as declared before)')
@@ -1039,9 +1065,17 @@ def _payload_arguments(p: argparse.ArgumentParser) -> None:
                    help='[kg] the payload the arm carries from now on (default: only show it)')
 
 
+KIND_HELP = ('predictor kind: auto (the best of kinematic, greybox and gp by cross-validation) '
+             '| kinematic | greybox | gp | mlp | rbf')
+
+
+def _kind_help() -> str:
+    """KIND_HELP and the learner's default kind, read so that the help cannot drift."""
+    return f"{KIND_HELP} (default: the learner's, {_learner_config()['default_kind']})"
+
+
 def _train_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument('kind', nargs='?', default='',
-                   help='mlp | rbf | gp (default: the learner\'s, gp)')
+    p.add_argument('kind', nargs='?', default='', help=_kind_help())
     p.add_argument('--settings', type=_json_object, default={},
                    help='kind-specific settings, a JSON object, e.g. \'{"hidden": [10]}\' '
                         '(default: the kind\'s)')
@@ -1075,8 +1109,8 @@ def _up_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--timeout', type=_positive, default=60.0, metavar='S',
                    help='[s] to become ready')
     p.add_argument('--link-key', default='', metavar='FILE',
-                   help='site key of the controller link (flexarm keygen); required when the '
-                        'controller is not on this machine')
+                   help='site key of the controller link (made by flexarm keygen FILE); '
+                        'required when the controller is not on this machine')
     p.add_argument('--discovery', choices=['localhost', 'subnet'], default='localhost',
                    help='DDS range (default: this machine only); subnet: anyone on the '
                         'network can command the arm (no DDS-Security in these wheels)')
@@ -1094,7 +1128,7 @@ def _up_arguments(p: argparse.ArgumentParser) -> None:
 def _experiment_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--samples', type=_positive_int, default=40,
                    help='learning samples per region')
-    p.add_argument('--kind', default='', help="predictor kind (default: the learner's, gp)")
+    p.add_argument('--kind', default='', help=_kind_help())
     p.add_argument('--rtf', type=_positive, default=10.0, help='simulator real-time factor')
     p.add_argument('--seed', type=_natural, default=1, help='seed of samples and targets')
     p.add_argument('--name', default='',
@@ -1138,23 +1172,24 @@ def _keygen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('path', help='key file to create')
 
 
-# subcommand: (its arguments, graph options: None = none, True = with --wait, False = without)
-SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], bool | None]] = {
-    'up': (_up_arguments, False),
-    'status': (_namespace_option, False),
-    'move': (_move_arguments, True),
-    'collect': (_collect_arguments, True),
-    'train': (_train_arguments, True),
-    'refresh': (_refresh_arguments, True),
-    'payload': (_payload_arguments, True),
-    'cancel': (lambda p: None, True),
-    'demo': (_experiment_arguments, False),
-    'benchmark': (_benchmark_arguments, False),
+# subcommand: (its arguments, graph options (_graph_options): None = none, 'start' = it starts
+# a graph, 'running' = it asks a running one, 'wait' = it sends requests to a running one)
+SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], str | None]] = {
+    'up': (_up_arguments, 'start'),
+    'status': (_namespace_option, 'running'),
+    'move': (_move_arguments, 'wait'),
+    'collect': (_collect_arguments, 'wait'),
+    'train': (_train_arguments, 'wait'),
+    'refresh': (_refresh_arguments, 'wait'),
+    'payload': (_payload_arguments, 'wait'),
+    'cancel': (lambda p: None, 'wait'),
+    'demo': (_experiment_arguments, 'start'),
+    'benchmark': (_benchmark_arguments, 'start'),
     'study': (_study_arguments, None),
     'bag': (_bag_arguments, None),
-    'model': (_model_arguments, True),
+    'model': (_model_arguments, 'wait'),
     'keygen': (_keygen_arguments, None),
-    'calibrate': (_calibrate_arguments, True),
+    'calibrate': (_calibrate_arguments, 'wait'),
 }
 
 
@@ -1175,7 +1210,7 @@ def build_parser() -> argparse.ArgumentParser:
                            formatter_class=_HelpFormatter)
         arguments(p)
         if graph is not None:
-            _graph_options(p, wait=graph)
+            _graph_options(p, graph)
     return parser
 
 

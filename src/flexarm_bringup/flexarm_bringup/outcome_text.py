@@ -48,9 +48,9 @@ MOVE_HINTS = {
     'MEASUREMENT_FAILED': 'the camera gave no valid settled tip pose: check the vision node '
                           '(its log in runs/<name>/)',
     'TOLERANCE_NOT_MET': 'loosen --position-tolerance/--angle-tolerance, allow more '
-                         '--max-iterations (CLOSED_LOOP), or retrain the model',
+                         '--max-corrections (CLOSED_LOOP), or retrain the model',
     'CONTROLLER_TIMEOUT': 'the joints did not follow the command: check the controller '
-                          '(flexarm up reports a node that died) and /joint_states',
+                          '(`flexarm status` names a node that died) and /joint_states',
     'CANCELED': 'the goal was cancelled (flexarm cancel, another client, or the server: the '
                 'reason says why); the arm stopped where it was',
     'OUTSIDE_LEARNED_DATA': 'collect samples around this target and train again, or pass '

@@ -132,7 +132,7 @@ def payload_warning(payloads: Sequence[float], payload_input: bool, payload: flo
     if any(math.isclose(p, payload, abs_tol=1e-6) for p in payloads):
         return ''
     return (f'trained at payload {listed} kg, the arm carries {payload:g} kg now: collect at '
-            'this payload (`flexarm collect --payload`) and train')
+            'this payload (`flexarm collect N --payload KG`) and train')
 
 
 @dataclass(frozen=True)

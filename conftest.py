@@ -221,6 +221,16 @@ def launch(domain_id: int, tmp_path: Path) -> Iterator[Launcher]:
     launcher.stop_all()
 
 
+@pytest.fixture(scope='module')
+def module_launch(domain_id: int, tmp_path_factory: pytest.TempPathFactory
+                  ) -> Iterator[Launcher]:
+    """Nodes shared by the tests of one module (:class:`Launcher`), stopped when it ends: for
+    a graph the module's tests use without disturbing each other."""
+    launcher = Launcher(domain_id, tmp_path_factory.mktemp('module_graph'))
+    yield launcher
+    launcher.stop_all()
+
+
 @pytest.fixture
 def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     """An rclpy node in its own context on the test's domain, spun in a background thread.

@@ -107,7 +107,7 @@ from flexarm_control.model_store import payload_warning
 from flexarm_control.modes import Mode
 from flexarm_control.node_main import Offload, finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
+from flexarm_control.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_control.sampling import regions_from_dict
 from flexarm_control.scene_msgs import pose_stamped
@@ -304,7 +304,10 @@ class CompensatorNode(Node):
     # --- model health -----------------------------------------------------------------------
     def _observe(self, model: AtPayload, joints: np.ndarray, measured: np.ndarray) -> None:
         """File the residual of a measured tip against the model; log a region turning
-        stale."""
+        stale. Joints beyond the learned data are not filed: the model promised nothing there
+        (an extrapolated goal is warned as such), and its miss says nothing of staleness."""
+        if beyond_data(model, joints, self._limits)[2]:
+            return
         residual = measured - forward(self._geometry, joints) - model.predict(joints)
         with self._health_lock:
             before = set(self._health.stale_regions())
@@ -485,7 +488,7 @@ class CompensatorNode(Node):
         else:
             notes.insert(0, run.reason)
         with self._health_lock:
-            stale = self._health.summary()
+            stale = self._health.summary(self._health.region_of(target))
         notes.append(f'warning: {stale}' if stale else '')
         result.error_string = '; '.join(filter(None, notes))
         result.iterations = run.moves

@@ -114,9 +114,10 @@ class ModelHealth:
         seen = sorted(self._seen.get(region, ()), key=lambda o: -o.position)
         return np.array([o.joints for o in seen[:count]]).reshape(-1, 4)
 
-    def summary(self) -> str:
-        """One line for logs and goal results: the stale regions ('' if none)."""
-        stale = [r for r in self.report() if r.stale]
+    def summary(self, region: str | None = None) -> str:
+        """One line for logs and goal results: the stale regions, or only ``region`` if given
+        (a goal's result speaks of where the goal went); '' if none."""
+        stale = [r for r in self.report() if r.stale and region in (None, r.name)]
         return '; '.join(
             f'model {self.version} is stale in region {r.name}: median residual '
             f'{r.median_position * 1e3:.3f} mm over the last {r.observations} measurements '

@@ -56,6 +56,7 @@ def test_health_turns_stale_on_the_median_of_a_region_only(world):
     assert health.stale_regions() == []
     health.observe(a, np.ones(4), np.array([0.0, 2e-3, 0.0]))
     assert health.stale_regions() == ['A'] and 'model 7 is stale in region A' in health.summary()
+    assert health.summary('A') == health.summary() and health.summary('B') == ''  # a B goal's
     assert np.array_equal(health.worst_joints('A', 1), np.ones((1, 4)))   # largest first
     for _ in range(5):                          # the window forgets: good measurements again
         health.observe(a, np.zeros(4), np.array([2e-5, 0, 0]))

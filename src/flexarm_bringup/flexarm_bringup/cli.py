@@ -457,7 +457,8 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
             bar.update(fb.k - bar.n)
 
         try:
-            result = _goal(lambda: client.refresh(args.count, args.region, args.timeout, show),
+            result = _goal(lambda: client.refresh(args.count, args.region, args.timeout, show,
+                                                  args.force),
                            _full(args, topics.REFRESH_MODEL),
                            lambda r: 'interrupted; the model is unchanged unless the refresh '
                                      'had ended')
@@ -1056,6 +1057,9 @@ def _refresh_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--region', default='',
                    help='region preset to refresh (default: the ones the model health '
                         'reports stale)')
+    p.add_argument('--force', action='store_true',
+                   help='refresh --region even where the model health sees the model fit '
+                        '(it would fit measurement noise)')
     p.add_argument('--timeout', type=_positive, default=1800.0, metavar='S',
                    help='[s] for the refresh; then it is cancelled')
 

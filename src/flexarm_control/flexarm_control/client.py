@@ -237,10 +237,11 @@ class FlexarmClient(Node):
 
     def refresh(self, count: int = 0, region: str = '', timeout: float = 1800.0,
                 feedback: Callable[[RefreshModel.Feedback], None] | None = None,
-                ) -> RefreshModel.Result:
+                force: bool = False) -> RefreshModel.Result:
         """Refresh the current model from ``count`` new samples (0: the learner's default) in
-        ``region`` ('': the regions the model health reports stale) and wait for the result."""
-        goal = RefreshModel.Goal(count=int(count), region=region)
+        ``region`` ('': the regions the model health reports stale; ``force``: even where the
+        model health sees it fit) and wait for the result."""
+        goal = RefreshModel.Goal(count=int(count), region=region, force=force)
         return self._run_goal(self._refresh, goal, timeout, feedback)
 
     def set_payload(self, kg: float, timeout: float = 10.0) -> None:

@@ -97,7 +97,7 @@ from flexarm_control.node_main import Offload, finish_goal, run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.paths import repo_path
 from flexarm_control.predictors import KINDS, load_predictor, make_predictor
-from flexarm_control.refresh import refresh_poses, refreshed
+from flexarm_control.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.sampling import (
     STRATEGIES,
     Region,
@@ -433,17 +433,8 @@ class LearnerNode(Node):
     def _refresh_plan(self, goal: RefreshModel.Goal) -> tuple[np.ndarray, str]:
         """Joints to measure and the regions they cover; ValueError if nothing to refresh."""
         health = self._health
-        if goal.region:
-            if goal.region not in self._regions:
-                raise ValueError(f'unknown region "{goal.region}"; known: '
-                                 f'{", ".join(self._regions)}')
-            names = [goal.region]
-        else:
-            names = [r.name for r in (health.regions if health else [])
-                     if r.stale and r.name in self._regions]
-            if not names:
-                raise ValueError('the model health reports no stale region; name a region '
-                                 '(--region) to refresh anyway')
+        names = refresh_regions(goal.region, goal.force, health.regions if health else [],
+                                self._regions, health.stale_residual if health else 0.0)
         worst = {r.name: np.asarray(r.worst_joints).reshape(-1, 4)
                  for r in (health.regions if health else [])}
         count = goal.count or self._refresh_samples

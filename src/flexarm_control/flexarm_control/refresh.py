@@ -9,12 +9,40 @@ corrected model under a new version.
 """
 from __future__ import annotations
 
+from collections.abc import Collection, Sequence
+from typing import Any
+
 import numpy as np
 
 from flexarm_control.drift_correction import fit_correction
 from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.predictors import Predictor
 from flexarm_control.sampling import Region, sample_poses
+
+
+def refresh_regions(region: str, force: bool, health: Sequence[Any], known: Collection[str],
+                    stale_residual: float) -> list[str]:
+    """The regions a refresh measures: ``region`` if given, else those the model health
+    (``health``: its regions, each with name, stale, observations, median_position_residual)
+    reports stale. A region the health has seen fitting is refused unless ``force``: the
+    refreshed model would only fit measurement noise. ValueError says why."""
+    if region:
+        if region not in known:
+            raise ValueError(f'unknown region "{region}"; known: {", ".join(known)}')
+        seen = next((r for r in health if r.name == region), None)
+        if seen is not None and seen.observations and not seen.stale and not force:
+            raise ValueError(
+                f'the model fits region {region}: median residual '
+                f'{seen.median_position_residual * 1e3:.3f} mm over its last '
+                f'{seen.observations} measurements (stale above {stale_residual * 1e3:.3f} mm);'
+                ' a refresh now would only fit measurement noise. Refresh anyway with force '
+                '(flexarm refresh --region NAME --force)')
+        return [region]
+    names = [r.name for r in health if r.stale and r.name in known]
+    if not names:
+        raise ValueError('the model health reports no stale region; name a region to refresh '
+                         'anyway (flexarm refresh --region NAME --force)')
+    return names
 
 
 def refresh_poses(geometry: ArmGeometry, region: Region, worst: np.ndarray, count: int,

@@ -2,6 +2,7 @@
 the payload view of a predictor, and goal execution's measurement hook."""
 import dataclasses
 import math
+import types
 
 import numpy as np
 import pytest
@@ -17,7 +18,7 @@ from flexarm_control.model_health import ELSEWHERE, HealthSettings, ModelHealth
 from flexarm_control.modes import Mode
 from flexarm_control.params import load_config
 from flexarm_control.predictors import load_predictor, make_predictor
-from flexarm_control.refresh import refresh_poses, refreshed
+from flexarm_control.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.sampling import regions_from_dict, sample_poses
 from flexarm_sim.plant import Plant
 
@@ -186,3 +187,21 @@ def test_execute_reports_every_measurement_with_the_reported_joints(world):
                   compensator, observe=lambda q, measured: seen.append((q, measured)))
     assert run.status == SUCCEEDED and len(seen) == run.moves >= 2
     assert np.allclose(seen[-1][1], run.measured) and np.allclose(seen[-1][0], arm.positions())
+
+
+def test_a_refresh_measures_the_stale_regions_and_asks_force_where_the_model_fits():
+    def seen(name, stale, observations=8, median=2e-5):
+        return types.SimpleNamespace(name=name, stale=stale, observations=observations,
+                                     median_position_residual=median)
+    health, known = [seen('A', False), seen('B', True, median=4e-4)], ['A', 'B']
+    assert refresh_regions('', False, health, known, 1.5e-4) == ['B']
+    with pytest.raises(ValueError, match=r'fits region A: median residual 0.020 mm over its '
+                                         r'last 8 .*stale above 0.150 mm.*--force'):
+        refresh_regions('A', False, health, known, 1.5e-4)
+    assert refresh_regions('A', True, health, known, 1.5e-4) == ['A']
+    assert refresh_regions('B', False, health, known, 1.5e-4) == ['B']
+    assert refresh_regions('A', False, [seen('A', False, 0)], known, 1.5e-4) == ['A']  # unseen
+    with pytest.raises(ValueError, match='no stale region.*--force'):
+        refresh_regions('', False, [seen('A', False)], known, 1.5e-4)
+    with pytest.raises(ValueError, match='unknown region "C"'):
+        refresh_regions('C', True, health, known, 1.5e-4)

@@ -165,9 +165,10 @@ def model_summary(info: ModelInfo | None) -> dict[str, Any] | None:
                'validation': info.metrics.validation,
                'max_error': [info.metrics.max_error_x, info.metrics.max_error_y,
                              info.metrics.max_error_phi],
-               'warning': info.warning, 'path': info.path, 'age_s': None}
+               'warning': info.warning, 'path': info.path, 'age_s': None, 'refresh': None}
     try:
-        summary['age_s'] = _age(read_model(info.path)[0])
+        meta = read_model(info.path)[0]
+        summary['age_s'], summary['refresh'] = _age(meta), _refresh(meta)
     except (OSError, ValueError):
         pass              # another machine's path, or a damaged file: no age
     return summary
@@ -182,7 +183,19 @@ def file_summary(version: str, path: Path, meta: dict[str, Any]) -> dict[str, An
             'samples': metrics.get('samples', meta.get('samples', 0)),
             'validation': metrics.get('validation', ''),
             'max_error': [metrics.get(f'max_error_{a}', math.nan) for a in ('x', 'y', 'phi')],
-            'warning': '', 'path': str(path), 'age_s': _age(meta)}
+            'warning': '', 'path': str(path), 'age_s': _age(meta), 'refresh': _refresh(meta)}
+
+
+def _refresh(meta: dict[str, Any]) -> dict[str, Any] | None:
+    """What a refreshed model was made from: the version it corrected, the refresh's dataset,
+    samples and median residuals [m] before and after (None: trained, not refreshed)."""
+    corrections = meta.get('corrections') or []
+    if 'refresh_of' not in meta or not corrections:
+        return None
+    last = corrections[-1]
+    return {'of': meta['refresh_of'], 'dataset': meta.get('refresh_dataset', ''),
+            'samples': last.get('samples', 0), 'residual_before': last.get('residual_before'),
+            'residual_after': last.get('residual_after')}
 
 
 def _age(meta: dict[str, Any]) -> float | None:
@@ -326,6 +339,12 @@ def model_line(label: str, model: dict[str, Any] | None) -> str:
             f'{model["dataset"] or "?"}, {model["samples"]} samples at {payloads} kg{age}; '
             f'{model["validation"] or "validation"} max |error| {err[0] * 1e3:.3f} mm, '
             f'{err[1] * 1e3:.3f} mm, {math.degrees(err[2]):.4f} deg')
+    refresh = model.get('refresh')
+    if refresh:
+        line += (f'\n  refresh of v{refresh["of"]}: {refresh["samples"]} samples '
+                 f'({refresh["dataset"] or "?"}), median residual '
+                 f'{refresh["residual_before"] * 1e3:.3f} mm before, '
+                 f'{refresh["residual_after"] * 1e3:.3f} mm after')
     return line + (f'\n  WARNING: {model["warning"]}' if model['warning'] else '')
 
 

@@ -1,14 +1,17 @@
 """``flexarm status`` without a graph: the supervisor record and the text an operator reads."""
 import json
 import os
+from pathlib import Path
 
 from flexarm_bringup.graph_status import (
     ErrorLog,
     FirstReports,
     Heard,
     arm_status_name,
+    file_summary,
     graph_node_names,
     graph_problems,
+    model_line,
     starting_model_text,
     status_text,
     supervisor_record,
@@ -158,3 +161,18 @@ def test_first_reports_listen_until_each_node_has_reported_once():
     late = reports.expect(['flexarm_learner'], 0.0)      # never reports: given up
     reports.step(0.5)
     assert late.closed
+
+
+def test_a_model_line_says_what_a_refreshed_version_was_made_from():
+    trained = {'kind': 'greybox', 'metrics': {'samples': 40, 'validation': '5-fold',
+                                              'max_error_x': 1e-4, 'max_error_y': 2e-4,
+                                              'max_error_phi': 1e-5},
+               'provenance': {'dataset': 'A', 'payloads': [0.0]}}
+    assert 'refresh' not in model_line('v3', file_summary('3', Path('A-greybox-v3.model'),
+                                                          trained))
+    refreshed = trained | {'refresh_of': '3', 'refresh_dataset': 'A-refresh', 'corrections': [
+        {'samples': 8, 'residual_before': 4.12e-4, 'residual_after': 6.1e-5}]}
+    line = model_line('v4', file_summary('4', Path('A-greybox-v4.model'), refreshed))
+    assert line.endswith('refresh of v3: 8 samples (A-refresh), median residual 0.412 mm '
+                         'before, 0.061 mm after')
+    assert 'dataset A, 40 samples at 0 kg' in line

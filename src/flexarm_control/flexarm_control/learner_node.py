@@ -490,6 +490,7 @@ class LearnerNode(Node):
         mended = refreshed(predictor, self._geometry, np.array([s.joints for s in samples]),
                            np.array([s.deflection for s in samples]),
                            np.array([s.payload for s in samples]), str(version))
+        mended.metadata |= {'refresh_of': str(current['version']), 'refresh_dataset': dataset}
         model_path = self._model_dir / f'{dataset}-{predictor.kind}-v{version}.model'
         mended.save(model_path)
         info = self._model_info(str(version), model_path)

@@ -628,6 +628,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
                   f'{"" if args.outlive_parent else LIFETIME_TEXT}.', flush=True)
             watch = reports.expect(graph.nodes, liveness.limit(REPORT_WAIT))
             print(_starting_model(watch), flush=True)
+            if 'flexarm_vision' in graph.nodes:
+                print(_calibration(watch), flush=True)
             if args.foxglove is not None:
                 print(_foxglove_text(args.foxglove), flush=True)
             while True:     # what goes wrong: a death, an ERROR in a (re)started node's reports
@@ -699,6 +701,16 @@ def _starting_model(watch: Any, listen: float = 3.0) -> str:
                or starting_model_text(None, learner()) is not None)
     return (starting_model_text(model_summary(watch.active_model), learner())
             or 'model driving the arm: none yet (the compensator has loaded none so far)')
+
+
+def _calibration(watch: Any, listen: float = 3.0) -> str:
+    """Whether the camera of a just-started graph is calibrated (its vision node's first
+    report)."""
+    from flexarm_bringup.graph_status import CALIBRATION_STATUS, calibration_text
+    from flexarm_control import liveness
+
+    watch.spin(liveness.limit(listen), until=lambda: CALIBRATION_STATUS in watch.statuses)
+    return calibration_text(watch.statuses.get(CALIBRATION_STATUS))
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:

@@ -247,12 +247,24 @@ def query(client: Any, namespace: str = '', listen: float = 1.0) -> dict[str, An
                        if nodes['flexarm_learner'] else None,
                        'simulated': _parameter(client, 'flexarm_sim', 'plant.payload')
                        if nodes['flexarm_sim'] else None},
+        'camera_calibration': calibration_text(statuses.get(CALIBRATION_STATUS)),
         'bag': _parameter(client, 'flexarm_recorder', 'bag_name')
         if nodes['flexarm_recorder'] else None,
     }
     for subscription in subscriptions:
         client.destroy_subscription(subscription)
     return status
+
+
+CALIBRATION_STATUS = 'flexarm_vision: tool calibration'
+
+
+def calibration_text(heard: Heard | None) -> str:
+    """Whether the arm's camera is calibrated, from the vision node's report: when, against
+    what; or NOT calibrated; or why the file is unusable (its ERROR)."""
+    if heard is None:
+        return 'camera calibration: not heard (no vision node)'
+    return f'camera calibration: {"PROBLEM: " if heard.level == ERROR else ""}{heard.message}'
 
 
 def health_summary(msg: ModelHealth | None) -> dict[str, Any] | None:
@@ -385,6 +397,8 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     payload = status['payload_kg']
     known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
     lines.append('payload: ' + (', '.join(known) or 'unknown'))
+    if 'camera_calibration' in status:
+        lines.append(status['camera_calibration'])
     lines.append(f'recording: bags/{status["bag"]}' if status['bag'] else 'recording: no')
     problems = status.get('problems') or []
     lines.append('PROBLEMS:' + ''.join(f'\n  {p}' for p in problems) if problems

@@ -8,6 +8,7 @@ from flexarm_bringup.graph_status import (
     FirstReports,
     Heard,
     arm_status_name,
+    calibration_text,
     file_summary,
     graph_node_names,
     graph_problems,
@@ -176,3 +177,12 @@ def test_a_model_line_says_what_a_refreshed_version_was_made_from():
     assert line.endswith('refresh of v3: 8 samples (A-refresh), median residual 0.412 mm '
                          'before, 0.061 mm after')
     assert 'dataset A, 40 samples at 0 kg' in line
+
+
+def test_status_says_whether_the_camera_is_calibrated():
+    assert calibration_text(None) == 'camera calibration: not heard (no vision node)'
+    made = Heard(OK, 'calibrated 2026-11-25T10:00:00 against /ref from 6 poses: c.json')
+    assert calibration_text(made) == f'camera calibration: {made.message}'
+    assert calibration_text(Heard(ERROR, 'damaged')) == 'camera calibration: PROBLEM: damaged'
+    text = status_text(status(camera_calibration=calibration_text(made)), None)
+    assert f'\ncamera calibration: {made.message}\n' in text

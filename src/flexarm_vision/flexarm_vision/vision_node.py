@@ -38,6 +38,8 @@ from __future__ import annotations
 
 import math
 import time
+from collections.abc import Mapping
+from typing import Any
 
 import numpy as np
 from rcl_interfaces.msg import SetParametersResult
@@ -134,16 +136,31 @@ def idle_status(node: str, camera: str) -> Status:
                   hardware_id=camera)
 
 
-def calibration_status(node: str, camera: str, path: str, problem: str, in_use: str) -> Status:
+def calibration_status(node: str, camera: str, path: str, problem: str, in_use: str,
+                       record: Mapping[str, Any] | None = None) -> Status:
     """``<node>: tool calibration``: ERROR while the calibration file ``path`` is damaged
     (``problem``: it names the file and the reason), OK otherwise; ``in_use`` says where the
-    correction in use came from."""
+    correction in use came from ('none', 'parameter' or the file), ``record`` what the file
+    says of its making (:func:`~flexarm_control.tool_calibration.write_calibration`). The
+    message says plainly whether the camera is calibrated: ``up`` and ``status`` show it."""
     values = {'file': path, 'correction from': in_use, 'problem': problem}
     if problem:
         return status(node, 'tool calibration', ERROR, f'{problem}; poses are reported '
                       f'{"uncorrected" if in_use == "none" else f"with the {in_use} correction"}',
                       values, camera)
-    return status(node, 'tool calibration', OK, f'correction from {in_use}', values, camera)
+    if in_use == 'none':
+        return status(node, 'tool calibration', OK, f'NOT calibrated (no {path}): poses carry '
+                      "the camera's own error in the tool frame; run flexarm calibrate",
+                      values, camera)
+    if in_use == 'parameter':
+        return status(node, 'tool calibration', OK, 'correction set by its parameter since '
+                      'the start (flexarm calibrate)', values, camera)
+    made = record or {}
+    when = made.get('stamp', 'at an unknown time')
+    against = f" against {made['reference']}" if made.get('reference') else ''
+    poses = f" from {made['poses']} poses" if made.get('poses') else ''
+    return status(node, 'tool calibration', OK,
+                  f'calibrated {when}{against}{poses}: {path}', values, camera)
 
 
 def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info: bool,
@@ -199,7 +216,7 @@ class VisionNode(Node):
         self._calibration_file = str(repo_path(declare(
             self, 'tool_calibration_file', 'calibration/tool_camera.json',
             'tool calibration written by flexarm calibrate (relative: to the repository)')))
-        record = self._read_calibration()
+        record = self._calibration_record = self._read_calibration()
         self._correction_from = 'none' if record is None else self._calibration_file
         if self._calibration_problem:
             self.get_logger().error(f'{self._calibration_problem}; poses are reported '
@@ -248,7 +265,8 @@ class VisionNode(Node):
                 camera_info_status(name, self._camera_id, self._estimator.camera.intrinsics,
                                    self._info_used, self._info_problem),
                 calibration_status(name, self._camera_id, self._calibration_file,
-                                   self._calibration_problem, self._correction_from)]
+                                   self._calibration_problem, self._correction_from,
+                                   self._calibration_record)]
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         for param in params:
@@ -258,8 +276,11 @@ class VisionNode(Node):
                 except (ValueError, TypeError) as exc:
                     return SetParametersResult(successful=False, reason=str(exc))
                 self.get_logger().info(f'tool correction now {self._correction}')
-                self._correction_from = 'parameter'
-                self._read_calibration()     # flexarm calibrate has just rewritten it
+                record = self._read_calibration()   # flexarm calibrate has just rewritten it
+                stored = record is not None and np.allclose(
+                    record['correction'].as_list(), self._correction.as_list(), rtol=0, atol=1e-12)
+                self._calibration_record = record if stored else None
+                self._correction_from = self._calibration_file if stored else 'parameter'
         return SetParametersResult(successful=True)
 
     def _on_info(self, msg: CameraInfo) -> None:

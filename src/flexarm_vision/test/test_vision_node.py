@@ -141,7 +141,13 @@ def test_a_damaged_calibration_file_is_an_error_naming_it() -> None:
     path = '/site/calibration/tool_camera.json'
     fine = calibration_status('flexarm_vision', 'cam', path, '', path)
     assert fine.level == OK and fine.name == 'flexarm_vision: tool calibration'
-    assert fine.message == f'correction from {path}' and fine.hardware_id == 'cam'
+    assert fine.message == f'calibrated at an unknown time: {path}' and fine.hardware_id == 'cam'
+    made = calibration_status('flexarm_vision', 'cam', path, '', path, {
+        'stamp': '2026-11-25T10:00:00', 'reference': '/reference/tip_pose', 'poses': 6})
+    assert made.message == ('calibrated 2026-11-25T10:00:00 against /reference/tip_pose from 6 '
+                            f'poses: {path}')
+    none = calibration_status('flexarm_vision', 'cam', path, '', 'none')
+    assert none.level == OK and none.message.startswith(f'NOT calibrated (no {path})')
     problem = f'tool calibration {path} is damaged (truncated); run flexarm calibrate again'
     damaged = calibration_status('flexarm_vision', 'cam', path, problem, 'none')
     assert damaged.level == ERROR

@@ -1,8 +1,17 @@
 """Node-level: the payload the graph declares reaches the simulator, the samples, the model and
 the compensator; a change nobody declared is caught by the model health and mended by a
-refresh."""
+refresh.
+
+The tests share one graph and client (started once for the module). What one test leaves
+behind another does not rely on: each declares the payload it starts at and waits until the
+simulator carries it (which also ends an undeclared load an earlier test left), collects
+into datasets of its own and trains its own model (a new model starts with a clean health
+record), and waits for the health of that model. The payload is the only error source on
+(PAYLOAD_ONLY): no hysteresis or heating remembers an earlier test's moves.
+"""
 import math
 import time
+import uuid
 
 import pytest
 import rclpy
@@ -27,25 +36,42 @@ GOALS = [(1.10, -0.30, math.radians(-70)), (1.20, -0.40, math.radians(-85)),
          (1.25, -0.25, math.radians(-65)), (1.05, -0.45, math.radians(-90))]
 
 
-@pytest.fixture
-def graph(launch, domain_id, tmp_path):
-    launch('flexarm_sim', real_time_factor=10.0, **PAYLOAD_ONLY)
-    launch('flexarm_vision')
-    launch('flexarm_learner', data_directory=str(tmp_path / 'data'),
-           model_directory=str(tmp_path / 'models'))
-    launch('flexarm_compensator')
+def fresh(name: str) -> str:
+    """A dataset name no other test (or earlier run of this one) of the module uses: the
+    data directory is shared, and a collection appends to an existing dataset."""
+    return f'{name}-{uuid.uuid4().hex[:8]}'
+
+
+@pytest.fixture(scope='module')
+def client(module_launch, domain_id, tmp_path_factory):
+    """The module's graph and its client, ready."""
+    data = tmp_path_factory.mktemp('drift')
+    module_launch('flexarm_sim', real_time_factor=10.0, **PAYLOAD_ONLY)
+    module_launch('flexarm_vision')
+    module_launch('flexarm_learner', data_directory=str(data / 'data'),
+                  model_directory=str(data / 'models'))
+    module_launch('flexarm_compensator')
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
-    client = FlexarmClient('test_client', context=context)
+    made = FlexarmClient('test_client', context=context)
+    try:
+        made.wait_until_ready(timeout=30.0)
+        yield made
+    finally:
+        made.destroy_node()
+        rclpy.try_shutdown(context=context)
+
+
+@pytest.fixture
+def graph(client, wait_for):
+    """The client and the model health it hears from now on (first: the latched last one)."""
     health: list[ModelHealth] = []
     latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-    client.create_subscription(ModelHealth, topics.MODEL_HEALTH, health.append, latched)
-    try:
-        client.wait_until_ready(timeout=30.0)
-        yield client, health
-    finally:
-        client.destroy_node()
-        rclpy.try_shutdown(context=context)
+    subscription = client.create_subscription(ModelHealth, topics.MODEL_HEALTH, health.append,
+                                              latched)
+    wait_for(subscription.get_publisher_count, 10.0, "the compensator's model health")
+    yield client, health
+    client.destroy_subscription(subscription)
 
 
 def wait_until(client: FlexarmClient, condition, timeout: float, what: str):
@@ -71,13 +97,14 @@ def train_on(client: FlexarmClient, dataset: str, kind: str = '') -> str:
 
 def test_a_declared_payload_is_learned_and_used(graph):
     client, _ = graph
+    name = fresh('p')
     for kg in (0.0, 5.0):
         follow(client, kg)
-        result = client.collect(10, region='B', dataset='p', seed=int(kg), timeout=180)
+        result = client.collect(10, region='B', dataset=name, seed=int(kg), timeout=180)
         assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
     _, _, payload = load_dataset(result.dataset_path).arrays()
     assert sorted(set(payload)) == [0.0, 5.0]
-    model = load_predictor(train_on(client, 'p', 'gp'))
+    model = load_predictor(train_on(client, name, 'gp'))
     assert model.settings['payload_input']                  # two payloads: an input
 
     def plan(extrapolate: bool = True):                      # 20 samples: the GP is unsure
@@ -116,12 +143,16 @@ def test_a_declared_payload_is_learned_and_used(graph):
 
 def test_an_undeclared_change_is_caught_and_refreshed(graph):
     client, health = graph
-    result = client.collect(12, region='B', dataset='d', seed=5, timeout=180)
+    name = fresh('d')
+    follow(client, 0.0)        # declared and carried
+    result = client.collect(12, region='B', dataset=name, seed=5, timeout=180)
     assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
-    train_on(client, 'd')      # the default kind: healthy well below the stale threshold
+    train_on(client, name)     # the default kind: healthy well below the stale threshold
+    trained = client.active_model.version
     for target in GOALS[:3]:
         assert client.move_to(*target, mode='predictive', timeout=120).measured
-    wait_until(client, lambda: health and health[-1].regions, 10.0, 'model health')
+    wait_until(client, lambda: health and health[-1].model_version == trained
+               and health[-1].regions, 10.0, 'model health')
     assert not health[-1].stale, health[-1].summary
     client.set_node_parameter('flexarm_sim', 'plant.payload', 2.0)    # nobody declares it
     for target in GOALS:
@@ -132,7 +163,7 @@ def test_an_undeclared_change_is_caught_and_refreshed(graph):
     refresh = client.refresh(timeout=300)
     assert refresh.error_code == RefreshModel.Result.SUCCESSFUL, refresh.error_string
     assert refresh.collected == 8 and refresh.residual_after < refresh.residual_before / 3
-    assert refresh.dataset_path.endswith('d-refresh.jsonl')
+    assert refresh.dataset_path.endswith(f'{name}-refresh.jsonl')
     client.wait_for_model(refresh.model.version, timeout=20)
     wait_until(client, lambda: health[-1].model_version == refresh.model.version, 10.0,
                'the health of the refreshed model')

@@ -3,10 +3,17 @@
 The server and this test's client are separate processes (the interfaces work across
 processes). The predictor is fitted here on the simulator's own deflection, so PREDICTIVE is
 judged on the node's behaviour, not on learning.
+
+One graph runs on the module's domain at a time (:class:`SharedGraph`): the goal tests of the
+simulator at 10x with a model share one (each finds the arm at rest where the previous goal left
+it, reads its "before" joints at its start, and has its own subscriptions), the in-process
+compensator tests share one real-time simulator; a test that starts its own nodes or serves
+/move_to_pose itself (no model, real time, fake servers) has the domain to itself.
 """
 import math
 import threading
 import time
+from collections.abc import Callable
 from types import SimpleNamespace
 
 import numpy as np
@@ -62,28 +69,120 @@ def model_path(tmp_path_factory):
     return path
 
 
-@pytest.fixture
-def graph(request, launch, domain_id, model_path):
-    """Simulator (10x real time unless parametrised), vision, compensator; a client and the
-    latest joint state."""
-    launch('flexarm_sim', real_time_factor=getattr(request, 'param', 10.0), **IDEAL)
+def start_graph(launch, domain_id: int, model_path, real_time_factor: float
+                ) -> FlexarmClient:
+    """Simulator (ideal) at ``real_time_factor``, vision, compensator with the model; a client
+    of them (of its own context: :func:`close_client`)."""
+    launch('flexarm_sim', real_time_factor=real_time_factor, **IDEAL)
     launch('flexarm_vision')
     launch('flexarm_compensator', model_path=str(model_path))
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     client = FlexarmClient('test_client', context=context)
-    joints = {}
-    client.create_subscription(JointState, topics.JOINT_STATES,
-                               lambda m: joints.__setitem__('q', np.array(m.position)), 10)
     try:
         client.wait_until_ready(timeout=30.0, learner=False)
-        deadline = time.monotonic() + 20
-        while 'q' not in joints and time.monotonic() < deadline:
-            client.spin_once(0.05)
-        yield client, joints
+    except BaseException:
+        close_client(client)
+        raise
+    return client
+
+
+def close_client(client: FlexarmClient) -> None:
+    context = client.context
+    client.destroy_node()
+    rclpy.try_shutdown(context=context)
+
+
+def joint_states(client: FlexarmClient, wait_for: Callable[..., object]
+                 ) -> dict[str, np.ndarray]:
+    """The latest joint state the client heard, on a subscription made now, once the first
+    came (spun for a while at a time: one spin runs one pending callback, and a client that
+    ran goals has hundreds pending)."""
+    joints: dict[str, np.ndarray] = {}
+    client.create_subscription(JointState, topics.JOINT_STATES,
+                               lambda m: joints.__setitem__('q', np.array(m.position)), 10)
+    wait_for(lambda: spin_for(client, 0.05) or 'q' in joints, 20.0, 'a joint state')
+    return joints
+
+
+class SharedGraph:
+    """What runs on the module's domain for the tests that share it, one kind at a time:
+    ``'model'``: simulator (ideal, 10x real time), vision, compensator with the model, and a
+    client; ``'sim'``: the simulator alone (real time, realistic), for a compensator in the
+    test process. :meth:`use` starts a kind unless it runs (stopping another), ``use(None)``
+    stops whatever runs; a test that fails stops it, so the next one starts afresh (no goal of
+    a failed test still running)."""
+
+    def __init__(self, launch, domain_id: int, model_path) -> None:
+        self._launch, self._domain_id, self._model_path = launch, domain_id, model_path
+        self.kind: str | None = None
+        self.client: FlexarmClient | None = None
+
+    def use(self, kind: str | None, request: pytest.FixtureRequest | None = None) -> None:
+        if kind != self.kind:
+            self.down()
+            try:
+                if kind == 'model':
+                    self.client = start_graph(self._launch, self._domain_id, self._model_path,
+                                              10.0)
+                elif kind == 'sim':
+                    self._launch('flexarm_sim', real_time_factor=1.0)
+            except BaseException:
+                self.down()
+                raise
+            self.kind = kind
+        if request is not None:
+            failed = request.session.testsfailed
+            request.addfinalizer(lambda: self.down() if request.session.testsfailed > failed
+                                 else None)
+
+    def down(self) -> None:
+        """Stop the client and the nodes (and check they were reaped)."""
+        if self.client is not None:
+            close_client(self.client)
+            self.client = None
+        self.kind = None
+        self._launch.stop_all()
+        self._launch.started.clear()
+
+
+@pytest.fixture(scope='module')
+def shared(module_launch, domain_id, model_path):
+    graphs = SharedGraph(module_launch, domain_id, model_path)
+    yield graphs
+    graphs.down()
+
+
+@pytest.fixture
+def alone(shared):
+    """Nothing shared runs on the domain: the test starts its own nodes or serves the action."""
+    shared.use(None)
+
+
+@pytest.fixture
+def graph(shared, request, wait_for):
+    """The shared simulator (10x), vision and compensator with the model; the shared client
+    and the latest joint state. The subscriptions of the test (this one's too) are destroyed
+    when it ends."""
+    shared.use('model', request)
+    client = shared.client
+    before = set(client.subscriptions)
+    try:
+        yield client, joint_states(client, wait_for)
     finally:
-        client.destroy_node()
-        rclpy.try_shutdown(context=context)
+        for subscription in set(client.subscriptions) - before:
+            client.destroy_subscription(subscription)
+
+
+@pytest.fixture
+def real_time_graph(alone, launch, domain_id, model_path, wait_for):
+    """Simulator at real time (a move to B4 takes 3 s), vision, compensator with the model, of
+    this test alone; a client and the latest joint state."""
+    client = start_graph(launch, domain_id, model_path, 1.0)
+    try:
+        yield client, joint_states(client, wait_for)
+    finally:
+        close_client(client)
 
 
 def test_rigid_and_predictive_goals_succeed(graph):
@@ -155,8 +254,22 @@ def test_provenance_tolerances_and_dry_run(graph):
     spin_for(client, 0.5)
     assert [o.model_version for o in outcomes] == [plan.model_version] * 3 + ['']
 
+
+@pytest.mark.parametrize('target, code', [
+    ((float('nan'), 0.0, 0.0), Result.INVALID_GOAL),
+    ((2.5, 0.0, 0.0), Result.UNREACHABLE),
+])
+def test_invalid_goal_is_refused_and_nothing_moves(graph, target, code):
+    client, joints = graph
+    before = joints['q'].copy()
+    result = client.move_to(*target, mode='predictive', timeout=30)
+    assert result.error_code == code and result.error_string
+    spin_for(client, 1.0)
+    np.testing.assert_array_equal(joints['q'], before)
+
+
 @pytest.fixture
-def no_model_graph(launch, domain_id):
+def no_model_graph(alone, launch, domain_id):
     """Simulator (10x), vision and a compensator without a model; a client."""
     launch('flexarm_sim', real_time_factor=10.0, **IDEAL)
     launch('flexarm_vision')
@@ -183,22 +296,8 @@ def test_closed_loop_needs_no_model(no_model_graph):
     assert closed.iterations >= 2 and closed.compensation_iterations == 0
 
 
-@pytest.mark.parametrize('target, code', [
-    ((float('nan'), 0.0, 0.0), Result.INVALID_GOAL),
-    ((2.5, 0.0, 0.0), Result.UNREACHABLE),
-])
-def test_invalid_goal_is_refused_and_nothing_moves(graph, target, code):
-    client, joints = graph
-    before = joints['q'].copy()
-    result = client.move_to(*target, mode='predictive', timeout=30)
-    assert result.error_code == code and result.error_string
-    spin_for(client, 1.0)
-    np.testing.assert_array_equal(joints['q'], before)
-
-
-@pytest.mark.parametrize('graph', [1.0], indirect=True)      # real time: a 3 s move
-def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(graph):
-    client, joints = graph
+def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(real_time_graph):
+    client, joints = real_time_graph
     far = (1.0, -0.5, math.radians(-100))            # B4: a long move from the start pose
     context = Context()
     rclpy.init(context=context, domain_id=client.context.get_domain_id())
@@ -250,6 +349,7 @@ def serve(node, execute, goal_callback=None) -> ActionServer:
                         callback_group=ReentrantCallbackGroup())
 
 
+@pytest.mark.usefixtures('alone')   # its own /move_to_pose server
 def test_client_never_reports_success_for_a_goal_that_did_not_succeed(ros_node, client):
     def abort_with_empty_result(handle):
         handle.abort()
@@ -261,6 +361,7 @@ def test_client_never_reports_success_for_a_goal_that_did_not_succeed(ros_node, 
         client.move_to(*TARGET, timeout=30)
 
 
+@pytest.mark.usefixtures('alone')   # its own /move_to_pose server
 @pytest.mark.parametrize('when', ['moving', 'before acceptance'])
 def test_ctrl_c_cancels_the_goal(ros_node, client, when, wait_for):
     canceled = threading.Event()
@@ -304,10 +405,10 @@ def test_ctrl_c_cancels_the_goal(ros_node, client, when, wait_for):
 
 
 @pytest.fixture
-def in_process(launch, domain_id, client):
-    """The simulator (real time), a compensator node in this process (its internals within
-    reach of the test), a client and the outcomes it heard."""
-    launch('flexarm_sim', real_time_factor=1.0)
+def in_process(shared, domain_id, client, request):
+    """The shared simulator (real time), a compensator node of the test in this process (its
+    internals within reach of the test), a client and the outcomes it heard."""
+    shared.use('sim', request)
     context = Context()
     rclpy.init(context=context, domain_id=domain_id, args=[
         '--ros-args', '--params-file', str(config_path('arm.yaml')),

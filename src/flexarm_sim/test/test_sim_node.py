@@ -1,4 +1,9 @@
-"""The simulated controller as a node: ros2_control topic contract, sim clock, bad commands."""
+"""The simulated controller as a node: ros2_control topic contract, sim clock, bad commands.
+
+The tests that only command the simulator share one (:class:`SharedSim`): each bad command
+test finds the arm at START and counts its own rejection; the test whose command moves the arm
+retires it, and the payload tests, which set up their own error sources, run alone.
+"""
 import math
 
 import numpy as np
@@ -13,11 +18,55 @@ from flexarm_msgs.msg import TipPose
 
 pytestmark = pytest.mark.node
 START = [0.0, 0.6, -0.5, -0.5]
+COMMANDS = 'flexarm_sim: commands'
+
+
+class SharedSim:
+    """The module's simulator at 10x real time from START, started when a test first needs it
+    and shared until a test retires it (it moved the arm or had a command accepted) or needs
+    the domain to itself; a test that fails retires it too. ``rejected``: the bad commands
+    sent to the running one; ``spent``: the test changed it, it is retired after the test."""
+
+    def __init__(self, launcher) -> None:
+        self._launcher = launcher
+        self.running, self.spent = False, False
+        self.rejected = 0
+
+    def use(self, request: pytest.FixtureRequest) -> None:
+        """Start it unless it runs; retire it after the test if the test spent it or failed."""
+        if not self.running:
+            self._launcher('flexarm_sim', real_time_factor=10.0, initial_positions=START)
+            self.running, self.rejected = True, 0
+        self.spent, failed = False, request.session.testsfailed
+
+        def after() -> None:
+            if self.spent or request.session.testsfailed > failed:
+                self.retire()
+        request.addfinalizer(after)
+
+    def retire(self) -> None:
+        """Stop it (and check it was reaped): the next test that needs it gets a fresh one."""
+        self._launcher.stop_all()
+        self._launcher.started.clear()
+        self.running = False
+
+
+@pytest.fixture(scope='module')
+def shared_sim(module_launch):
+    shared = SharedSim(module_launch)
+    yield shared
+    shared.retire()
 
 
 @pytest.fixture
-def sim(launch, ros_node, wait_for):
-    """The sim node at 10x real time, and what the test node hears from it."""
+def alone(shared_sim):
+    """No shared simulator on the domain: the test starts its own."""
+    shared_sim.retire()
+
+
+@pytest.fixture
+def sim(shared_sim, ros_node, wait_for, request):
+    """The shared sim node (10x real time, from START), and what the test node hears from it."""
     heard = {'joints': None, 'clock': None, 'truth': None, 'health': {}}
     ros_node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
                                  lambda m: heard['health'].update(
@@ -28,7 +77,7 @@ def sim(launch, ros_node, wait_for):
     ros_node.create_subscription(TipPose, topics.TIP_POSE_TRUTH,
                                  lambda m: heard.__setitem__('truth', m), 10)
     command = ros_node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
-    launch('flexarm_sim', real_time_factor=10.0, initial_positions=START)
+    shared_sim.use(request)
     wait_for(lambda: heard['joints'] is not None and heard['clock'] is not None
              and command.get_subscription_count(), 20.0,
              'the simulator')
@@ -39,18 +88,8 @@ def positions(msg: JointState) -> np.ndarray:
     return np.array(msg.position)
 
 
-def test_command_moves_the_joints_there(sim, wait_for):
-    heard, command = sim
-    msg = heard['joints']
-    assert list(msg.name) == ['joint1', 'joint2', 'joint3', 'joint4']
-    np.testing.assert_allclose(positions(msg), START)
-    target = [0.2, 0.65, -0.6, -0.3]
-    command.publish(Float64MultiArray(data=target))
-    wait_for(lambda: np.allclose(positions(heard['joints']), target, atol=1e-9), 20.0,
-             'the joints to reach the command')
-    assert heard['clock'].clock.sec >= 1                       # sim time advances
-    truth = heard['truth']
-    assert truth.valid and math.isfinite(truth.pose.x)
+def seconds(msg: Clock) -> float:
+    return msg.clock.sec + msg.clock.nanosec * 1e-9
 
 
 @pytest.mark.parametrize('bad', [
@@ -59,25 +98,50 @@ def test_command_moves_the_joints_there(sim, wait_for):
     [0.1, 0.95, -0.5, -0.5],                # joint2 beyond its 0.8 m limit
     [0.1, 0.6, 1.5, -0.5],                  # joint3 beyond +60 deg
 ])
-def test_bad_command_is_refused_and_nothing_moves(sim, wait_for, bad):
+def test_bad_command_is_refused_and_nothing_moves(sim, shared_sim, wait_for, bad):
     heard, command = sim
     command.publish(Float64MultiArray(data=bad))
+    shared_sim.rejected += 1                # this one, after the shared sim's earlier ones
     stamp = heard['clock'].clock.sec
     wait_for(lambda: heard['clock'].clock.sec >= stamp + 2, 20.0, '2 s of sim time')
     np.testing.assert_allclose(positions(heard['joints']), START)
     assert not any(heard['joints'].velocity)
-    commands = 'flexarm_sim: commands'
-    wait_for(lambda: commands in heard['health'] and heard['health'][commands].level
-             == DiagnosticStatus.WARN, 10.0, 'the rejection on /diagnostics')
-    values = {v.key: v.value for v in heard['health'][commands].values}
-    assert values['commands rejected'] == '1' and values['commands accepted'] == '0'
-    assert heard['health'][commands].message.startswith('last command rejected: ')
+
+    def values(status: DiagnosticStatus) -> dict[str, str]:
+        return {v.key: v.value for v in status.values}
+
+    def rejection() -> DiagnosticStatus | None:   # the status that counts this one
+        status = heard['health'].get(COMMANDS)
+        return status if status and int(values(status)['commands rejected']
+                                        ) >= shared_sim.rejected else None
+
+    status = wait_for(rejection, 10.0, 'the rejection on /diagnostics')
+    assert status.level == DiagnosticStatus.WARN
+    counts = values(status)
+    assert counts['commands rejected'] == str(shared_sim.rejected)
+    assert counts['commands accepted'] == '0'
+    assert status.message.startswith('last command rejected: ')
     assert heard['health']['flexarm_sim: controller'].level == DiagnosticStatus.OK
 
 
+def test_command_moves_the_joints_there(sim, shared_sim, wait_for):
+    heard, command = sim
+    msg, started = heard['joints'], seconds(heard['clock'])
+    assert list(msg.name) == ['joint1', 'joint2', 'joint3', 'joint4']
+    np.testing.assert_allclose(positions(msg), START)
+    target = [0.2, 0.65, -0.6, -0.3]
+    shared_sim.spent = True                 # the arm moves and a command is accepted
+    command.publish(Float64MultiArray(data=target))
+    wait_for(lambda: np.allclose(positions(heard['joints']), target, atol=1e-9), 20.0,
+             'the joints to reach the command')
+    assert seconds(heard['clock']) >= started + 1               # sim time advances (a 1.6 s move)
+    truth = heard['truth']
+    assert truth.valid and math.isfinite(truth.pose.x)
+
+
 @pytest.mark.parametrize('on', [True, False])
-def test_the_payload_changes_at_run_time_with_its_error_source_on(launch, ros_node, wait_for,
-                                                                   on):
+def test_the_payload_changes_at_run_time_with_its_error_source_on(alone, launch, ros_node,
+                                                                   wait_for, on):
     from rclpy.parameter import Parameter
     from rclpy.parameter_client import AsyncParameterClient
     from rclpy.qos import QoSDurabilityPolicy, QoSProfile

@@ -158,6 +158,15 @@ def _learner_config() -> dict[str, Any]:
     return load_config('learner.yaml', node_name='flexarm_learner')
 
 
+def _learner_default(key: str) -> str:
+    """The learner's default ``key`` for a help text, read so that the help cannot drift; its
+    parameter's name where config/ is not beside the code (an install space without it)."""
+    try:
+        return str(_learner_config()[key])
+    except (OSError, KeyError):
+        return f'its {key} parameter'
+
+
 def _check_region(region: str) -> None:
     presets = _learner_config()['regions']
     if region and region not in presets:
@@ -1043,19 +1052,18 @@ def _move_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _collect_arguments(p: argparse.ArgumentParser) -> None:
-    learner = _learner_config()         # its defaults, read so that the help cannot drift
     p.add_argument('count', type=_positive_int, metavar='N', help='samples to collect')
     p.add_argument('--region', default='',
                    help='region preset of config/learner.yaml (default: the learner\'s, '
-                        f'{learner["default_region"]})')
+                        f'{_learner_default("default_region")})')
     p.add_argument('--strategy', default='',
                    help='sobol | halton | lhs | random | active (each pose where the model '
                         'so far is least sure; default: the learner\'s, '
-                        f'{learner["default_strategy"]})')
+                        f'{_learner_default("default_strategy")})')
     p.add_argument('--seed', type=_natural, default=0, help='seed of the sampling strategy')
     p.add_argument('--dataset', default='',
                    help='dataset name: data/NAME.jsonl (default: the learner\'s, '
-                        f'{learner["default_dataset"]})')
+                        f'{_learner_default("default_dataset")})')
     p.add_argument('--payload', type=_non_negative, metavar='KG',
                    help='[kg] declare the payload the arm carries first (stored with every '
                         'sample; default: as declared before)')
@@ -1087,7 +1095,7 @@ KIND_HELP = ('predictor kind: auto (the best of kinematic, greybox and gp by cro
 
 def _kind_help() -> str:
     """KIND_HELP and the learner's default kind, read so that the help cannot drift."""
-    return f"{KIND_HELP} (default: the learner's, {_learner_config()['default_kind']})"
+    return f"{KIND_HELP} (default: the learner's, {_learner_default('default_kind')})"
 
 
 def _train_arguments(p: argparse.ArgumentParser) -> None:

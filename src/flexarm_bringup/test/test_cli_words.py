@@ -197,3 +197,13 @@ def test_the_model_std_is_said_only_where_the_model_gives_one(std, says):
         assert ('model std' in text) == (says is not None)
         assert says is None or says in text
     assert planned.startswith('plan (model v4; nothing moved)')
+
+
+def test_the_help_builds_where_config_is_not_beside_the_code(monkeypatch):
+    """An install space (colcon) holds the code without config/: --help must still work."""
+    def missing() -> None:
+        raise FileNotFoundError('config/learner.yaml')
+    monkeypatch.setattr(cli, '_learner_config', missing)
+    train = cli.build_parser()._subparsers._group_actions[0].choices['train']
+    text = ' '.join(train.format_help().split())
+    assert "(default: the learner's, its default_kind parameter)" in text

@@ -1,11 +1,14 @@
 """Fault injection at node level: what a hostile but fair site does to the graph.
 
-Each test runs in a ROS domain of its own with bounded waits (conftest.py).
+The module's tests share its ROS domain (conftest.py), one graph at a time, with bounded waits.
+The tests that train share one simulator and learner (:class:`LearnerGraph`), the one that
+kills the learner last; every other test starts the nodes it needs, in a domain without them.
 """
 import os
 import signal
 import socket
 import time
+import uuid
 from pathlib import Path
 
 import pytest
@@ -40,25 +43,78 @@ def alive(pid: int) -> bool:
     return state != 'Z'
 
 
+class LearnerGraph:
+    """Simulator and learner with a dataset ``good`` of 20 samples (folders of their own),
+    started by ``module_launch`` for a test that trains (:func:`learner`) and kept for the
+    next one while the learner lives; stopped (and reaped) before any other test of the module
+    runs (:func:`_one_graph_at_a_time`)."""
+
+    def __init__(self, launcher, folders: pytest.TempPathFactory) -> None:
+        self._launcher, self._folders = launcher, folders
+        self.node = None
+
+    def start(self, write_dataset) -> None:
+        if self.node is not None and self.node.returncode is None:
+            return
+        self.stop()
+        folder = self._folders.mktemp('learner')
+        data, models = folder / 'data', folder / 'models'
+        data.mkdir()
+        write_dataset(data / 'good.jsonl', count=20)
+        self._launcher('flexarm_sim', real_time_factor=10.0)
+        self.node = self._launcher('flexarm_learner', data_directory=str(data),
+                                   model_directory=str(models))
+        self.data, self.models = data, models
+
+    def stop(self) -> None:
+        self._launcher.stop_all()
+        self.node = None
+
+
+@pytest.fixture(scope='module')
+def learner_graph(module_launch, tmp_path_factory) -> LearnerGraph:
+    return LearnerGraph(module_launch, tmp_path_factory)
+
+
+@pytest.fixture(autouse=True)
+def _one_graph_at_a_time(request):
+    """A test that does not train runs without the learner graph: two simulators must not
+    share the domain, and the graph refusals need it empty of flexarm nodes."""
+    if 'learner' not in request.fixturenames:
+        request.getfixturevalue('learner_graph').stop()
+
+
 @pytest.fixture
-def learner(launch, tmp_path, write_dataset, ready_client):
-    """Simulator and learner with a dataset ``good``; the learner's process and a client."""
-    data, models = tmp_path / 'data', tmp_path / 'models'
-    data.mkdir()
-    write_dataset(data / 'good.jsonl', count=20)
-    launch('flexarm_sim', real_time_factor=10.0)
-    node = launch('flexarm_learner', data_directory=str(data), model_directory=str(models))
-    return node, ready_client(compensator=False), models
+def learner(learner_graph, write_dataset, ready_client):
+    """The shared simulator and learner (:class:`LearnerGraph`): the learner's process, a
+    client, and the learner's data and model folders."""
+    learner_graph.start(write_dataset)
+    return (learner_graph.node, ready_client(compensator=False), learner_graph.data,
+            learner_graph.models)
+
+
+def test_training_reports_damaged_dataset_records(learner, write_dataset):
+    _, client, data, _ = learner
+    name = f'damaged-{uuid.uuid4().hex[:8]}'     # a dataset of this test alone
+    write_dataset(data / f'{name}.jsonl', count=20)
+    path = Path(client.train('rbf', dataset=name, timeout=60).model_path)
+    assert path.exists()
+    dataset = path.parent.parent / 'data' / f'{name}.jsonl'
+    with open(dataset, 'ab') as f:
+        f.write(b'{"crc32": "00000000", "sample": {}}\n{"torn')      # a bad and a torn line
+    trained = client.train('rbf', dataset=name, timeout=60)
+    assert trained.success, trained.message
+    assert '2 damaged record(s)' in trained.message and 'lines 22, 23' in trained.message
 
 
 def test_a_learner_killed_after_training_leaves_no_worker(learner, wait_for):
-    node, client, _ = learner
+    node, client, _, _ = learner
     trained = client.train('rbf', dataset='good', timeout=60)
     assert trained.success, trained.message
     pid = node.process.pid
     workers = children(pid)
     assert workers, 'the training worker process was not found'
-    node.killed_shm += owned_shm(pid)             # removed when the test's nodes stop
+    node.killed_shm += owned_shm(pid)             # removed when the graph stops
     os.kill(pid, signal.SIGKILL)                  # the learner only, not its process group
     wait_for(lambda: not any(alive(w) for w in workers), 5.0,
              f'the learner\'s children {sorted(workers)} to die with it')
@@ -236,18 +292,6 @@ def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait
         time.sleep(0.05)
 
 
-def test_training_reports_damaged_dataset_records(learner):
-    _, client, _ = learner
-    path = Path(client.train('rbf', dataset='good', timeout=60).model_path)
-    assert path.exists()
-    dataset = path.parent.parent / 'data' / 'good.jsonl'
-    with open(dataset, 'ab') as f:
-        f.write(b'{"crc32": "00000000", "sample": {}}\n{"torn')      # a bad and a torn line
-    trained = client.train('rbf', dataset='good', timeout=60)
-    assert trained.success, trained.message
-    assert '2 damaged record(s)' in trained.message and 'lines 22, 23' in trained.message
-
-
 class RawPC:
     """A PC speaking the controller protocol by hand: with the site key or without."""
 
@@ -274,11 +318,12 @@ class RawPC:
         self.conn.sendall(bytes(data))
         return self.seq
 
-    def listen(self, seconds: float) -> None:
-        """Collect frames for ``seconds`` (sending HEARTBEAT every 0.2 s once authenticated)."""
+    def listen(self, seconds: float, until=lambda: False) -> None:
+        """Collect frames for ``seconds``, or until ``until()`` holds (sending HEARTBEAT every
+        0.2 s once authenticated)."""
         from flexarm_bridge import controller_protocol as proto
         end, beat = time.monotonic() + seconds, 0.0
-        while time.monotonic() < end and not self.closed:
+        while time.monotonic() < end and not self.closed and not until():
             if self.auth is not None and self.auth.established and time.monotonic() > beat:
                 self.send(proto.HEARTBEAT, time=time.monotonic())
                 beat = time.monotonic() + 0.2
@@ -307,26 +352,38 @@ def test_only_a_pc_with_the_site_key_commands_the_arm(launch, domain_id, tmp_pat
     controller = launch('flexarm_fake_controller', robot='bridge', port=port,
                         link_key_file=str(key_file))
     stranger = RawPC(port)                       # no key: a plain command, then silence
-    stranger.listen(0.5)
+    stranger.listen(liveness.limit(5.0), until=lambda: any('no link key' in e
+                                                           for e in stranger.errors))
     assert stranger.frames == [] and any('no link key' in e for e in stranger.errors)
     stranger.send(proto.JOINT_COMMAND, positions=[0.3, 0.7, 0.0, 0.0])
     stranger.listen(3.0)
     assert stranger.closed, 'the controller keeps a PC that never authenticates'
+    assert stranger.frames == []                 # it never read a frame of the controller
 
     pc = RawPC(port, LinkAuth(load_key(key_file), PC))
-    pc.listen(0.5)
+    pc.listen(liveness.limit(5.0), until=lambda: pc.of_type(proto.HELLO))
     assert pc.of_type(proto.HELLO)                 # taken by its decoder: answer it
     pc.send(proto.AUTH, **pc.auth.answer())
-    pc.listen(0.5)
+    pc.listen(liveness.limit(5.0), until=lambda: pc.of_type(proto.JOINT_STATE))
     state = pc.of_type(proto.JOINT_STATE)[-1]
     assert not state.fields['status'] & proto.STATUS_MOVING    # the stranger moved nothing
     start = state.fields['positions']
     target = [start[0] + 0.02, *start[1:]]
+    logged = len(controller.log_path.read_text())
     valid = pc.send(proto.JOINT_COMMAND, positions=target)
     tampered = pc.send(proto.JOINT_COMMAND, tamper=True, positions=target)
     pc.conn.sendall(proto.encode(proto.JOINT_COMMAND, valid, pc.auth.send_key,
                                  positions=[start[0] - 0.2, *start[1:]]))    # replayed seq
-    pc.listen(1.5)
+
+    def all_handled() -> bool:
+        """The valid command acknowledged and the arm on its way, the other two refused (the
+        controller logs a refused frame where it would have acknowledged it)."""
+        log = controller.log_path.read_text()[logged:]
+        return (valid in [a.fields['acked'] for a in pc.of_type(proto.ACK)]
+                and pc.of_type(proto.JOINT_STATE)[-1].fields['positions'][0] > start[0] + 0.005
+                and 'tag mismatch' in log and 'replayed' in log)
+
+    pc.listen(liveness.limit(5.0), until=all_handled)
     pc.conn.close()
     assert [(a.fields['acked'], a.fields['code']) for a in pc.of_type(proto.ACK)] == [
         (valid, proto.OK)]

@@ -83,7 +83,8 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
             base: Mapping[str, str] | None = None,
             discovery: str = 'LOCALHOST') -> dict[str, str]:
     """Environment of a node process: isolated domain, discovery range and the transports
-    that go with it, own log dir.
+    that go with it, own log dir; a fatal signal (SIGSEGV at shutdown, say) dumps the Python
+    stack of every thread into the node's log, so such a crash names where it happened.
 
     ``discovery`` (ROS_AUTOMATIC_DISCOVERY_RANGE) is LOCALHOST unless the caller widens it on
     purpose: the DDS of the PyPI wheels has no security plugins, so every participant that
@@ -97,6 +98,7 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     env['ROS_DOMAIN_ID'] = str(domain_id)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
     env['PYTHONUNBUFFERED'] = '1'
+    env['PYTHONFAULTHANDLER'] = '1'
     if log_dir is not None:
         env['ROS_LOG_DIR'] = str(log_dir)
     return transport_env(env)

@@ -51,6 +51,10 @@ def test_ros_env_isolates_the_domain_and_drops_the_bootstrap_guard() -> None:
     assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
     assert '_ROS_WHEELS_BOOTSTRAP_COMPLETE' not in env
     assert env['PATH'] == '/bin'
+    crash = subprocess.run([sys.executable, '-c', 'import ctypes; ctypes.string_at(0)'],
+                           env=ros_env(42), capture_output=True, text=True, timeout=30)
+    assert crash.returncode == -11                       # a node's crash names where it was
+    assert 'Segmentation fault' in crash.stderr and 'line 1' in crash.stderr, crash.stderr
     widened = ros_env(42, base={'ROS_AUTOMATIC_DISCOVERY_RANGE': 'SUBNET'})
     assert widened['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'    # only when asked for
     assert ros_env(42, discovery='SUBNET')['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SUBNET'

@@ -110,7 +110,8 @@ def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path
     pub = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
     executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
-    threading.Thread(target=executor.spin, daemon=True).start()
+    thread = threading.Thread(target=executor.spin, daemon=True)
+    thread.start()
     for n in nodes:
         n.start()
     out = []
@@ -135,6 +136,7 @@ def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path
         if proxy is not None:
             proxy.close()
         executor.shutdown(timeout_sec=2)
+        thread.join(timeout=30)    # a spinning thread at exit aborts the interpreter (C++)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     return out

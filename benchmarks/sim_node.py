@@ -54,6 +54,7 @@ def measure(rtf: float, seconds: float, domain_id: int, run_dir: Path) -> dict[s
     finally:
         stop_all([proc])
         executor.shutdown(timeout_sec=2)
+        thread.join(timeout=30)    # a spinning thread at exit aborts the interpreter (C++)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     wall, sim = data[:, 0], data[:, 1]

@@ -134,7 +134,9 @@ def test_command_moves_the_joints_there(sim, shared_sim, wait_for):
     command.publish(Float64MultiArray(data=target))
     wait_for(lambda: np.allclose(positions(heard['joints']), target, atol=1e-9), 20.0,
              'the joints to reach the command')
-    assert seconds(heard['clock']) >= started + 1               # sim time advances (a 1.6 s move)
+    # /clock advances with the move (1.6 s of sim time); its messages may come after the
+    # joint states that end the move, so this waits for them rather than reading the latest
+    wait_for(lambda: seconds(heard['clock']) >= started + 1, 20.0, '/clock to advance 1 s')
     truth = heard['truth']
     assert truth.valid and math.isfinite(truth.pose.x)
 

@@ -97,6 +97,7 @@ from flexarm_control.goal_execution import (
     UNREACHABLE,
     GoalSpec,
     execute,
+    sanity_bound,
 )
 from flexarm_control.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
 from flexarm_control.health_report import ERROR, OK, WARN, Status, status
@@ -112,7 +113,7 @@ from flexarm_control.predictors import Predictor, load_predictor
 from flexarm_control.sampling import regions_from_dict
 from flexarm_control.scene_msgs import pose_stamped
 from flexarm_msgs.action import MoveToPose
-from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, PredictionMetrics, RegionHealth
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
 
 GOAL_THREADS = 2   # the goal executing and one that lost the race past the busy check
@@ -350,12 +351,6 @@ class CompensatorNode(Node):
             send_goal_writers(self, self._action), self._host, self._processes)
         handle.execute()
 
-    def _sanity_bound(self, metrics: PredictionMetrics) -> float:
-        """[m] The largest miss a PREDICTIVE goal of this model may measure and succeed: a
-        multiple of its validated max position error, at least the floor."""
-        validated = math.hypot(metrics.max_error_x, metrics.max_error_y)
-        return max(self._sanity_floor, self._sanity_factor * validated)
-
     def _sender_left(self, owner: Owner) -> bool:
         return owner.gone(send_goal_writers(self, self._action), self._processes.alive)
 
@@ -441,7 +436,9 @@ class CompensatorNode(Node):
             notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
                          if any(fit) else '')
         if mode == Mode.PREDICTIVE and not planned.extrapolated:
-            spec = replace(spec, sanity_bound=self._sanity_bound(info.metrics))
+            spec = replace(spec, sanity_bound=sanity_bound(
+                info.metrics.max_error_x, info.metrics.max_error_y, self._sanity_factor,
+                self._sanity_floor))
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations

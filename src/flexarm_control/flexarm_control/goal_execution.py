@@ -58,6 +58,12 @@ class GoalSpec:
                 or self.angle_tolerance > 0)
 
 
+def sanity_bound(max_error_x: float, max_error_y: float, factor: float, floor: float) -> float:
+    """[m] The largest miss a PREDICTIVE goal may measure and succeed: ``factor`` times its
+    model's validated max position error (components [m]), at least ``floor``."""
+    return max(floor, factor * math.hypot(max_error_x, max_error_y))
+
+
 @dataclass(frozen=True)
 class Execution:
     status: str                    # one of the status constants above

@@ -19,6 +19,7 @@ from flexarm_control.goal_execution import (
     TOLERANCE_NOT_MET,
     GoalSpec,
     execute,
+    sanity_bound,
 )
 from flexarm_control.kinematics import ArmGeometry, pose_error
 from flexarm_control.modes import Mode
@@ -95,6 +96,12 @@ def test_a_miss_beyond_the_sanity_bound_is_not_success(world):
     loose = run(world, Mode.PREDICTIVE, (25e-3, 0.0), plan=compensator.rigid(TARGET),
                 sanity_bound=1e-3)[0]
     assert loose.status == SUCCEEDED
+
+
+def test_the_sanity_bound_is_a_multiple_of_the_validated_error_at_least_the_floor():
+    assert sanity_bound(0.3e-3, 0.4e-3, 5.0, 1e-3) == pytest.approx(2.5e-3)
+    assert sanity_bound(0.0, 0.1e-3, 5.0, 1e-3) == 1e-3       # a model validated to 0.1 mm
+    assert sanity_bound(0.0, 0.0, 5.0, 1e-3) == 1e-3          # no metrics: the floor
 
 
 def test_a_missing_measurement_fails_only_a_checked_goal(world):

@@ -48,11 +48,46 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
     shutil.rmtree(_STATE, ignore_errors=True)
 
 
+DEFAULT_NODE_SECONDS = 10.0   # a node module without a ``duration`` mark
+
+
+def _expected_seconds(item: pytest.Item) -> float:
+    """How long the item's work unit is expected to run: its ``duration`` mark, else a guess
+    from what it starts (nodes) or does not (pure unit tests: about nothing)."""
+    mark = item.get_closest_marker('duration')
+    if mark is not None:
+        return float(mark.args[0])
+    return DEFAULT_NODE_SECONDS if item.get_closest_marker('node') else 0.0
+
+
 def pytest_collection_modifyitems(items: list[pytest.Item]) -> None:
-    """Modules that start nodes or build first (stable otherwise): the long ones start while
-    the other worker still has short ones to run, so neither worker idles at the end."""
-    items.sort(key=lambda item: 0 if any(item.iter_markers('colcon')) else
-               1 if any(item.iter_markers('node')) else 2)
+    """The longest work units first (stable otherwise): with four workers on two cores, a
+    long module that starts last is the run's tail while the other workers idle."""
+    items.sort(key=lambda item: -_expected_seconds(item))
+
+
+def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
+    """xdist's ``loadscope`` (a module's tests on one worker: they may share its graph) in the
+    collection's order (longest first) rather than by test count, with each test of a module
+    that shares nothing between its tests (:data:`INDEPENDENT_MODULES`) a unit of its own."""
+    if config.getvalue('dist') != 'loadscope':
+        return None
+    from xdist.scheduler import LoadScopeScheduling
+
+    class LongestFirstScheduling(LoadScopeScheduling):
+        def __init__(self, config: pytest.Config, log: Any = None) -> None:
+            super().__init__(config, log)
+            config.option.loadscopereorder = False
+
+        def _split_scope(self, nodeid: str) -> str:
+            if nodeid.split('::', 1)[0] in INDEPENDENT_MODULES:
+                return nodeid
+            return super()._split_scope(nodeid)
+
+    return LongestFirstScheduling(config, log)
+
+
+INDEPENDENT_MODULES = {'tests/test_benchmarks.py'}   # each test runs its own script
 
 
 def _processes_with(variable: str, value: str) -> dict[int, str]:
@@ -256,13 +291,15 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     try:
         yield node
     finally:
+        # The spin ends before anything of the node goes: a wait set still being built from
+        # a destroyed entity raises in the spin thread ("cannot use Destroyable").
         executor.shutdown(timeout_sec=2.0)
+        thread.join(timeout=10.0)
+        assert not thread.is_alive(), "the test node's executor did not stop"
         for waitable in list(node.waitables):   # a test's action servers: destroy_node
             waitable.destroy()                   # leaves them, and the node, alive
         node.destroy_node()
         rclpy.try_shutdown(context=context)
-        thread.join(timeout=5.0)
-        assert not thread.is_alive(), "the test node's executor did not stop"
 
 
 @pytest.fixture

@@ -35,6 +35,7 @@ class Smoke:
     timeout: float = 90.0        # [s] wall, then the child is killed
     domain: str = ''             # its option that takes the test's ROS domain, if any
     check: Callable[[dict[str, Any]], None] | None = None   # more to check in its JSON
+    seconds: float = 5.0         # [s] about how long it runs in the suite (scheduling only)
 
     def __str__(self) -> str:
         return self.name
@@ -60,11 +61,12 @@ OFFLINE = [
     Smoke('error_budget', ('--seeds', '1', '--targets', '2', '--samples', '12', '--regions', 'A',
                            '--kind', 'kinematic', '--workers', '1'),
           ('sources', 'all', 'all_uncalibrated'),
-          ('all.closed_loop_p95_mm', 'all.predictive_p95_mm', 'sources.camera.after_mm')),
+          ('all.closed_loop_p95_mm', 'all.predictive_p95_mm', 'sources.camera.after_mm'),
+          seconds=9),
     Smoke('drift', ('--seeds', '1', '--targets', '2', '--samples', '12', '--regions', 'A',
                     '--kind', 'kinematic', '--workers', '1'),
           ('scenarios',),
-          ('scenarios.payload.refreshed_p95_mm', 'scenarios.none.refreshed_p95_mm')),
+          ('scenarios.payload.refreshed_p95_mm', 'scenarios.none.refreshed_p95_mm'), seconds=9),
     Smoke('payload', ('--seeds', '1', '--samples', '12', '--held-out', '2', '--regions', 'A',
                       '--kind', 'kinematic', '--workers', '1'),
           ('regions', 'ratio'), ('ratio',)),
@@ -82,31 +84,38 @@ OFFLINE = [
 # one the benchmark reserves itself (flexarm_bringup.experiment.reserved_domain).
 NODE = [
     Smoke('bridge', ('--moves', '1', '--robot-only'), ('sim', 'bridge', 'added_median_ms'),
-          ('added_median_ms',), domain='--domain'),
-    Smoke('bringup', ('--runs', '1'), ('ready_s', 'stop_s'), ('ready_s', 'stop_s')),
+          ('added_median_ms',), domain='--domain', seconds=10),
+    Smoke('bringup', ('--runs', '1'), ('ready_s', 'stop_s'), ('ready_s', 'stop_s'), seconds=12),
     Smoke('footprint', ('--smoke',), ('idle_x1', 'idle_x10', 'collect_x10', 'rss_mb_total',
                                       'nodes'),
           ('idle_x1.total_cores', 'idle_x10.total_cores', 'collect_x10.achieved_rtf',
            'collect_x10.s_per_sample_wall', 'rss_mb_total'), timeout=120.0,
-          domain='--domain-id'),
+          domain='--domain-id', seconds=35),
     Smoke('faults', ('--only', 'sigterm_idle'), ('lost_samples', 'orphans', 'scenarios'),
-          ('max_detect_s',), timeout=120.0, check=_faults_ran),
+          ('max_detect_s',), timeout=120.0, check=_faults_ran, seconds=14),
     Smoke('multi_arm', ('--arms', '1', '--goals', '1', '--kind', 'kinematic'),
-          ('goals_per_min', 'crosstalk', 'cpu'), ('goals_per_min.1.total',), timeout=120.0),
+          ('goals_per_min', 'crosstalk', 'cpu'), ('goals_per_min.1.total',), timeout=120.0,
+          seconds=22),
     Smoke('recorder', ('--seconds', '1'), ('messages_per_s', 'dropped', 'clean_close'),
-          ('messages_per_s', 'image_mb_per_s'), domain='--domain-id'),
+          ('messages_per_s', 'image_mb_per_s'), domain='--domain-id', seconds=10),
     # the offline learning curves, then the campaigns through a running graph
     Smoke('sample_efficiency', ('--seeds', '1', '--regions', 'A', '--counts', '12',
                                 '--held-out', '2', '--kinds', 'kinematic', '--campaign', '2',
                                 '--workers', '1'),
           ('samples_for_1mm', 'curves', 'campaign_s_per_sample'),
           ('curves.sobol.A.0.worst_max_mm', 'campaign_s_per_sample.sobol',
-           'campaign_s_per_sample.active'), timeout=150.0),
+           'campaign_s_per_sample.active'), timeout=150.0, seconds=25),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
-          ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id'),
+          ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id', seconds=13),
 ]
 # Benchmarks whose smoke runs their owners are adding
 PENDING: set[str] = set()
+
+
+def scheduled(smoke: Smoke) -> Any:
+    """The smoke run as a test parameter with its expected duration (conftest's scheduler
+    runs each of this module's tests as a unit of its own, the longest first)."""
+    return pytest.param(smoke, marks=pytest.mark.duration(smoke.seconds))
 
 
 def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:
@@ -164,13 +173,13 @@ def test_every_benchmark_has_a_smoke_run() -> None:
 
 
 @pytest.mark.benchmark
-@pytest.mark.parametrize('smoke', OFFLINE, ids=str)
+@pytest.mark.parametrize('smoke', [scheduled(smoke) for smoke in OFFLINE], ids=str)
 def test_offline_benchmark_runs(smoke: Smoke) -> None:
     run(smoke)
 
 
 @pytest.mark.benchmark
 @pytest.mark.node
-@pytest.mark.parametrize('smoke', NODE, ids=str)
+@pytest.mark.parametrize('smoke', [scheduled(smoke) for smoke in NODE], ids=str)
 def test_node_benchmark_runs(smoke: Smoke, domain_id: int) -> None:
     run(smoke, domain_id)

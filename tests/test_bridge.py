@@ -32,7 +32,7 @@ from flexarm_control import liveness, topics
 from flexarm_control.client import FlexarmClient
 from flexarm_msgs.action import MoveToPose
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 
 
 def settle(condition: Callable[[], object], timeout: float, what: str) -> None:

@@ -10,7 +10,7 @@ from flexarm_bringup.cli import Exit, main
 from flexarm_control import topics
 from flexarm_msgs.msg import TipPose
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(20)]
 
 
 def stamp_of(msg: TipPose) -> float:

@@ -26,7 +26,7 @@ from flexarm_control import liveness, topics
 from flexarm_control.kinematics import ArmGeometry, forward
 from flexarm_control.params import load_config
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(75)]
 B4 = ('1000', '-500', '-100')      # [mm, mm, deg] Table 10: a long move from the start pose
 A1 = ('1450', '-150', '-45')
 STOPPED = re.compile(r'cancelled; arm stopped at x=(\S+) mm, y=(\S+) mm, phi=(\S+) deg')

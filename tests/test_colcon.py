@@ -17,7 +17,7 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = [pytest.mark.colcon, pytest.mark.timeout(900)]
+pytestmark = [pytest.mark.colcon, pytest.mark.timeout(900), pytest.mark.duration(170)]
 SRC = Path(__file__).resolve().parents[1] / 'src'
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / 'package.xml').exists())
 # Executables that are not `<package>/<name>_node.py` modules with a main().

@@ -40,7 +40,7 @@ from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo
 from flexarm_sim.plant import Plant
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(35)]
 # The goal behaviour is checked in the ideal world: the realistic arm's repeatability (some
 # 0.03 mm at the tip per move) can keep CLOSED_LOOP from its 0.05 mm tolerance now and then
 # (benchmarks/error_budget.py counts it), which a behaviour test must not depend on.
@@ -429,7 +429,8 @@ def in_process(shared, domain_id, client, request):
         yield node, client, outcomes
     finally:
         executor.shutdown(timeout_sec=2.0)
-        thread.join(timeout=2.0)
+        thread.join(timeout=10.0)               # the spin ends before the node goes
+        assert not thread.is_alive(), "the node's executor did not stop"
         node.destroy_node()
         rclpy.try_shutdown(context=context)
 

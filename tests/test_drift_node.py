@@ -25,7 +25,7 @@ from flexarm_control.predictors import load_predictor
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelHealth
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(70)]
 Result = MoveToPose.Result
 # Payload changes on, every other error source off: the behaviour must not hang on noise.
 PAYLOAD_ONLY = {'error_sources': {'enabled': True, **{

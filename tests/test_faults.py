@@ -19,7 +19,7 @@ from flexarm_bringup.launcher import owned_shm
 from flexarm_control import liveness
 from flexarm_control.client import SERVER_SILENCE
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(80)]
 
 
 def children(pid: int) -> set[int]:

@@ -33,7 +33,7 @@ from flexarm_control.kinematics import ArmGeometry, forward
 from flexarm_control.params import load_config
 from flexarm_msgs.action import MoveToPose
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
 Result = MoveToPose.Result
 # [s, wall, scaled] from the kill to the goal's end: a look for its sender every SENDER_CHECK
 # s, the hold, the outcome on its way

@@ -25,7 +25,7 @@ from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_control import liveness, topics
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(30)]
 
 TIMEOUT = 1.0                       # [s] heartbeat timeout of both ends (config/bridge.yaml)
 LINK = 'flexarm_bridge: controller link'

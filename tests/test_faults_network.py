@@ -20,7 +20,7 @@ from remote_peer import RemoteHost, Unavailable, remote_attack
 
 from flexarm_control import liveness
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
 
 
 @pytest.fixture

@@ -29,6 +29,8 @@ from flexarm_control.params import config_path
 from flexarm_control.paths import RUNS_DIR
 from flexarm_msgs.msg import PlanarPose, TipPose
 
+pytestmark = [pytest.mark.node, pytest.mark.duration(17)]
+
 # The SDK's name of the protocol first; foxglove.websocket.v1 is its former name.
 SUBPROTOCOLS = ['foxglove.sdk.v1', 'foxglove.websocket.v1']
 MESSAGE_DATA = 1          # opcode of a binary message data frame

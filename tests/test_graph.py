@@ -8,7 +8,7 @@ from flexarm_bringup.launcher import owned_shm
 from flexarm_bringup.supervisor import Graph
 from flexarm_control import liveness
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(25)]
 
 
 def alive(pid: int) -> bool:

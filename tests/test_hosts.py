@@ -29,7 +29,7 @@ import pytest
 
 from flexarm_control.paths import CONFIG_DIR
 
-pytestmark = [pytest.mark.node, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(50)]
 SUBNET = '10.200.20.{}/30'
 ROBOT_SIDE = 'sim,vision,state_publisher'
 LEARNING_SIDE = 'learner,compensator,scene'

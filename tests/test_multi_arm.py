@@ -29,7 +29,7 @@ from flexarm_control.dataset import load_dataset
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo
 
-pytestmark = [pytest.mark.node, pytest.mark.timeout(300)]
+pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(35)]
 IDEAL = {'error_sources': {'enabled': False}}
 ARMS = {'arm1': ('A', 1), 'arm2': ('B', 2)}    # namespace: region and seed of its samples
 SAMPLES = 8

@@ -16,6 +16,8 @@ import pytest
 from flexarm_bringup.cli import main
 from flexarm_bringup.outcome_text import Exit
 
+pytestmark = pytest.mark.duration(13)
+
 README = str(Path(__file__).resolve().parents[3] / 'README.md')
 A1 = ['1450', '-150', '-45']
 

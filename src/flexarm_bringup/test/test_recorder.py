@@ -38,6 +38,8 @@ from flexarm_control import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
 
+pytestmark = pytest.mark.duration(17)
+
 QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
        'durability': 'transient_local', 'deadline': {'sec': 0, 'nsec': 0},
        'lifespan': {'sec': 0, 'nsec': 0}, 'liveliness': 'automatic',

@@ -15,6 +15,8 @@ from flexarm_bringup.study import (
 )
 from flexarm_control.paper import TABLE_7, TABLE_8
 
+pytestmark = pytest.mark.duration(13)
+
 
 def test_grid_holds_the_paper_tables_then_the_extended_grid_without_repeats():
     configs = configurations(study_settings({'samples': [40, 20]}))

@@ -10,8 +10,11 @@ import sys
 from pathlib import Path
 
 import numpy as np
+import pytest
 
 from flexarm_control.predictors import KINDS, make_predictor
+
+pytestmark = pytest.mark.duration(17)
 
 CHECK = '''
 import sys

@@ -16,7 +16,7 @@ from std_msgs.msg import Float64MultiArray
 from flexarm_control import topics
 from flexarm_msgs.msg import TipPose
 
-pytestmark = pytest.mark.node
+pytestmark = [pytest.mark.node, pytest.mark.duration(15)]
 START = [0.0, 0.6, -0.5, -0.5]
 COMMANDS = 'flexarm_sim: commands'
 

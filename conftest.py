@@ -44,8 +44,35 @@ _RESOURCE_TRACKER = 'multiprocessing.resource_tracker'
 REAP_WAIT = 5.0   # [s] for a killed process to vanish (SIGKILL: only the kernel's work)
 
 
+LOG_TAIL = 40   # [lines] of each node log shown with a failed test
+
+
 def pytest_sessionfinish(session: pytest.Session) -> None:
     shutil.rmtree(_STATE, ignore_errors=True)
+
+
+_STARTED = pytest.StashKey[float]()
+
+
+def pytest_runtest_setup(item: pytest.Item) -> None:
+    item.stash[_STARTED] = time.time()
+
+
+@pytest.hookimpl(wrapper=True)
+def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
+                              ) -> Iterator[pytest.TestReport]:
+    """A failed test shows the tails of the node logs of the graphs ``flexarm up`` ran during
+    it (the run's state folder is removed when the run ends, and a node's own reason is what
+    tells a slow graph from a broken one)."""
+    report = yield
+    if report.failed and call.when == 'call':
+        started = item.stash.get(_STARTED, 0.0)
+        for path in sorted((_STATE / 'runs').glob('*/*.log')):
+            if path.stat().st_mtime >= started:
+                lines = path.read_text(errors='replace').splitlines()[-LOG_TAIL:]
+                report.sections.append((f'node log {path.parent.name}/{path.name}',
+                                        '\n'.join(lines)))
+    return report
 
 
 DEFAULT_NODE_SECONDS = 10.0   # a node module without a ``duration`` mark

@@ -43,9 +43,6 @@ from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
-from scipy.sparse import coo_matrix
-from scipy.sparse.csgraph import connected_components
-from scipy.spatial import cKDTree
 
 from flexarm_control.compensator import deflection_slope
 from flexarm_control.dataset import Dataset
@@ -147,6 +144,10 @@ def check_data(joints: np.ndarray, deflections: np.ndarray, payload: np.ndarray 
 def pose_groups(joints: np.ndarray) -> np.ndarray:
     """Group label (N,) per sample: samples linked by joints all within ``SAME_POSE`` of each
     other share one."""
+    from scipy.sparse import coo_matrix
+    from scipy.sparse.csgraph import connected_components
+    from scipy.spatial import cKDTree
+
     pairs = cKDTree(joints).query_pairs(SAME_POSE, p=np.inf, output_type='ndarray')
     links = coo_matrix((np.ones(len(pairs)), (pairs[:, 0], pairs[:, 1])),
                        shape=(len(joints), len(joints)))

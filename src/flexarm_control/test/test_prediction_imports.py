@@ -1,7 +1,7 @@
 """Neither the compensator node nor loading a model and predicting import torch or
 scikit-learn: they cost a node's start-up ~0.7 s and ~0.5 s of a 2-core machine; nor does
-fitting the MLP, which trains in numpy. Checked in a fresh interpreter, as the other tests
-import both.
+fitting the MLP, which trains in numpy. The control nodes import no scipy until they fit or
+predict (~0.3 s). Checked in a fresh interpreter, as the other tests import all of them.
 """
 from __future__ import annotations
 
@@ -22,9 +22,11 @@ import sys
 import numpy as np
 
 import flexarm_control.compensator_node
+import flexarm_control.learner_node
 from flexarm_control.predictors import load_predictor, make_predictor
 
 assert not {'torch', 'sklearn'} & set(sys.modules), 'imported by the compensator node'
+assert 'scipy' not in sys.modules, 'imported by a control node before it fits or predicts'
 joints = np.array([0.1, 0.6, -0.3, 0.2])
 for path in sys.argv[1:]:
     predictor = load_predictor(path)

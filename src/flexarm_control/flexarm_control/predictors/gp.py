@@ -33,8 +33,6 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.linalg import LinAlgError, cho_solve, cholesky, solve_triangular
-from scipy.optimize import minimize
 
 from flexarm_control.predictors.base import OUTPUTS, Predictor
 
@@ -117,6 +115,8 @@ def negative_log_likelihood(theta: np.ndarray, kernel: str, squares: np.ndarray,
     """−log marginal likelihood of outputs y (N,) and its gradient by ``theta``, with
     ``squares`` (N, N, d) the squared differences of the training inputs per input; +inf
     where the covariance is not positive definite (as scikit-learn)."""
+    from scipy import linalg
+
     constant, families, noise = _parts(kernel, theta, squares.shape[2])
     terms = []
     for family, amplitude, scales in families:
@@ -128,12 +128,13 @@ def negative_log_likelihood(theta: np.ndarray, kernel: str, squares: np.ndarray,
     k = constant * shape
     k[np.diag_indices(n)] += noise + JITTER
     try:
-        lower = cholesky(k, lower=True, check_finite=False)
-    except LinAlgError:
+        lower = linalg.cholesky(k, lower=True, check_finite=False)
+    except linalg.LinAlgError:
         return np.inf, np.zeros_like(theta)
-    alpha = cho_solve((lower, True), y, check_finite=False)
+    alpha = linalg.cho_solve((lower, True), y, check_finite=False)
     value = 0.5 * y @ alpha + np.log(np.diag(lower)).sum() + 0.5 * n * np.log(2 * np.pi)
-    inner = np.outer(alpha, alpha) - cho_solve((lower, True), np.eye(n), check_finite=False)
+    inner = np.outer(alpha, alpha) - linalg.cho_solve((lower, True), np.eye(n),
+                                                      check_finite=False)
     gradient = [constant * np.sum(inner * shape)]
     for j, (amplitude, s, slope, inverse) in enumerate(terms):
         if j:
@@ -199,6 +200,8 @@ class GpPredictor(Predictor):
         return super().fit(joints, deflections, payload)
 
     def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
+        from scipy import optimize
+
         theta0, bounds = self._hyperparameters(x.shape[1])
         squares = (x[:, None, :] - x[None, :, :]) ** 2
         theta = []
@@ -206,20 +209,23 @@ class GpPredictor(Predictor):
             rng = np.random.RandomState(self.settings['seed'] + k)
             starts = [theta0] + [rng.uniform(bounds[:, 0], bounds[:, 1])
                                  for _ in range(self.settings['restarts'])]
-            optima = [minimize(negative_log_likelihood, start,
-                               (self.settings['kernel'], squares, y[:, k]), method='L-BFGS-B',
-                               jac=True, bounds=bounds) for start in starts]
+            optima = [optimize.minimize(negative_log_likelihood, start,
+                                        (self.settings['kernel'], squares, y[:, k]),
+                                        method='L-BFGS-B', jac=True, bounds=bounds)
+                      for start in starts]
             theta.append(min(optima, key=lambda result: result.fun).x)
         self._condition(x, y, np.stack(theta))
 
     def _condition(self, x: np.ndarray, y: np.ndarray, theta: np.ndarray) -> None:
         """The posterior of every output given training data and hyperparameters (K, p)."""
+        from scipy import linalg
+
         self._x, self._y, self._theta = x, y, theta
         self._side = one_side(self.settings['kernel'], theta, x)
         noise = np.exp(theta[:, -1]) + JITTER
         k = cross_covariance(self._side, x) + noise[:, None, None] * np.eye(len(x))
         self._cholesky = np.linalg.cholesky(k)
-        self._alpha = np.stack([cho_solve((c, True), y[:, i])
+        self._alpha = np.stack([linalg.cho_solve((c, True), y[:, i])
                                 for i, c in enumerate(self._cholesky)])
         self._prior = (sum(weight for _, weight, *_ in self._side)     # correlations: 1
                        + np.exp(theta[:, -1]))
@@ -230,11 +236,13 @@ class GpPredictor(Predictor):
     def predict_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
                     ) -> np.ndarray:
         """Predictive standard deviation [m, m, rad], shaped like :meth:`predict`."""
+        from scipy import linalg
+
         x, single = self._inputs(joints, payload)
         normalisation = self._require_fitted()
         cross = cross_covariance(self._side, normalisation.inputs(x))
         explained = np.column_stack([
-            (solve_triangular(c, k.T, lower=True) ** 2).sum(axis=0)
+            (linalg.solve_triangular(c, k.T, lower=True) ** 2).sum(axis=0)
             for c, k in zip(self._cholesky, cross)])
         std = np.sqrt(np.maximum(self._prior - explained, 0.0)) * normalisation.output_std
         return std[0] if single else std

@@ -16,7 +16,6 @@ from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import least_squares
 
 from flexarm_control.predictors.base import Predictor
 
@@ -123,6 +122,8 @@ def solve(residuals: Callable[[np.ndarray], np.ndarray],
 
     def derivative(p: np.ndarray) -> np.ndarray:
         return np.vstack([jacobian(p), np.sqrt(ridge) * np.eye(size)])
+
+    from scipy.optimize import least_squares
 
     return least_squares(objective, np.zeros(size), derivative, method='lm', x_scale='jac').x
 

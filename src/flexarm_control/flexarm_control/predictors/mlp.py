@@ -17,16 +17,22 @@ from collections.abc import Callable, Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.optimize import minimize
-from scipy.special import expit
 
 from flexarm_control.predictors.base import OUTPUTS, Predictor
+
+
+def _expit(x: np.ndarray) -> np.ndarray:
+    """scipy's logistic function, imported where used (predictors/base.py)."""
+    from scipy.special import expit
+
+    return expit(x)
+
 
 Layers = list[tuple[np.ndarray, np.ndarray]]    # (weight (n_out, n_in), bias (n_out,))
 
 ACTIVATIONS: dict[str, Callable[[np.ndarray], np.ndarray]] = {
     'tanh': np.tanh,
-    'sigmoid': expit,
+    'sigmoid': _expit,
     'relu': lambda x: np.maximum(x, 0.0),
     'softplus': lambda x: np.logaddexp(0.0, x),
 }
@@ -35,7 +41,7 @@ DERIVATIVES: dict[str, Callable[[np.ndarray, np.ndarray], np.ndarray]] = {
     'tanh': lambda z, a: 1.0 - a ** 2,
     'sigmoid': lambda z, a: a * (1.0 - a),
     'relu': lambda z, a: (z > 0).astype(float),
-    'softplus': lambda z, a: expit(z),
+    'softplus': lambda z, a: _expit(z),
 }
 
 
@@ -116,12 +122,14 @@ class MlpPredictor(Predictor):
             raise ValueError("mlp 'restarts' and 'max_iterations' must be >= 1")
 
     def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
+        from scipy import optimize
+
         s = self.settings
         sizes = [x.shape[1], *s['hidden'], OUTPUTS]
         rng = np.random.default_rng(s['seed'])
         best = None
         for _ in range(s['restarts']):
-            result = minimize(objective, _initial_parameters(sizes, rng),
+            result = optimize.minimize(objective, _initial_parameters(sizes, rng),
                               (x, y, sizes, s['activation'], s['weight_decay']), jac=True,
                               method='L-BFGS-B', options={
                                   'maxiter': s['max_iterations'], 'ftol': 0.0, 'gtol': 1e-10})

@@ -14,7 +14,6 @@ from collections.abc import Mapping
 from typing import Any, ClassVar
 
 import numpy as np
-from scipy.interpolate import RBFInterpolator
 
 from flexarm_control.predictors.base import Predictor
 
@@ -45,6 +44,8 @@ class RbfPredictor(Predictor):
             raise ValueError("rbf needs 'smoothing' >= 0 and 'epsilon' > 0")
 
     def _fit_normalised(self, x: np.ndarray, y: np.ndarray) -> None:
+        from scipy.interpolate import RBFInterpolator
+
         self._interpolator = RBFInterpolator(
             x, y, kernel=self.settings['kernel'], smoothing=self.settings['smoothing'],
             epsilon=self.settings['epsilon'], degree=self.settings['degree'])

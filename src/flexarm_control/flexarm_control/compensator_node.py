@@ -454,8 +454,7 @@ class CompensatorNode(Node):
                                    f'{"; ".join(filter(None, notes))}')
         started = self._arm.arm_time()
         watch = GoalWatch(
-            time_limit(1 + (spec.max_corrections if closed else 0), self._geometry,
-                       self._motion.settings),
+            time_limit(spec.max_moves, self._geometry, self._motion.settings),
             lambda: (self._arm.arm_time() - started).nanoseconds * 1e-9,
             lambda: self._sender_left(owner))
 

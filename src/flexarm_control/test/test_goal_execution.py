@@ -71,8 +71,77 @@ def test_closed_loop_corrects_the_rigid_miss_until_within_tolerance(world):
 def test_closed_loop_gives_up_after_its_corrections(world):
     execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, corrections=0)
     assert execution.status == TOLERANCE_NOT_MET and execution.moves == 1
-    assert 'after 0 corrections' in execution.reason
+    assert execution.reason.endswith('after 0 corrections, the best seen')
     assert execution.errors(TARGET)[0] > 10e-3                 # the rigid miss, measured
+
+
+class ServoArm(FakeArm):
+    """A FakeArm whose move number k lands ``landing[k]`` rad off its command on joint1, the
+    servos' error drawn anew at each move (1e-5 rad: ~0.015 mm at the tip)."""
+
+    def __init__(self, plant, start, landing):
+        super().__init__(plant, start)
+        self.landing = landing
+
+    def move(self, q, tolerance, timeout, abort=lambda: False) -> bool:
+        arrived = super().move(q, tolerance, timeout, abort)
+        self.q[0] += self.landing.get(len(self.commands), 0.0)
+        return arrived
+
+
+def run_servo(world, landing, corrections, tolerance=(0.02e-3, TOL[1])):
+    """A CLOSED_LOOP goal on a ServoArm; also the measured position error [mm] of each move."""
+    compensator, plant, settings = world
+    arm = ServoArm(plant, START, landing)
+    spec = GoalSpec(TARGET, Mode.CLOSED_LOOP, *tolerance, corrections)
+    errors = {}
+
+    def progress(phase, move, plan, measured):
+        if measured is not None:
+            errors[move] = pose_error(TARGET, measured)[0] * 1e3
+
+    execution = execute(spec, compensator.rigid(TARGET), ArmMotion(arm, compensator.geometry,
+                                                                    settings),
+                        compensator, arm.abort, progress)
+    return execution, arm, errors, spec
+
+
+def test_closed_loop_out_of_corrections_ends_at_its_best_plan(world):
+    # move 3 lands nearest, move 4 (the last correction) farther: move 5 commands move 3 again
+    execution, arm, errors, spec = run_servo(world, {3: 3e-5, 4: 6e-5, 5: 2e-5}, 3)
+    assert execution.status == TOLERANCE_NOT_MET
+    assert execution.moves == len(arm.commands) == spec.max_moves == 5
+    assert min(errors[m] for m in range(1, 5)) == errors[3] < errors[4]
+    np.testing.assert_array_equal(arm.commands[4], arm.commands[2])
+    np.testing.assert_array_equal(execution.plan.joints, arm.commands[2])
+    final = execution.errors(TARGET)[0] * 1e3
+    assert final == pytest.approx(errors[5]) and final < errors[4]
+    assert execution.reason.startswith(f'{final:.3f} mm / ')
+    assert (f'after 3 corrections and a return to the best seen, {errors[3]:.3f} mm / '
+            in execution.reason) and execution.reason.endswith(' at move 3')
+
+
+def test_closed_loop_whose_last_move_is_its_best_does_not_move_again(world):
+    execution, arm, errors, _ = run_servo(world, {3: 3e-5}, 2)
+    assert execution.status == TOLERANCE_NOT_MET and execution.moves == len(arm.commands) == 3
+    assert min(errors.values()) == errors[3]
+    assert execution.reason == (f'{errors[3]:.3f} mm / '
+                                f'{math.degrees(execution.errors(TARGET)[1]):.4f} deg after 2 '
+                                'corrections, the best seen')
+
+
+def test_the_return_to_the_best_plan_may_meet_the_tolerance(world):
+    execution, arm, errors, _ = run_servo(world, {3: 3e-5, 4: -3e-5}, 3)
+    assert execution.status == SUCCEEDED and execution.moves == 5
+    assert errors[5] <= 0.02 < errors[3] < errors[4]
+    assert execution.reason.startswith(f'within tolerance: {errors[5]:.3f} mm / ')
+    assert f'the best seen, {errors[3]:.3f} mm / ' in execution.reason
+    assert execution.reason.endswith(' at move 3')
+
+
+def test_a_goal_s_most_moves(world):
+    assert GoalSpec(TARGET, Mode.CLOSED_LOOP, *TOL, 5).max_moves == 7
+    assert GoalSpec(TARGET, Mode.PREDICTIVE, *TOL, 5).max_moves == 1
 
 
 def test_predictive_moves_once_and_checks_only_a_given_tolerance(world):

@@ -61,13 +61,15 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 @pytest.hookimpl(wrapper=True)
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
                               ) -> Iterator[pytest.TestReport]:
-    """A failed test shows the tails of the node logs of the graphs ``flexarm up`` ran during
-    it (the run's state folder is removed when the run ends, and a node's own reason is what
-    tells a slow graph from a broken one)."""
+    """A failed test shows the tails of the node logs written during it: of the graphs
+    ``flexarm up`` ran (the run's state folder is removed when the run ends) and of those it
+    started in its own folder. A node's own reason (or the stack a crash dumps) is what tells
+    a slow graph from a broken one."""
     report = yield
     if report.failed and call.when == 'call':
         started = item.stash.get(_STARTED, 0.0)
-        for path in sorted((_STATE / 'runs').glob('*/*.log')):
+        folders = [_STATE / 'runs', getattr(item, 'funcargs', {}).get('tmp_path')]
+        for path in sorted(p for f in folders if f is not None for p in Path(f).rglob('*.log')):
             if path.stat().st_mtime >= started:
                 lines = path.read_text(errors='replace').splitlines()[-LOG_TAIL:]
                 report.sections.append((f'node log {path.parent.name}/{path.name}',

@@ -106,6 +106,14 @@ def _progress(args: argparse.Namespace) -> bool:
     return not (args.quiet or args.json)
 
 
+def _progress_lines(args: argparse.Namespace) -> Callable[[str], None]:
+    """``say(text)``: a progress line on stderr, unless --quiet or --json."""
+    def say(text: str) -> None:
+        if _progress(args):
+            print(text, file=sys.stderr, flush=True)
+    return say
+
+
 @contextlib.contextmanager
 def _elapsed(what: str, args: argparse.Namespace) -> Iterator[None]:
     """While the block runs: after a second, 'WHAT ... mm:ss' on stderr, counting."""
@@ -737,6 +745,48 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
+@command
+def cmd_ps(args: argparse.Namespace) -> dict[str, Any]:
+    """List the flexarm graphs running on this machine: domain, namespace, supervisor, robot."""
+    from flexarm_bringup import supervisor
+    from flexarm_bringup.running_graphs import graph_table, running_graphs
+
+    graphs = running_graphs(supervisor.LOCK_DIR, RUNS_DIR)
+    print(graph_table(graphs) if graphs else 'no flexarm graph runs on this machine')
+    return {'ok': True, 'graphs': [g.as_dict() for g in graphs]}
+
+
+@command
+def cmd_down(args: argparse.Namespace) -> dict[str, Any]:
+    """Stop a graph of this machine (as Ctrl-C in its shell) and wait until it has ended."""
+    from flexarm_bringup import supervisor
+    from flexarm_bringup.running_graphs import (
+        AmbiguousGraph,
+        NoSuchGraph,
+        running_graphs,
+        select,
+        stop,
+    )
+
+    try:
+        graph = select(running_graphs(supervisor.LOCK_DIR, RUNS_DIR), args.domain_id,
+                       args.namespace)
+    except NoSuchGraph as exc:
+        raise Outcome(str(exc), Exit.NO_GRAPH) from None
+    except AmbiguousGraph as exc:
+        raise usage(str(exc)) from None
+    what = f'the graph in ROS domain {graph.domain_id}' + (
+        f' with namespace {graph.namespace}' if graph.namespace else '')
+    with _elapsed(f'stopping {what} (supervisor pid {graph.supervisor_pid})', args):
+        ended = stop(graph, args.timeout)
+    fields = {'graph': graph.as_dict()}
+    if not ended:
+        raise Outcome(f'{what} is still stopping after {args.timeout:g} s (supervisor pid '
+                      f'{graph.supervisor_pid}); see flexarm ps', Exit.FAILED, **fields)
+    print(f'stopped {what} (supervisor pid {graph.supervisor_pid})')
+    return {'ok': True, **fields}
+
+
 def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
     import time
 
@@ -803,14 +853,15 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
 
     from flexarm_bringup.bag_tools import bag_info, export_figures, export_trials, format_bag_info
 
+    say = _progress_lines(args)
     try:
         if args.action == 'info':
-            info = bag_info(args.path)
+            info = bag_info(args.path, say)
             print(format_bag_info(info))
             return {'ok': True, **info}
         out_dir = args.out or str(args.path).rstrip('/')
-        csv_path, png_path = export_trials(args.path, out_dir, args.namespace)
-        files = export_figures(args.path, out_dir, args.namespace)
+        csv_path, png_path = export_trials(args.path, out_dir, args.namespace, say)
+        files = export_figures(args.path, out_dir, args.namespace, say)
     except McapError as exc:
         raise Outcome(f'{args.path} is damaged: {exc}', Exit.FAILED) from None
     print(f'trials: {csv_path}\nplot:   {png_path}' + ''.join(f'\nfile:   {p}' for p in files))
@@ -833,18 +884,24 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
 
     client = init_client(args.domain_id, args.namespace)
     try:
+        record = supervisor_record(RUNS_DIR, client.context.get_domain_id(), args.namespace)
         with _elapsed('asking the graph', args):
-            status = query(client, args.namespace)
+            status = query(client, args.namespace, record)
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
-    record = supervisor_record(RUNS_DIR, status['domain_id'], args.namespace)
     status['problems'] = graph_problems(status['errors'], record)
     print(status_text(status, record))
     status['supervisor'] = record
     if not any(status['nodes'].values()):
-        raise Outcome(f'no flexarm graph in ROS_DOMAIN_ID={status["domain_id"]}: start one '
-                      'with `flexarm up`, or pass --domain-id', Exit.NO_GRAPH, **status)
+        where = f'ROS_DOMAIN_ID={status["domain_id"]}'
+        if status['arms']:      # arms under other namespaces
+            arms = ', '.join(arm or '(no namespace)' for arm in status['arms'])
+            arm = f'under /{args.namespace}' if args.namespace else 'without namespace'
+            raise Outcome(f'no flexarm graph in {where} {arm}; the domain runs the arm(s) '
+                          f'{arms}: pass --namespace NS', Exit.NO_GRAPH, **status)
+        raise Outcome(f'no flexarm graph in {where}: start one with `flexarm up`, or pass '
+                      '--domain-id', Exit.NO_GRAPH, **status)
     if status['problems']:
         raise Outcome(f'the graph has {len(status["problems"])} problem(s): see PROBLEMS above',
                       Exit.DEGRADED, **status)
@@ -907,8 +964,10 @@ def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_control.paths import CALIBRATION_DIR
 
     path = Path(args.file) if args.file else CALIBRATION_DIR / args.namespace / 'tool_camera.json'
+    say = _progress_lines(args)
     with _session(args, learner=False) as client:
-        c, found, details = calibrate_tool(client, args.reference_topic, path, args.timeout)
+        c, found, details = calibrate_tool(client, args.reference_topic, path, args.timeout,
+                                           say)
     print(f'camera error in the tool frame: axial {mm(c.axial):.4f} mm, lateral '
           f'{mm(c.lateral):.4f} mm, angle {deg(c.angle):.5f} deg ({found.poses} poses; largest '
           f'deviation of one pose {mm(found.spread[0]):.4f} mm, {deg(found.spread[1]):.5f} '
@@ -1196,11 +1255,25 @@ def _keygen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('path', help='key file to create')
 
 
+def _down_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--domain-id', type=_domain, default=None, metavar='N',
+                   help='ROS_DOMAIN_ID of the running graph to stop (default: the only graph '
+                        'running on this machine; see flexarm ps)')
+    p.add_argument('--namespace', type=_namespace, default=None, metavar='NS',
+                   help="the arm's namespace (flexarm up --namespace NS; default: whichever "
+                        'arm runs in the domain, if only one does)')
+    p.add_argument('--timeout', type=_positive, default=30.0, metavar='S',
+                   help='[s] to wait for the graph to end (its supervisor stops each node '
+                        'with SIGINT, then SIGTERM, then SIGKILL)')
+
+
 # subcommand: (its arguments, graph options (_graph_options): None = none, 'start' = it starts
 # a graph, 'running' = it asks a running one, 'wait' = it sends requests to a running one)
 SUBCOMMANDS: dict[str, tuple[Callable[[argparse.ArgumentParser], None], str | None]] = {
     'up': (_up_arguments, 'start'),
     'status': (_namespace_option, 'running'),
+    'ps': (lambda p: None, None),
+    'down': (_down_arguments, None),
     'move': (_move_arguments, 'wait'),
     'collect': (_collect_arguments, 'wait'),
     'train': (_train_arguments, 'wait'),

@@ -1,7 +1,7 @@
 """What ``flexarm status`` reports: a running graph seen from outside, with or without one.
 
 :func:`query` asks the graph of the client's ROS domain (node discovery, the latched model
-topics of the learner and the compensator, a second of ``/joint_states``, every node's
+topics of the learner and the compensator, ``/joint_states``' rate, every node's
 ``/diagnostics``, the payload and bag parameters); :func:`supervisor_record` finds the
 ``flexarm up`` that runs the domain (its run folder's ``graph.json``: node processes, restarts
 and exit codes); :func:`graph_problems` says what is wrong: a node of the record whose process
@@ -156,6 +156,17 @@ def supervisor_record(runs_dir: Path, domain_id: int, namespace: str = ''
     return None
 
 
+def record_nodes(record: Mapping[str, Any] | None,
+                 alive: Callable[[int], bool] = process_alive) -> tuple[set[str], set[str]]:
+    """What a supervisor ``record`` says runs: its nodes on this machine whose process lives,
+    and the remote ones (other hosts', only discovery can tell)."""
+    if record is None:
+        return set(), set()
+    here = {name for name, node in record.get('nodes', {}).items()
+            if node.get('exit_code') is None and node.get('pid') and alive(node['pid'])}
+    return here, set(record.get('remote', ()))
+
+
 def model_summary(info: ModelInfo | None) -> dict[str, Any] | None:
     """A model announcement as a dict; ``age_s`` from the model file's creation time."""
     if info is None:
@@ -207,10 +218,21 @@ def _age(meta: dict[str, Any]) -> float | None:
     return (datetime.now(UTC) - created).total_seconds()
 
 
-def query(client: Any, namespace: str = '', listen: float = 1.0) -> dict[str, Any]:
+def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = None
+          ) -> dict[str, Any]:
     """The status of the graph in ``client``'s domain (``client``: a FlexarmClient of the arm
-    in ``namespace``)."""
-    got: dict[str, Any] = {'joint_states': 0}
+    in ``namespace``; ``record``: its supervisor's, if it runs on this machine). The record's
+    nodes whose process lives are up, whether or not this fresh participant has discovered
+    them yet (that can take a node's next periodic DDS announcement, seconds); without a
+    record, up means discovered.
+
+    Everything is listened for at once and each wait ends on its event: discovery once the
+    graph is seen, the diagnostics once every running node has reported, the latched models
+    once those the nodes report are in, the parameters once answered; each bounded
+    (liveness-scaled) for a node that does not answer."""
+    ns = namespace.strip('/')
+    got: dict[str, Any] = {}
+    joint_states: list[float] = []       # when each message was sent [s, publisher's clock]
     statuses: dict[str, Heard] = {}
     subscriptions = [
         client.create_subscription(ModelInfo, topics.MODEL,
@@ -218,42 +240,163 @@ def query(client: Any, namespace: str = '', listen: float = 1.0) -> dict[str, An
         client.create_subscription(ModelHealth, topics.MODEL_HEALTH,
                                    lambda m: got.__setitem__('health', m), LATCHED),
         client.create_subscription(JointState, topics.JOINT_STATES,
-                                   lambda _: got.__setitem__('joint_states',
-                                                             got['joint_states'] + 1), 10),
+                                   lambda _, info: joint_states.append(
+                                       info['source_timestamp'] * 1e-9), 10),
         client.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
-                                   lambda m: statuses.update(heard(m, namespace)), 10)]
-    running = _discover(client)
-    got['joint_states'] = 0
-    end = time.monotonic() + listen
-    while time.monotonic() < end:
-        client.spin_once(0.05)
-    reporting = (running & set(graph_node_names())) - NOT_DIAGNOSED
-    end = time.monotonic() + liveness.limit(DIAGNOSTICS_WAIT)
-    while reporting - reporting_nodes(statuses) and time.monotonic() < end:
-        client.spin_once(0.05)        # a node's report comes once a second
+                                   lambda m: statuses.update(heard(m, ns)), 10)]
+    here, remote = record_nodes(record)
+    found = _discover(client, ns, remote if record is not None else None)
+    running = here | {name for space, name in found if space == ns}
     nodes = {name: name in running for name in graph_node_names()}
     controller = next((kind for name, kind in CONTROLLERS.items() if nodes.get(name)), None)
+    wanted = {key: (node, name) for key, (node, name) in PARAMETERS.items() if nodes[node]}
+    with ParameterReads(client, wanted) as parameters:
+        reporting = (running & set(graph_node_names())) - NOT_DIAGNOSED
+        since = time.monotonic()
+        reports_end = since + liveness.limit(DIAGNOSTICS_WAIT)
+
+        def complete() -> bool:
+            reported = (time.monotonic() >= reports_end
+                        or (not reporting - reporting_nodes(statuses)
+                            and _latched_in(statuses, got, client.active_model)))
+            return (reported and parameters.done()
+                    and (controller is None or _rate_known(joint_states, since)))
+
+        while not complete():
+            parameters.send()
+            client.spin_once(0.02)
+        values = parameters.values
     status = {
         'domain_id': client.context.get_domain_id(),
         'nodes': nodes,
         'controller': controller,
-        'joint_state_rate_hz': got['joint_states'] / listen,
+        'arms': sorted({space for space, name in found if name in CONTROLLERS}),
+        'joint_state_rate_hz': joint_state_rate(joint_states),
+        'real_time_factor': real_time_factor(statuses.get(SIM_CONTROLLER_STATUS)),
         'learner_model': model_summary(got.get('learner')),
         'active_model': model_summary(client.active_model),
         'model_health': health_summary(got.get('health')),
         'errors': {name: h.message for name, h in sorted(statuses.items())
                    if h.level == ERROR},
-        'payload_kg': {'learner': _parameter(client, 'flexarm_learner', 'payload')
-                       if nodes['flexarm_learner'] else None,
-                       'simulated': _parameter(client, 'flexarm_sim', 'plant.payload')
-                       if nodes['flexarm_sim'] else None},
+        'payload_kg': {'learner': values.get('learner_payload'),
+                       'simulated': values.get('simulated_payload')},
         'camera_calibration': calibration_text(statuses.get(CALIBRATION_STATUS)),
-        'bag': _parameter(client, 'flexarm_recorder', 'bag_name')
-        if nodes['flexarm_recorder'] else None,
+        'bag': values.get('bag'),
     }
     for subscription in subscriptions:
         client.destroy_subscription(subscription)
     return status
+
+
+# What status reads of the nodes' parameters: key: (node, parameter)
+PARAMETERS = {'learner_payload': ('flexarm_learner', 'payload'),
+              'simulated_payload': ('flexarm_sim', 'plant.payload'),
+              'bag': ('flexarm_recorder', 'bag_name')}
+PARAMETER_WAIT = 4.0      # [s, wall; liveness-scaled] for a node's parameter service to answer
+# [s] an unanswered parameter request is sent again after this: a server may not have
+# discovered this fresh client's reply channel yet and answers into the void; a get is
+# harmless twice, and the first answer counts
+PARAMETER_RESEND = 0.25
+JOINT_STATES_SPAN = 0.5   # [s] of joint states that give their rate
+JOINT_STATES_WAIT = 1.0   # [s, wall; liveness-scaled] without one: NO joint states
+SIM_CONTROLLER_STATUS = 'flexarm_sim: controller'
+
+
+class ParameterReads:
+    """Parameters of several nodes asked at once, one GetParameters client per node (of the
+    client's arm) reused for the resends; a context manager that destroys its clients."""
+
+    def __init__(self, client: Any, wanted: Mapping[str, tuple[str, str]]) -> None:
+        self._node, self._wanted = client, dict(wanted)
+        self._names: dict[str, list[str]] = {}          # node: the parameters asked of it
+        for node, name in self._wanted.values():
+            self._names.setdefault(node, []).append(name)
+        self._services = {node: client.create_client(GetParameters, f'{node}/get_parameters')
+                          for node in self._names}
+        self._sent: dict[str, tuple[float, list[Any]]] = {}   # node: (last sent, futures)
+        self._deadline = time.monotonic() + liveness.limit(PARAMETER_WAIT)
+
+    def send(self) -> None:
+        """Send the first request to each node whose service is there, or send again."""
+        now = time.monotonic()
+        for node, service in self._services.items():
+            last, futures = self._sent.get(node, (-math.inf, []))
+            if (now - last >= PARAMETER_RESEND and self._answer(node) is None
+                    and now < self._deadline and service.service_is_ready()):
+                futures.append(service.call_async(GetParameters.Request(names=self._names[node])))
+                self._sent[node] = (now, futures)
+
+    def done(self) -> bool:
+        """Whether every node has answered, or the wait for them is over."""
+        return (time.monotonic() >= self._deadline
+                or all(self._answer(node) is not None for node in self._services))
+
+    def _answer(self, node: str) -> list[Any] | None:
+        """The values a node answered, None while it has not."""
+        futures = self._sent.get(node, (0.0, []))[1]
+        return next((f.result().values for f in futures if f.done() and f.result()), None)
+
+    @property
+    def values(self) -> dict[str, Any]:
+        """Each wanted parameter's value, None if its node did not answer."""
+        values = {}
+        for key, (node, name) in self._wanted.items():
+            answer = self._answer(node)
+            values[key] = (None if not answer
+                           else _parameter_value(answer[self._names[node].index(name)]))
+        return values
+
+    def __enter__(self) -> ParameterReads:
+        return self
+
+    def __exit__(self, *exc: object) -> None:
+        for service in self._services.values():
+            self._node.destroy_client(service)
+
+
+def _parameter_value(value: Any) -> Any:
+    return {ParameterType.PARAMETER_DOUBLE: value.double_value,
+            ParameterType.PARAMETER_INTEGER: value.integer_value,
+            ParameterType.PARAMETER_STRING: value.string_value}.get(value.type)
+
+
+def joint_state_rate(sent: list[float]) -> float:
+    """[Hz] of messages sent at ``sent`` [s] (their source timestamps: when they arrive, the
+    first ones come in a burst once this subscription is matched); 0 for fewer than two."""
+    if len(sent) < 2 or sent[-1] <= sent[0]:
+        return 0.0
+    return (len(sent) - 1) / (sent[-1] - sent[0])
+
+
+def _rate_known(sent: list[float], since: float) -> bool:
+    """Whether joint states came over :data:`JOINT_STATES_SPAN`, or none came for
+    :data:`JOINT_STATES_WAIT` after ``since`` (the graph was discovered)."""
+    if sent:
+        return sent[-1] - sent[0] >= JOINT_STATES_SPAN
+    return time.monotonic() - since >= liveness.limit(JOINT_STATES_WAIT)
+
+
+def _latched_in(statuses: Mapping[str, Heard], got: Mapping[str, Any], active: Any) -> bool:
+    """Whether the latched model messages the nodes' reports announce have come: the
+    learner's model, the compensator's active one and its health (each published once a
+    model exists, which the node's ``model`` status names)."""
+    def has_model(node: str) -> bool:
+        report = statuses.get(f'{node}: model')
+        return report is not None and bool(report.values.get('version'))
+
+    return ((not has_model('flexarm_learner') or 'learner' in got)
+            and (not has_model('flexarm_compensator')
+                 or (active is not None and 'health' in got)))
+
+
+def real_time_factor(report: Heard | None) -> dict[str, float] | None:
+    """The simulator's achieved and set real-time factors from its ``controller`` report
+    (None: no simulator, or not heard)."""
+    try:
+        return {'achieved': float(report.values['real-time factor']),
+                'set': float(report.values['real-time factor set'])}
+    except (AttributeError, KeyError, ValueError):
+        return None
 
 
 CALIBRATION_STATUS = 'flexarm_vision: tool calibration'
@@ -292,53 +435,39 @@ def _health_line(health: dict[str, Any] | None) -> str:
     return line + (f'\n  WARNING: {health["summary"]}' if health['stale'] else '')
 
 
-def _discover(client: Any, settle: float = 1.0, empty: float = 3.0,
-              longest: float = 6.0) -> set[str]:
-    """The node names of the domain once discovery has settled.
+def _discover(client: Any, namespace: str, expected: set[str] | None, settle: float = 1.0,
+              empty: float = 3.0, longest: float = 6.0) -> set[tuple[str, str]]:
+    """(namespace, name) of the domain's nodes once discovery has settled.
 
-    A fresh participant learns of the others one by one, seconds apart under load: wait
-    until every node of the controller's graph.yaml entry is seen (then ``settle`` more
-    seconds for optional ones), or until nothing of flexarm is seen for ``empty`` seconds;
-    at most ``longest`` (a graph with a node down)."""
+    A fresh participant learns of the others one by one, seconds apart under load: wait until
+    the ``expected`` nodes of the arm in ``namespace`` are seen (none: at once); not knowing
+    what to expect (None), until every node of a controller's graph.yaml entry is seen in some
+    namespace, then ``settle`` more seconds for optional ones, or until nothing of flexarm is
+    seen for ``empty`` seconds; at most ``longest`` (a graph with a node down). Each limit
+    liveness-scaled."""
     ours = set(graph_node_names())
     graphs = {name: {s.name for s in load_graph(robot)} for name, robot in CONTROLLERS.items()}
+    settle, empty, longest = map(liveness.limit, (settle, empty, longest))
     start = time.monotonic()
     complete_since = None
     while True:
-        client.spin_once(0.05)
-        now, names = time.monotonic(), set(client.get_node_names())
-        complete = any(name in names and graph <= names for name, graph in graphs.items())
+        client.spin_once(0.02)
+        now = time.monotonic()
+        found = {(space.strip('/'), name)
+                 for name, space in client.get_node_names_and_namespaces()}
+        spaces: dict[str, set[str]] = {}
+        for space, name in found:
+            spaces.setdefault(space, set()).add(name)
+        if expected is not None and expected <= spaces.get(namespace, set()):
+            return found
+        complete = expected is None and any(name in names and graph <= names
+                                        for names in spaces.values()
+                                        for name, graph in graphs.items())
         complete_since = (complete_since or now) if complete else None
         if (now - start > longest or (complete and now - complete_since > settle)
-                or (not names & ours and now - start > empty)):
-            return names
-
-
-def _parameter(client: Any, node: str, name: str, timeout: float = 4.0) -> Any:
-    """A parameter's value from a running node, or None if it does not answer.
-
-    The request is repeated every second: one sent before the server has discovered this
-    client's reply channel is answered into the void (a DDS race of fresh participants)."""
-    service = client.create_client(GetParameters, f'/{node}/get_parameters')
-    deadline = time.monotonic() + timeout
-    try:
-        if not service.wait_for_service(timeout_sec=timeout):
-            return None
-        while time.monotonic() < deadline:
-            future = service.call_async(GetParameters.Request(names=[name]))
-            retry = min(deadline, time.monotonic() + 1.0)
-            while not future.done() and time.monotonic() < retry:
-                client.spin_once(0.05)
-            if future.done():
-                break
-        if not future.done() or not future.result().values:
-            return None
-        value = future.result().values[0]
-        return {ParameterType.PARAMETER_DOUBLE: value.double_value,
-                ParameterType.PARAMETER_INTEGER: value.integer_value,
-                ParameterType.PARAMETER_STRING: value.string_value}.get(value.type)
-    finally:
-        client.destroy_client(service)
+                or (not any(names & ours for names in spaces.values())
+                    and now - start > empty)):
+            return found
 
 
 def model_line(label: str, model: dict[str, Any] | None) -> str:
@@ -367,6 +496,17 @@ def _duration(seconds: float) -> str:
     return f'{seconds:.0f} s'
 
 
+def other_arms_text(arms: Iterable[str]) -> str:
+    """Where the arms of the domain are, for a status that found none in its namespace
+    ('' if there are none)."""
+    arms = sorted(arms)
+    if not arms:
+        return ''
+    names = ', '.join(arm or '(no namespace)' for arm in arms)
+    return (f'none in this namespace; the domain runs {len(arms)} arm(s) elsewhere: {names} '
+            '(pass --namespace NS)')
+
+
 def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     """``flexarm status`` for humans."""
     lines = [f'ROS_DOMAIN_ID={status["domain_id"]}']
@@ -381,13 +521,17 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     restarts = {} if record is None else {n: v['restarts'] for n, v in record['nodes'].items()}
     up = [n + (f' (restarted {restarts[n]}x)' if restarts.get(n) else '')
           for n, alive in status['nodes'].items() if alive]
-    lines.append('nodes up: ' + (', '.join(up) or 'none: no flexarm graph in this domain '
-                                 '(start one with `flexarm up`)'))
+    lines.append('nodes up: ' + (', '.join(up) or other_arms_text(status.get('arms', []))
+                                 or 'none: no flexarm graph in this domain (start one with '
+                                 '`flexarm up`)'))
     if status['controller'] is None:
         lines.append('controller: none')
     else:
         rate = status['joint_state_rate_hz']
         link = f'joint states at {rate:.0f} Hz' if rate else 'NO joint states for 1 s'
+        factor = status.get('real_time_factor')
+        if factor:
+            link += f', x{factor["achieved"]:.2f} real time (set x{factor["set"]:g})'
         lines.append(f'controller: {status["controller"]}, {link}')
     lines.append(model_line('model driving the arm (compensator)', status['active_model']))
     learner, active = status['learner_model'], status['active_model']

@@ -286,13 +286,27 @@ def arm_folders(parameters: Mapping[str, Mapping[str, Any]], namespace: str
     return result
 
 
+def lock_name(domain_id: int, namespace: str = '') -> str:
+    """The lock file name of ``domain_id`` and the arm in ``namespace`` (the '/' of a nested
+    namespace as '.', which no name part holds, so the name stays one file of LOCK_DIR)."""
+    ns = namespace.strip('/').replace('/', '.')
+    return f'{domain_id}-{ns}.lock' if ns else f'{domain_id}.lock'
+
+
+def parse_lock_name(name: str) -> tuple[int, str] | None:
+    """(domain id, namespace) of a :func:`lock_name`; None for another file name."""
+    if not name.endswith('.lock'):
+        return None
+    domain, _, ns = name.removesuffix('.lock').partition('-')
+    return (int(domain), ns.replace('.', '/')) if domain.isdigit() else None
+
+
 def _lock_domain(domain_id: int, namespace: str = '') -> int:
     """An exclusive lock on ``domain_id`` (and ``namespace``) for this process (a file
     descriptor, held until closed, released by the kernel if the process dies); RuntimeError
     naming the holder."""
     LOCK_DIR.mkdir(parents=True, exist_ok=True)
-    name = f'{domain_id}-{namespace}.lock' if namespace else f'{domain_id}.lock'
-    fd = os.open(LOCK_DIR / name, os.O_RDWR | os.O_CREAT, 0o666)
+    fd = os.open(LOCK_DIR / lock_name(domain_id, namespace), os.O_RDWR | os.O_CREAT, 0o666)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:

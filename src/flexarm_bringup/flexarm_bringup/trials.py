@@ -17,15 +17,18 @@ import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 
 from flexarm_control import topics
-from flexarm_control.client import FlexarmClient
 from flexarm_control.kinematics import pose_error, wrap_angle
 from flexarm_control.modes import MODE_LABELS
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import PlanarPose, TipPose
+
+if TYPE_CHECKING:       # the client pulls in rclpy; bag_tools names trials without it
+    from flexarm_control.client import FlexarmClient
 
 TRIAL_CSV_FIELDS = (
     'name', 'group', 'region', 'mode', 'error_code', 'error_string', 'iterations',
@@ -92,6 +95,18 @@ class Trial:
                 for i, pose in enumerate(self.moves, start=1)]
 
 
+def trial_name(prefix: str, target: str, mode: str) -> str:
+    """``<prefix>/<target>/<mode>``: the goal's trial name, so that a bag's outcomes can be
+    matched to their target and mode."""
+    return f'{prefix}/{target}/{mode}'
+
+
+def trial_target(name: str) -> str | None:
+    """The target of a trial named by :func:`trial_name`, None for another name."""
+    parts = name.split('/')
+    return parts[-2] if len(parts) >= 3 else None
+
+
 def _pose_cells(prefix: str, pose: list[float], delta: str = '') -> dict[str, float]:
     return {f'{prefix}_{delta}x_mm': pose[0] * 1e3, f'{prefix}_{delta}y_mm': pose[1] * 1e3,
             f'{prefix}_{delta}phi_deg': math.degrees(pose[2])}
@@ -144,7 +159,7 @@ def run_trials(client: FlexarmClient, truth: TruthMonitor,
             def heard(fb: MoveToPose.Feedback, moves: dict[int, list[float]] = moves) -> None:
                 if fb.measured:
                     moves[fb.iteration] = _xyphi(fb.measured_pose)
-            result = client.move_to(*target, mode=mode, trial=f'{prefix}/{name}/{mode}',
+            result = client.move_to(*target, mode=mode, trial=trial_name(prefix, name, mode),
                                     timeout=timeout, feedback=heard)
             if result.measured:
                 moves[result.iterations] = _xyphi(result.measured_pose)

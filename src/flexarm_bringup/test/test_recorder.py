@@ -258,7 +258,8 @@ def test_export_csv_names_modes_error_codes_reasons_and_models(tmp_path: Path) -
     assert [r['error_name'] for r in rows] == [
         'SUCCESSFUL', 'UNREACHABLE', 'CANCELED', 'SUCCESSFUL', 'SUCCESSFUL']
     assert [r['error_code'] for r in rows] == [str(g[2]) for g in MIXED_GOALS]
-    assert [r['succeeded'] for r in rows] == ['True', 'False', 'False', 'True', 'True']
+    assert [r['kind'] for r in rows] == ['goal'] * 4 + ['dry_run']
+    assert [r['succeeded'] for r in rows] == ['True', 'False', 'False', 'True', 'False']
     assert [r['reason'] for r in rows] == [g[4] for g in MIXED_GOALS]
     assert [r['model_version'] for r in rows] == ['gp-7', '', 'gp-7', 'gp-7', 'gp-7']
     for row in rows:   # one plain number per cell, in the unit its name carries
@@ -314,12 +315,11 @@ def test_export_never_plots_failed_goals_as_errors(tmp_path: Path,
     for ax in figure.axes:
         assert ax.get_yscale() == 'log'
         lines = {line.get_label(): line for line in ax.get_lines()}
-        assert set(lines) == {'predictive', 'closed_loop', 'failed goals: 2',
-                              'no error recorded: 1'}
+        assert set(lines) == {'predictive', 'closed_loop', 'failed goals: 2', 'dry runs: 1'}
         assert list(lines['predictive'].get_xdata()) == [0]
         assert list(lines['closed_loop'].get_xdata()) == [3]
         assert list(lines['failed goals: 2'].get_xdata()) == [1, 2]
-        assert list(lines['no error recorded: 1'].get_xdata()) == [4]
+        assert list(lines['dry runs: 1'].get_xdata()) == [4]
         assert ax.get_ylim()[1] < 1.0     # errors below 0.03 mm / 0.002 deg, not 600+ mm
     position_errors = figure.axes[0].get_lines()[0].get_ydata()
     assert list(position_errors) == pytest.approx([float(rows[0]['truth_position_error_mm'])])

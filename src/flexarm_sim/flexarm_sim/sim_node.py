@@ -8,9 +8,10 @@ pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for eva
 Error sources (config/sim.yaml ``error_sources``, off by default): the arm's joint
 repeatability, friction hysteresis and thermal drift (:mod:`flexarm_sim.errors`), a true camera
 that differs from the calibration it publishes on camera_info (:mod:`flexarm_sim.true_camera`),
-and payload changes at run time: ``plant.payload`` is writable,
-``ros2 param set /flexarm_sim plant.payload 5.0`` [kg] loads the tip (refused while the source
-is off); the deflection and the tip frequency follow at once. The simulator also follows the
+and payload changes at run time: ``plant.payload`` is writable, and setting it to 5.0 [kg]
+(any ROS 2 parameter client: rclpy's ``AsyncParameterClient``, or ``ros2 param set`` where a ROS
+2 command line is installed; the venv has none) loads the tip (refused while the source is
+off); the deflection and the tip frequency follow at once. The simulator also follows the
 payload the graph declares on the latched ``/payload`` (the tool really was picked up); setting
 ``plant.payload`` directly is a load nobody declared. ``plant.fabrication.link3``, ``link4``
 and ``offset`` [m] are writable too while error sources are on: a knock bends a link (e.g.

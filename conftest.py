@@ -298,6 +298,9 @@ def module_launch(domain_id: int, tmp_path_factory: pytest.TempPathFactory
 @pytest.fixture
 def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     """An rclpy node in its own context on the test's domain, spun in a background thread.
+    What a test creates on it stays until the test ends: destroying a subscription while the
+    executor thread builds its wait set kills that thread ("cannot use Destroyable"), and the
+    test then waits for messages nothing takes any more.
 
     Parameters of the node: ``@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}],
     indirect=True)``.

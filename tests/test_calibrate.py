@@ -18,19 +18,18 @@ def stamp_of(msg: TipPose) -> float:
 
 
 def errors_now(ros_node, wait_for) -> np.ndarray:
-    """Measured minus true tip pose (n, 3) of 3 settled frames heard from now on."""
+    """Measured minus true tip pose (n, 3) of 3 settled frames heard from now on. The
+    subscriptions stay until the test ends (see conftest's ``ros_node``)."""
     measured, truth = [], {}
-    subs = [ros_node.create_subscription(TipPose, topics.TIP_POSE, measured.append, 10),
-            ros_node.create_subscription(TipPose, topics.TIP_POSE_TRUTH, lambda m: truth.
-                                         __setitem__(stamp_of(m), m), 100)]
+    ros_node.create_subscription(TipPose, topics.TIP_POSE, measured.append, 10)
+    ros_node.create_subscription(TipPose, topics.TIP_POSE_TRUTH,
+                                 lambda m: truth.__setitem__(stamp_of(m), m), 100)
 
     def paired():
         pairs = [(m, truth[stamp_of(m)]) for m in list(measured)
                  if m.valid and m.settled and stamp_of(m) in truth]
         return pairs if len(pairs) >= 3 else None
     pairs = wait_for(paired, 60.0, '3 settled tip poses with their truth')
-    for sub in subs:
-        ros_node.destroy_subscription(sub)
     return np.array([[m.pose.x - t.pose.x, m.pose.y - t.pose.y, m.pose.phi - t.pose.phi]
                      for m, t in pairs])
 

@@ -29,8 +29,10 @@ from flexarm_control.parent_death import terminate_with_parent
 # default: KeyboardInterrupt) ends it, unless IGNORE_SIGINT.
 HOLDER = '''
 import fcntl, os, signal, sys
-if sys.argv[2] == "ignore":
-    signal.signal(signal.SIGINT, signal.SIG_IGN)
+# as flexarm's own main(): its handler, whatever SIGINT disposition the test run inherited
+# (a run started in the background of a non-interactive shell ignores SIGINT)
+signal.signal(signal.SIGINT, signal.SIG_IGN if sys.argv[2] == "ignore"
+              else signal.default_int_handler)
 fd = os.open(sys.argv[1], os.O_RDWR | os.O_CREAT, 0o666)
 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
 os.pwrite(fd, str(os.getpid()).encode(), 0)

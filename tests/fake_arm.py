@@ -18,6 +18,7 @@ class FakeArm:
         self.silent = False           # the controller stopped reporting
         self.blind_moves: set[int] = set()   # move numbers (1-based) measured as None
         self.cancel_at_move = 0       # abort requested during this move (0: never)
+        self.braking = np.zeros(4)    # past its hold when read right after it (comes back)
         self.measurements = 0
 
     @property
@@ -25,7 +26,7 @@ class FakeArm:
         return self.silent
 
     def positions(self) -> np.ndarray | None:
-        return self.q.copy()
+        return self.q + (self.braking if self.holds else 0.0)
 
     def move(self, q, tolerance, timeout, abort=lambda: False) -> bool:
         self.commands.append(np.asarray(q, dtype=float).copy())

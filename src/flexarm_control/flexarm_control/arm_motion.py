@@ -60,7 +60,12 @@ class Arm(Protocol):
 
 
 class Canceled(Exception):
-    """The caller aborted a move or measurement; the arm is held."""
+    """The caller aborted a move or measurement; the arm is held at ``held_at`` (the joints
+    commanded to stop it, where it comes to rest), None if it was not moving."""
+
+    def __init__(self, reason: str, held_at: np.ndarray | None = None) -> None:
+        super().__init__(reason)
+        self.held_at = held_at
 
 
 class MoveFailed(Exception):
@@ -130,8 +135,7 @@ class ArmMotion:
         timeout = self.timeout(joints)
         arrived = self.arm.move(joints, self.settings.arrival_tolerance, timeout, abort)
         if abort():
-            self.arm.hold()
-            raise Canceled('canceled; arm held')
+            raise Canceled('canceled; arm held', self.arm.hold())
         if not arrived:
             lost = self.arm.controller_silent
             self.arm.hold()

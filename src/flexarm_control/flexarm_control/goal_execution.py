@@ -126,7 +126,10 @@ def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensa
             progress(SETTLING, move, plan, None)
             measurement = motion.measure(abort)
         except Canceled as exc:
-            return ended(CANCELED, str(exc), motion.arm.positions())
+            # Where the hold stopped the arm: the joints read a moment later may still be
+            # on the way there (a braking arm overshoots its hold and comes back).
+            held = exc.held_at if exc.held_at is not None else motion.arm.positions()
+            return ended(CANCELED, str(exc), held)
         except MoveFailed as exc:
             return ended(CONTROLLER_TIMEOUT, str(exc))
         if measurement is None:

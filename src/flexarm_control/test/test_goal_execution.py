@@ -186,10 +186,10 @@ def test_a_missing_measurement_fails_only_a_checked_goal(world):
 
 def test_cancel_mid_move_holds_the_arm_where_it_stopped(world):
     def cancel_second(arm):
-        arm.cancel_at_move = 2
+        arm.cancel_at_move, arm.braking = 2, np.full(4, 1e-3)
     execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, arm_setup=cancel_second)
     assert execution.status == CANCELED and execution.moves == 2 and arm.holds == 1
-    np.testing.assert_allclose(execution.held_at, arm.q)
+    np.testing.assert_allclose(execution.held_at, arm.q)     # the hold, not the braking arm
     assert not np.allclose(execution.held_at, execution.plan.joints)
 
 

@@ -250,21 +250,23 @@ def domain_id(domain_pool: DomainPool) -> Iterator[int]:
 
 
 class Launcher:
-    """``launcher(name, robot='sim', **parameters)`` starts the node ``name`` of
+    """``launcher(name, robot='sim', namespace='', **parameters)`` starts the node ``name`` of
     config/graph.yaml exactly as ``flexarm up`` does (``robot`` picks the controller entry,
-    default ``sim``); :meth:`stop_all` stops them (SIGINT, then SIGKILL) and checks each was
-    reaped."""
+    default ``sim``; ``namespace``: one arm of several); :meth:`stop_all` stops them (SIGINT,
+    then SIGKILL) and checks each was reaped."""
 
     def __init__(self, domain_id: int, folder: Path) -> None:
         self._domain_id, self._folder = domain_id, folder
         self.started: list[Any] = []
 
-    def __call__(self, name: str, robot: str = 'sim', **parameters: Any) -> Any:
+    def __call__(self, name: str, robot: str = 'sim', namespace: str = '',
+                 **parameters: Any) -> Any:
         from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env
 
         specs = {**load_optional(), **{s.name: s for s in load_graph(robot)}}
+        log = self._folder / (f'{namespace}_{name}.log' if namespace else f'{name}.log')
         node = NodeProcess(specs[name], ros_env(self._domain_id, self._folder / 'ros_log'),
-                           self._folder / f'{name}.log', parameters)
+                           log, parameters, namespace)
         node.start()
         self.started.append(node)
         return node

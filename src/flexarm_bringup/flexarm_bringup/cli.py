@@ -890,7 +890,8 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
     finally:
         client.destroy_node()
         rclpy.try_shutdown()
-    status['problems'] = graph_problems(status['errors'], record)
+    silent = status['controller'] if not status['joint_state_rate_hz'] else None
+    status['problems'] = graph_problems(status['errors'], record, silent_controller=silent)
     print(status_text(status, record))
     status['supervisor'] = record
     if not any(status['nodes'].values()):

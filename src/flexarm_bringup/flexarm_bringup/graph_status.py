@@ -102,12 +102,18 @@ def process_alive(pid: int) -> bool:
 
 
 def graph_problems(errors: Mapping[str, str], record: Mapping[str, Any] | None,
-                   alive: Callable[[int], bool] = process_alive) -> list[str]:
+                   alive: Callable[[int], bool] = process_alive,
+                   silent_controller: str | None = None) -> list[str]:
     """What is wrong with the graph, a line each: the nodes of the supervisor ``record`` whose
     process is gone (the supervisor restarts only some, and a dead one is otherwise merely
-    absent from discovery), then the ERROR statuses ``errors`` (name: message; a node's own
-    word on what is broken)."""
+    absent from discovery), a controller that runs but publishes no joint states
+    (``silent_controller``: its kind; a stopped simulator clock, a lost link), then the ERROR
+    statuses ``errors`` (name: message; a node's own word on what is broken)."""
     problems = []
+    if silent_controller:
+        problems.append(f'controller {silent_controller}: no joint states for '
+                        f'{JOINT_STATES_WAIT:g} s (a stopped /clock, a lost link, a stuck '
+                        'driver); goals fail with CONTROLLER_TIMEOUT')
     for name, node in (record or {}).get('nodes', {}).items():
         code, pid = node.get('exit_code'), node.get('pid')
         if code is not None:
@@ -273,6 +279,7 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
         'arms': sorted({space for space, name in found if name in CONTROLLERS}),
         'joint_state_rate_hz': joint_state_rate(joint_states),
         'real_time_factor': real_time_factor(statuses.get(SIM_CONTROLLER_STATUS)),
+        'clock': clock_text(statuses.get(SIM_CONTROLLER_STATUS)),
         'learner_model': model_summary(got.get('learner')),
         'active_model': model_summary(client.active_model),
         'model_health': health_summary(got.get('health')),
@@ -397,6 +404,15 @@ def real_time_factor(report: Heard | None) -> dict[str, float] | None:
                 'set': float(report.values['real-time factor set'])}
     except (AttributeError, KeyError, ValueError):
         return None
+
+
+def clock_text(report: Heard | None) -> str | None:
+    """The simulator's part in the domain's ``/clock`` and its time, from its ``controller``
+    report (None: no simulator, or not heard)."""
+    if report is None or 'clock' not in report.values:
+        return None
+    return (f'the simulator {report.values["clock"]}, at sim time '
+            f'{report.values.get("sim time [s]", "?")} s')
 
 
 CALIBRATION_STATUS = 'flexarm_vision: tool calibration'
@@ -533,6 +549,8 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
         if factor:
             link += f', x{factor["achieved"]:.2f} real time (set x{factor["set"]:g})'
         lines.append(f'controller: {status["controller"]}, {link}')
+        if status.get('clock'):
+            lines.append(f'clock: {status["clock"]}')
     lines.append(model_line('model driving the arm (compensator)', status['active_model']))
     learner, active = status['learner_model'], status['active_model']
     if learner is not None and (active is None or learner['version'] != active['version']):

@@ -23,7 +23,8 @@ relative: :mod:`flexarm_control.topics`), with the learner's data and model fold
 tool calibration in a subfolder ``<namespace>`` of the configured ones, so arms of one domain
 share nothing but ``/clock`` and ``/diagnostics``. The domain lock and the name check are per
 namespace. The first arm's simulator owns ``/clock``; a graph that finds a ``/clock``
-publisher when it starts has its simulator follow it (``clock_source``, flexarm_sim).
+publisher when it starts has its simulator follow it (``clock_source``, flexarm_sim; a
+follower takes the clock over when its owner goes). :meth:`Graph.start` reports which.
 
 Several hosts: a graph with ``only`` starts just those nodes (``flexarm up --only sim,vision``)
 and leaves the rest of graph.yaml's (:attr:`Graph.remote`; optional nodes are never expected)
@@ -134,17 +135,26 @@ class Graph:
     def _choose_clock(self, probe: Any) -> None:
         """The simulator follows a ``/clock`` another arm's simulator already publishes: looked
         for during the name check and, for an arm in a namespace (one of several), up to
-        ``CLOCK_WAIT`` more (Fast DDS may announce a publisher only seconds after its node)."""
+        ``CLOCK_WAIT`` more (Fast DDS may announce a publisher only seconds after its node).
+        Reported either way: who owns the domain's clock."""
         sim = self.nodes.get('flexarm_sim')
-        if sim is None or 'clock_source' in sim.parameters:
+        if sim is None:
             return
+        chosen = sim.parameters.get('clock_source')
         deadline = time.monotonic() + (liveness.limit(CLOCK_WAIT) if self.namespace else 0.0)
-        while not probe.count_publishers(topics.CLOCK):
+        while chosen is None and not probe.count_publishers(topics.CLOCK):
             if time.monotonic() >= deadline:
-                return
-            time.sleep(0.1)
-        sim.parameters['clock_source'] = 'follow'
-        self._report(f'ROS domain {self.domain_id} has a /clock: flexarm_sim follows it')
+                chosen = 'own'
+            else:
+                time.sleep(0.1)
+        if chosen is None:
+            chosen = sim.parameters['clock_source'] = 'follow'
+        owners = sorted(f'{p.node_namespace.rstrip("/")}/{p.node_name}'
+                        for p in probe.get_publishers_info_by_topic(topics.CLOCK))
+        self._report(f'clock: flexarm_sim owns the /clock of ROS domain {self.domain_id}'
+                     if chosen == 'own' else
+                     f'clock: flexarm_sim follows the /clock of ROS domain {self.domain_id}'
+                     + (f' ({", ".join(owners)})' if owners else ''))
 
     def _close_probe(self) -> None:
         self._started_probe = None

@@ -9,6 +9,7 @@ from flexarm_bringup.graph_status import (
     Heard,
     arm_status_name,
     calibration_text,
+    clock_text,
     file_summary,
     graph_node_names,
     graph_problems,
@@ -93,6 +94,18 @@ def test_problems_name_dead_nodes_of_the_record_then_errors():
         'flexarm_vision is down: its process 11 is gone',
         'flexarm_vision: tool calibration: /c/tool_camera.json is damaged (x)']
     assert graph_problems({}, None) == []
+    silent = graph_problems({}, None, silent_controller='sim')
+    assert len(silent) == 1 and silent[0].startswith('controller sim: no joint states for')
+
+
+def test_the_text_says_who_owns_the_clock():
+    follows = Heard(OK, 'arm still', {'clock': 'follows the /clock of /arm1/flexarm_sim',
+                                      'sim time [s]': '150.2'})
+    said = clock_text(follows)
+    assert said == 'the simulator follows the /clock of /arm1/flexarm_sim, at sim time 150.2 s'
+    assert f'clock: {said}' in status_text(status(clock=said), None)
+    assert clock_text(None) is None and clock_text(Heard(OK, 'arm still', {})) is None
+    assert 'clock:' not in status_text(status(), None)
 
 
 def test_each_error_is_said_once_and_when_it_is_over():

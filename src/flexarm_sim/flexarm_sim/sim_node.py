@@ -37,8 +37,13 @@ of the first arm owns it (``clock_source: own``); the simulators started later f
 (``follow``, chosen by the supervisor when it finds a ``/clock`` publisher): they publish no
 clock, start at the owner's time and step, on each ``/clock`` of the owner, until their time
 has caught up with it (at most ``FOLLOW_CATCH_UP`` steps a ``/clock``). Their stamps are
-therefore on the one clock every node of the domain waits on; if the owner stops, their time
-stops.
+therefore on the one clock every node of the domain waits on. When the owner goes a follower
+takes the clock over after ``CLOCK_SILENCE`` s (wall, liveness-scaled) from the time it had
+reached, and a restarted owner yields to it and continues from there
+(:mod:`flexarm_sim.clock_share`). An owner listens to ``/clock`` only while the domain has
+another publisher of it (checked every ``CLOCK_CHECK`` s), so one arm alone hears no clock. A
+restarted owner that had no follower starts again at 0. The role is in the ``controller``
+diagnostics (``clock``).
 
 Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
 :func:`controller_status` and the commands' :class:`~flexarm_control.health_report.CommandLog`.
@@ -50,20 +55,26 @@ import time
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import SetParametersResult
+from rclpy.clock import Clock as RosClock
+from rclpy.clock import ClockType
 from rclpy.node import Node
 from rclpy.parameter import Parameter
+from rclpy.publisher import Publisher
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from rclpy.subscription import Subscription
+from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64, Float64MultiArray, Header
 
-from flexarm_control import topics
+from flexarm_control import liveness, topics
 from flexarm_control.diagnostics import DiagnosticsPublisher
 from flexarm_control.health_report import OK, CommandLog, Status, status
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_control.node_main import run
 from flexarm_control.node_params import declare, declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
+from flexarm_sim.clock_share import OWN, ClockShare, yields
 from flexarm_sim.dynamics import ArmDynamics, ArmState
 from flexarm_sim.errors import ArmErrors, active
 from flexarm_sim.plant import Plant
@@ -73,8 +84,9 @@ from flexarm_vision.camera_model import CameraModel
 FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
 BASE_FRAME = 'base_link'
-CLOCK_SOURCES = ('own', 'follow')
 FOLLOW_CATCH_UP = 200    # steps at most on one /clock, following (2 s of sim time)
+CLOCK_SILENCE = 1.0      # [s, wall; liveness-scaled] of silent /clock before a takeover
+CLOCK_CHECK = 0.5        # [s, wall] between looks at the domain's /clock publishers
 CAMERA_FRAME = 'tip_camera_optical_frame'   # flexarm_description's URDF
 
 
@@ -92,17 +104,20 @@ def tick_time(tick: int, rate: float) -> tuple[int, int]:
 
 
 def controller_status(node: str, hardware_id: str, moving: bool, sim_time: float,
-                      factor: float, achieved: float, payload: float) -> Status:
+                      factor: float, achieved: float, payload: float,
+                      clock: str = 'owns /clock') -> Status:
     """``<node>: controller``: the arm moving or still, the simulated time, the real-time
-    factor achieved since the last report and the one set, the payload. Always OK: the
-    simulator has no failure state, and running slower than its factor is how it meets a busy
-    CPU (it never skips steps), not a fault."""
+    factor achieved since the last report and the one set, the payload, the simulator's part
+    in the domain's ``/clock`` (:meth:`ClockShare.text`; in the message unless it simply owns
+    it). Always OK: the simulator has no failure state, and running slower than its factor is
+    how it meets a busy CPU (it never skips steps), not a fault; a follower whose ``/clock``
+    stops takes it over within ``CLOCK_SILENCE``."""
     return status(node, 'controller', OK, (
         f'arm {"moving" if moving else "still"}, x{achieved:.2f} real time (set x{factor:g}), '
-        f'payload {payload:g} kg'), {
+        f'payload {payload:g} kg' + ('' if clock == 'owns /clock' else f'; {clock}')), {
         'arm': 'moving' if moving else 'still', 'sim time [s]': round(sim_time, 3),
         'real-time factor': round(achieved, 3), 'real-time factor set': factor,
-        'payload [kg]': payload}, hardware_id)
+        'payload [kg]': payload, 'clock': clock}, hardware_id)
 
 
 class SimNode(Node):
@@ -117,13 +132,9 @@ class SimNode(Node):
                              '[Hz, wall time] /clock publications and wake-ups (at most one '
                              'per tick)')
         camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
-        clock_source = declare(self, 'clock_source', 'own',
+        clock_source = declare(self, 'clock_source', OWN,
                                'own: publish /clock; follow: step to the /clock of another '
                                "arm's simulator in the domain")
-        if clock_source not in CLOCK_SOURCES:
-            raise ValueError(f'clock_source must be one of {CLOCK_SOURCES}, not {clock_source!r}')
-        self._follow = clock_source == 'follow'
-        self._clock_tick: int | None = None     # following: the tick of the last /clock
         seed = declare(self, 'seed', 0, 'seed of the camera noise')
         initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
                           'joint1..joint4 at start [rad, m, rad, rad]')
@@ -157,18 +168,25 @@ class SimNode(Node):
         self._reported = (time.monotonic(), 0)   # wall time and tick of the last report
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-        self._clock_pub = (None if self._follow else
-                           self.create_publisher(Clock, topics.CLOCK, 10))
+        self._share = ClockShare(clock_source, self.get_fully_qualified_name(),
+                                 liveness.limit(CLOCK_SILENCE), 2 * self._clock_every,
+                                 time.monotonic())
+        self._clock_pub: Publisher | None = None
+        self._wake: Timer | None = None
+        self._clock_sub: Subscription | None = None
+        self._started_following = False        # the first /clock followed sets the time
         self._truth_pub = self.create_publisher(TipPose, topics.TIP_POSE_TRUTH, 10)
         self._image_pub = self.create_publisher(Image, topics.CAMERA_IMAGE, 5)
         self._info_pub = self.create_publisher(CameraInfo, topics.CAMERA_INFO, latched)
         self._setup_joint_io()
         self._camera_info = self._make_camera_info()
         self._info_pub.publish(self._camera_info)
-        if self._follow:
-            self.create_subscription(Clock, topics.CLOCK, self._on_clock, 10)
+        if clock_source == OWN:
+            self._own_clock()
         else:
-            self.create_timer(self._clock_every * self._dt / self._rtf, self._on_wake)
+            self._listen_to_clock(True)
+        self.create_timer(CLOCK_CHECK, self._check_clock,
+                          clock=RosClock(clock_type=ClockType.STEADY_TIME))
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._now)
@@ -210,7 +228,8 @@ class SimNode(Node):
         self._reported = (wall, tick)
         return [controller_status(self.get_name(), self._hardware_id,
                                   self._dynamics.state.is_moving, tick * self._dt, self._rtf,
-                                  achieved, self._dynamics.plant.payload),
+                                  achieved, self._dynamics.plant.payload,
+                                  self._share.text(self._dt)),
                 self._commands.status(self.get_name(), self._hardware_id)]
 
     def _on_payload(self, msg: Float64) -> None:
@@ -258,14 +277,70 @@ class SimNode(Node):
             self.get_logger().info(f'payload now {param.value:g} kg')
         return SetParametersResult(successful=True)
 
+    # --- the domain's one /clock (clock_share) ----------------------------------------------
+    def _own_clock(self) -> None:
+        """Publish /clock and step on the wall timer from the time reached."""
+        self._clock_pub = self.create_publisher(Clock, topics.CLOCK, 10)
+        self._wake = self.create_timer(self._clock_every * self._dt / self._rtf, self._on_wake)
+
+    def _listen_to_clock(self, listen: bool) -> None:
+        if listen and self._clock_sub is None:
+            self._clock_sub = self.create_subscription(Clock, topics.CLOCK, self._on_clock, 10)
+        elif not listen and self._clock_sub is not None:
+            self.destroy_subscription(self._clock_sub)
+            self._clock_sub = None
+
+    def _other_clocks(self) -> list[str]:
+        """The node names of the domain's /clock publishers other than this node."""
+        names = {f'{p.node_namespace.rstrip("/")}/{p.node_name}'
+                 for p in self.get_publishers_info_by_topic(topics.CLOCK)}
+        return sorted(names - {self._share.name})
+
+    def _check_clock(self) -> None:
+        """An owner listens while another /clock is published; a follower whose /clock went
+        silent takes it over."""
+        share, others = self._share, self._other_clocks()
+        if share.role == OWN:
+            self._listen_to_clock(bool(others))
+            return
+        if others:
+            share.owner = others[0]
+        if share.silent(time.monotonic()):
+            self._take_over(f'no /clock for {share.silence:g} s')
+
+    def _take_over(self, why: str) -> None:
+        self._share.take_over(self._tick)
+        self._own_clock()
+        self.get_logger().warning(
+            f'{why}: this simulator owns /clock from now on, from {self._tick * self._dt:.3f} s '
+            f'(it followed {self._share.took_over[0] or "another arm"})')
+
     def _on_clock(self, msg: Clock) -> None:
-        """Following: step up to the owner's time (the first /clock: start there, at rest)."""
+        """Following: step up to the owner's time (the first /clock: start there, at rest).
+        Owning: another owner's /clock decides which of the two yields."""
         tick = ticks_at(msg.clock.sec, msg.clock.nanosec, self._js_rate)
-        if self._clock_tick is None:
-            self._tick = tick
+        share = self._share
+        if share.role == OWN:
+            if share.is_own(tick):
+                return
+            others = self._other_clocks()
+            other = others[0] if others else ''
+            if not yields(self._tick, share.name, tick, other, share.margin):
+                return
+            self.destroy_timer(self._wake)
+            self.destroy_publisher(self._clock_pub)
+            self._wake = self._clock_pub = None
+            share.follow(other, time.monotonic())
+            self.get_logger().warning(f'/clock of {other or "another arm"} at '
+                                      f'{tick * self._dt:.3f} s: following it')
+        if share.heard(time.monotonic(), tick, self._tick):
+            self._take_over(f'/clock went back to {tick * self._dt:.3f} s (its owner restarted)')
+            return
+        if not self._started_following or (tick - self._tick > FOLLOW_CATCH_UP
+                                           and not self._dynamics.state.is_moving):
             self.get_logger().info(f'following /clock from {tick * self._dt:.3f} s')
-        self._clock_tick = tick
-        for _ in range(min(self._clock_tick - self._tick, FOLLOW_CATCH_UP)):
+            self._started_following, self._tick = True, max(self._tick, tick)
+        for _ in range(min(tick - self._tick, FOLLOW_CATCH_UP)):
             self._advance()
 
     def _on_wake(self) -> None:
@@ -279,6 +354,7 @@ class SimNode(Node):
         now = self._now()
         if self._clock_pub is not None and self._tick % self._clock_every == 0:
             self._clock_pub.publish(Clock(clock=now))
+            self._share.published(self._tick)
         state = self._dynamics.state
         self._publish_joints(now, state)
         x, y, phi = state.tip_pose

@@ -85,7 +85,8 @@ OFFLINE = [
 NODE = [
     Smoke('bridge', ('--moves', '1', '--robot-only'), ('sim', 'bridge', 'added_median_ms'),
           ('added_median_ms',), domain='--domain', seconds=10),
-    Smoke('bringup', ('--runs', '1'), ('ready_s', 'stop_s'), ('ready_s', 'stop_s'), seconds=12),
+    Smoke('bringup', ('--runs', '1', '--status-calls', '1'), ('ready_s', 'status_s', 'stop_s'),
+          ('ready_s', 'status_s', 'stop_s'), seconds=15),
     Smoke('footprint', ('--smoke',), ('idle_x1', 'idle_x10', 'collect_x10', 'rss_mb_total',
                                       'nodes'),
           ('idle_x1.total_cores', 'idle_x10.total_cores', 'collect_x10.achieved_rtf',

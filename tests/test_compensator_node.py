@@ -37,7 +37,7 @@ from flexarm_control.params import config_path, load_config
 from flexarm_control.predictors import make_predictor
 from flexarm_control.sampling import regions_from_dict, sample_poses
 from flexarm_msgs.action import MoveToPose
-from flexarm_msgs.msg import GoalOutcome, ModelInfo
+from flexarm_msgs.msg import GoalOutcome, ModelHealth, ModelInfo
 from flexarm_sim.plant import Plant
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(35)]
@@ -211,7 +211,7 @@ def test_rigid_and_predictive_goals_succeed(graph):
     assert commanded.position.z == pytest.approx(predictive.commanded_pose.y)
 
 
-def test_a_goal_beyond_the_learned_data_is_refused_or_warned(graph):
+def test_a_goal_beyond_the_learned_data_is_refused_or_warned(graph, wait_for):
     client, joints = graph
     far = (1.45, -0.15, math.radians(-45))     # Table 10 A1: the model knows region B only
     before = joints['q'].copy()
@@ -225,6 +225,16 @@ def test_a_goal_beyond_the_learned_data_is_refused_or_warned(graph):
     assert warned.error_code == Result.SUCCESSFUL, warned.error_string
     assert warned.error_string.startswith('warning:')
     assert warned.data_distance > 3.0 or warned.prediction_std > 0.3e-3
+    # the model promised nothing in A: its miss there is no staleness of the model
+    health: list[ModelHealth] = []
+    client.create_subscription(ModelHealth, topics.MODEL_HEALTH, health.append,
+                               QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))
+    inside = client.move_to(*TARGET, mode='predictive', timeout=120)
+    assert inside.error_code == Result.SUCCESSFUL and 'stale' not in inside.error_string
+    wait_for(lambda: spin_for(client, 0.05) or (health and health[-1].regions), 20.0,
+             'the model health after a goal in B')
+    filed = {r.name: r.observations for r in health[-1].regions}
+    assert filed.get('B', 0) >= 1 and filed.get('A', 0) == 0, filed
 
 
 def test_provenance_tolerances_and_dry_run(graph):

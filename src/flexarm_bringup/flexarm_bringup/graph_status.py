@@ -304,7 +304,7 @@ PARAMETER_WAIT = 4.0      # [s, wall; liveness-scaled] for a node's parameter se
 # discovered this fresh client's reply channel yet and answers into the void; a get is
 # harmless twice, and the first answer counts
 PARAMETER_RESEND = 0.25
-JOINT_STATES_SPAN = 0.5   # [s] of joint states that give their rate
+JOINT_STATES_SPAN = 0.25  # [s] of joint states that give their rate (6 bursts at 25 Hz)
 JOINT_STATES_WAIT = 1.0   # [s, wall; liveness-scaled] without one: NO joint states
 SIM_CONTROLLER_STATUS = 'flexarm_sim: controller'
 
@@ -438,9 +438,13 @@ def health_summary(msg: ModelHealth | None) -> dict[str, Any] | None:
                          'stale': r.stale} for r in msg.regions]}
 
 
-def _health_line(health: dict[str, Any] | None) -> str:
+def _health_line(health: dict[str, Any] | None, compensator: bool, model: bool) -> str:
+    """The model health line; without a health message, why (``compensator``: the node runs,
+    ``model``: it runs a model, whose health it publishes)."""
     if health is None:
-        return 'model health: not heard (no compensator)'
+        return ('model health: none (no model in use)' if compensator and not model else
+                'model health: not heard' if compensator else
+                'model health: none (no compensator)')
     if not health['regions']:
         return 'model health: no measured goal yet'
     regions = ', '.join(f'{r["name"]} {r["median_position_residual"] * 1e3:.3f} mm '
@@ -555,7 +559,9 @@ def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
     learner, active = status['learner_model'], status['active_model']
     if learner is not None and (active is None or learner['version'] != active['version']):
         lines.append(model_line('model announced by the learner (NOT in use)', learner))
-    lines.append(_health_line(status.get('model_health')))
+    lines.append(_health_line(status.get('model_health'),
+                              bool(status['nodes'].get('flexarm_compensator')),
+                              status['active_model'] is not None))
     payload = status['payload_kg']
     known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
     lines.append('payload: ' + (', '.join(known) or 'unknown'))

@@ -58,6 +58,11 @@ def test_the_text_says_what_drives_the_arm():
     other = MODEL | {'version': '5', 'warning': 'trained at payload 5 kg, the arm carries 0 kg'}
     text = status_text(status(learner_model=other, active_model=None), None)
     assert 'model driving the arm (compensator): none' in text
+    assert 'model health: none (no model in use)' in text
+    assert 'model health: not heard' in status_text(status(), None)
+    alone = status()
+    alone['nodes'] = alone['nodes'] | {'flexarm_compensator': False}
+    assert 'model health: none (no compensator)' in status_text(alone, None)
     assert 'announced by the learner (NOT in use): v5' in text and 'WARNING: trained' in text
     assert 'supervisor: none found' in text
 

@@ -3,7 +3,9 @@
 Every flexarm node publishes its statuses as one ``diagnostic_msgs/DiagnosticArray`` on
 ``/diagnostics`` once a second of wall-clock time, also when the graph runs on the
 simulator's faster clock (the timer is on the steady clock), so rqt_robot_monitor and
-Foxglove's diagnostics panel see the graph's health at a steady rate. Stamps come from the
+Foxglove's diagnostics panel see the graph's health at a steady rate, and at once to a
+subscriber that has just matched (``flexarm status`` answers without waiting up to a period
+for each node). Stamps come from the
 node's clock (sim time under ``use_sim_time``) unless the node gives its own. ``/diagnostics``
 is global: a node in a namespace (one arm of several) names its statuses
 ``<namespace>/<node>: <concern>``.
@@ -16,6 +18,7 @@ from builtin_interfaces.msg import Time as TimeMsg
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus, KeyValue
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
+from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.node import Node
 
 from flexarm_control import topics
@@ -49,9 +52,15 @@ class DiagnosticsPublisher:
         self._node = node
         self._statuses = statuses
         self._stamp = stamp or (lambda: node.get_clock().now().to_msg())
-        self._pub = node.create_publisher(DiagnosticArray, topics.DIAGNOSTICS, 10)
+        self._pub = node.create_publisher(
+            DiagnosticArray, topics.DIAGNOSTICS, 10, callback_group=callback_group,
+            event_callbacks=PublisherEventCallbacks(matched=self._on_matched))
         self._timer = node.create_timer(period, self.publish, callback_group=callback_group,
                                         clock=Clock(clock_type=ClockType.STEADY_TIME))
+
+    def _on_matched(self, info: QoSPublisherMatchedInfo) -> None:
+        if info.current_count_change > 0:      # a new subscriber: it hears the statuses now
+            self.publish()
 
     def publish(self) -> None:
         """Publish the node's statuses now."""

@@ -87,6 +87,7 @@ BASE_FRAME = 'base_link'
 FOLLOW_CATCH_UP = 200    # steps at most on one /clock, following (2 s of sim time)
 CLOCK_SILENCE = 1.0      # [s, wall; liveness-scaled] of silent /clock before a takeover
 CLOCK_CHECK = 0.5        # [s, wall] between looks at the domain's /clock publishers
+ACHIEVED_SPAN = 1.0      # [s, wall] the achieved real-time factor is measured over at least
 CAMERA_FRAME = 'tip_camera_optical_frame'   # flexarm_description's URDF
 
 
@@ -107,7 +108,7 @@ def controller_status(node: str, hardware_id: str, moving: bool, sim_time: float
                       factor: float, achieved: float, payload: float,
                       clock: str = 'owns /clock') -> Status:
     """``<node>: controller``: the arm moving or still, the simulated time, the real-time
-    factor achieved since the last report and the one set, the payload, the simulator's part
+    factor achieved over the last 1-2 s and the one set, the payload, the simulator's part
     in the domain's ``/clock`` (:meth:`ClockShare.text`; in the message unless it simply owns
     it). Always OK: the simulator has no failure state, and running slower than its factor is
     how it meets a busy CPU (it never skips steps), not a fault; a follower whose ``/clock``
@@ -165,7 +166,9 @@ class SimNode(Node):
         self._clock_every = max(1, round(self._js_rate * self._rtf / clock_rate))   # ticks
         self._commands = CommandLog()
         self._hardware_id = ''      # the controller's: none for the simulator
-        self._reported = (time.monotonic(), 0)   # wall time and tick of the last report
+        # (wall time, tick) marks at least ACHIEVED_SPAN apart: the achieved real-time factor
+        # is measured from the older one, over 1-2 s whenever a report is asked for
+        self._marks = [(time.monotonic(), 0)] * 2
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._share = ClockShare(clock_source, self.get_fully_qualified_name(),
@@ -224,8 +227,10 @@ class SimNode(Node):
     def statuses(self) -> list[Status]:
         """The node's health (module docstring): controller, commands."""
         wall, tick = time.monotonic(), self._tick
-        achieved = (tick - self._reported[1]) * self._dt / max(wall - self._reported[0], 1e-9)
-        self._reported = (wall, tick)
+        if wall - self._marks[1][0] >= ACHIEVED_SPAN:
+            self._marks = [self._marks[1], (wall, tick)]
+        since, then = self._marks[0]
+        achieved = (tick - then) * self._dt / max(wall - since, 1e-9)
         return [controller_status(self.get_name(), self._hardware_id,
                                   self._dynamics.state.is_moving, tick * self._dt, self._rtf,
                                   achieved, self._dynamics.plant.payload,

@@ -31,6 +31,7 @@ from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
 
+import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
 from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters
@@ -239,6 +240,7 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
     ns = namespace.strip('/')
     got: dict[str, Any] = {}
     joint_states: list[float] = []       # when each message was sent [s, publisher's clock]
+    stamps: list[float] = []             # and its stamp [s, the graph's clock]
     statuses: dict[str, Heard] = {}
     subscriptions = [
         client.create_subscription(ModelInfo, topics.MODEL,
@@ -246,8 +248,10 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
         client.create_subscription(ModelHealth, topics.MODEL_HEALTH,
                                    lambda m: got.__setitem__('health', m), LATCHED),
         client.create_subscription(JointState, topics.JOINT_STATES,
-                                   lambda _, info: joint_states.append(
-                                       info['source_timestamp'] * 1e-9), 10),
+                                   lambda m, info: (
+                                       joint_states.append(info['source_timestamp'] * 1e-9),
+                                       stamps.append(m.header.stamp.sec
+                                                     + 1e-9 * m.header.stamp.nanosec)), 100),
         client.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
                                    lambda m: statuses.update(heard(m, ns)), 10)]
     here, remote = record_nodes(record)
@@ -277,7 +281,7 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
         'nodes': nodes,
         'controller': controller,
         'arms': sorted({space for space, name in found if name in CONTROLLERS}),
-        'joint_state_rate_hz': joint_state_rate(joint_states),
+        'joint_state_rate_hz': joint_state_rate(stamps),
         'real_time_factor': real_time_factor(statuses.get(SIM_CONTROLLER_STATUS)),
         'clock': clock_text(statuses.get(SIM_CONTROLLER_STATUS)),
         'learner_model': model_summary(got.get('learner')),
@@ -368,11 +372,14 @@ def _parameter_value(value: Any) -> Any:
 
 
 def joint_state_rate(sent: list[float]) -> float:
-    """[Hz] of messages sent at ``sent`` [s] (their source timestamps: when they arrive, the
-    first ones come in a burst once this subscription is matched); 0 for fewer than two."""
-    if len(sent) < 2 or sent[-1] <= sent[0]:
-        return 0.0
-    return (len(sent) - 1) / (sent[-1] - sent[0])
+    """[Hz] of messages stamped ``sent`` [s]: on the graph's clock, the controller's own rate
+    (sim time: the simulator's ``joint_state_rate``, whatever its real-time factor), from the
+    median interval between consecutive stamps: the simulator's messages leave in bursts, one
+    per /clock, faster than status takes them, and the oldest of a burst may be dropped; 0 for
+    fewer than two distinct stamps."""
+    steps = np.diff(np.asarray(sent, dtype=float))
+    steps = steps[steps > 0]
+    return 0.0 if steps.size == 0 else float(1.0 / np.median(steps))
 
 
 def _rate_known(sent: list[float], since: float) -> bool:

@@ -31,6 +31,9 @@ def test_the_records_live_nodes_run_here_and_its_remote_ones_must_be_discovered(
 def test_the_joint_state_rate_comes_from_the_arrivals():
     assert joint_state_rate([0.0, 0.01, 0.02, 0.03, 0.04]) == pytest.approx(100.0)
     assert joint_state_rate([0.5]) == 0.0 and joint_state_rate([]) == 0.0
+    # bursts whose oldest messages were dropped: the rate of the stamps, not of what came
+    assert joint_state_rate([0.0, 0.01, 0.02, 0.35, 0.36, 0.37, 0.38, 0.75, 0.76]) == \
+        pytest.approx(100.0)
 
 
 def _model(version: str) -> Heard:

@@ -34,14 +34,22 @@ def errors_now(ros_node, wait_for) -> np.ndarray:
                      for m, t in pairs])
 
 
+def calibration_said(domain_id: int, capsys) -> str:
+    """What `flexarm status` says of the camera's calibration."""
+    capsys.readouterr()
+    assert main(['status', '--json', '--domain-id', str(domain_id)]) == Exit.OK
+    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])['camera_calibration']
+
+
 def test_calibration_measures_stores_and_removes_the_camera_error(launch, ros_node, wait_for,
                                                                   domain_id, tmp_path, capsys):
     launch('flexarm_sim', real_time_factor=10.0, error_sources={'enabled': True})
-    launch('flexarm_vision', tool_calibration_file=str(tmp_path / 'none.json'))
+    path = tmp_path / 'tool_camera.json'       # none yet
+    launch('flexarm_vision', tool_calibration_file=str(path))
     launch('flexarm_compensator')
     before = errors_now(ros_node, wait_for)
     assert np.hypot(before[:, 0], before[:, 1]).min() > 0.1e-3      # the camera's 0.16 mm
-    path = tmp_path / 'tool_camera.json'
+    assert 'camera calibration: NOT calibrated (no ' in calibration_said(domain_id, capsys)
     assert main(['calibrate', '--file', str(path), '--json', '--domain-id',
                  str(domain_id)]) == Exit.OK
     said = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
@@ -51,6 +59,8 @@ def test_calibration_measures_stores_and_removes_the_camera_error(launch, ros_no
     assert axial == pytest.approx(-0.13e-3, abs=0.03e-3)
     assert lateral == pytest.approx(-0.095e-3, abs=0.03e-3)
     assert math.degrees(angle) == pytest.approx(0.02, abs=0.005)
+    said_now = calibration_said(domain_id, capsys)
+    assert 'camera calibration: calibrated ' in said_now and 'from 6 poses' in said_now
     after = errors_now(ros_node, wait_for)
     assert np.hypot(after[:, 0], after[:, 1]).max() < 0.04e-3
     assert np.abs(after[:, 2]).max() < math.radians(0.003)

@@ -153,8 +153,9 @@ def calibration_status(node: str, camera: str, path: str, problem: str, in_use: 
                       "the camera's own error in the tool frame; run flexarm calibrate",
                       values, camera)
     if in_use == 'parameter':
-        return status(node, 'tool calibration', OK, 'correction set by its parameter since '
-                      'the start (flexarm calibrate)', values, camera)
+        return status(node, 'tool calibration', OK, 'calibrated by its tool_correction '
+                      f'parameter, which {path} does not hold: a restart of the node loses it '
+                      '(flexarm calibrate writes the file the node reads)', values, camera)
     made = record or {}
     when = made.get('stamp', 'at an unknown time')
     against = f" against {made['reference']}" if made.get('reference') else ''

@@ -154,6 +154,8 @@ def test_a_damaged_calibration_file_is_an_error_naming_it() -> None:
     assert damaged.message == f'{problem}; poses are reported uncorrected'
     set_since = calibration_status('flexarm_vision', 'cam', path, problem, 'parameter')
     assert set_since.level == ERROR and set_since.message.endswith('the parameter correction')
+    unstored = calibration_status('flexarm_vision', 'cam', path, '', 'parameter')
+    assert unstored.level == OK and f'which {path} does not hold' in unstored.message
 
 
 @pytest.mark.node

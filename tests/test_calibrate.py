@@ -5,8 +5,10 @@ import math
 
 import numpy as np
 import pytest
+from diagnostic_msgs.msg import DiagnosticArray
 
 from flexarm_bringup.cli import Exit, main
+from flexarm_bringup.graph_status import CALIBRATION_STATUS
 from flexarm_control import topics
 from flexarm_msgs.msg import TipPose
 
@@ -34,11 +36,17 @@ def errors_now(ros_node, wait_for) -> np.ndarray:
                      for m, t in pairs])
 
 
-def calibration_said(domain_id: int, capsys) -> str:
-    """What `flexarm status` says of the camera's calibration."""
-    capsys.readouterr()
-    assert main(['status', '--json', '--domain-id', str(domain_id)]) == Exit.OK
-    return json.loads(capsys.readouterr().out.strip().splitlines()[-1])['camera_calibration']
+def calibration_said(ros_node, wait_for, starting: str) -> str:
+    """The vision node's report of the camera's calibration (the line `flexarm status` and
+    `up` show) once one starts with ``starting``."""
+    said: list[str] = []
+    subscription = ros_node.create_subscription(
+        DiagnosticArray, topics.DIAGNOSTICS, lambda msg: said.extend(
+            s.message for s in msg.status if s.name == CALIBRATION_STATUS), 10)
+    wait_for(lambda: any(m.startswith(starting) for m in said), 30.0,
+             f'a tool calibration status "{starting}…" (heard: {said[-1:]})')
+    subscription.callback = lambda msg: None    # kept until the test ends (conftest's ros_node)
+    return next(m for m in said if m.startswith(starting))
 
 
 def test_calibration_measures_stores_and_removes_the_camera_error(launch, ros_node, wait_for,
@@ -49,7 +57,7 @@ def test_calibration_measures_stores_and_removes_the_camera_error(launch, ros_no
     launch('flexarm_compensator')
     before = errors_now(ros_node, wait_for)
     assert np.hypot(before[:, 0], before[:, 1]).min() > 0.1e-3      # the camera's 0.16 mm
-    assert 'camera calibration: NOT calibrated (no ' in calibration_said(domain_id, capsys)
+    calibration_said(ros_node, wait_for, f'NOT calibrated (no {tmp_path}')
     assert main(['calibrate', '--file', str(path), '--json', '--domain-id',
                  str(domain_id)]) == Exit.OK
     said = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
@@ -59,8 +67,7 @@ def test_calibration_measures_stores_and_removes_the_camera_error(launch, ros_no
     assert axial == pytest.approx(-0.13e-3, abs=0.03e-3)
     assert lateral == pytest.approx(-0.095e-3, abs=0.03e-3)
     assert math.degrees(angle) == pytest.approx(0.02, abs=0.005)
-    said_now = calibration_said(domain_id, capsys)
-    assert 'camera calibration: calibrated ' in said_now and 'from 6 poses' in said_now
+    assert 'from 6 poses' in calibration_said(ros_node, wait_for, 'calibrated ')
     after = errors_now(ros_node, wait_for)
     assert np.hypot(after[:, 0], after[:, 1]).max() < 0.04e-3
     assert np.abs(after[:, 2]).max() < math.radians(0.003)

@@ -20,6 +20,8 @@ class FakeArm:
         self.cancel_at_move = 0       # abort requested during this move (0: never)
         self.braking = np.zeros(4)    # past its hold when read right after it (comes back)
         self.measurements = 0
+        self.measurement_problem = ''
+        self.blind_reason = 'fit residual 0.155 mm RMS too large'   # the vision node's, blind
 
     @property
     def controller_silent(self) -> bool:
@@ -42,7 +44,10 @@ class FakeArm:
     def measure(self, frames, timeout, abort=lambda: False) -> Measurement | None:
         self.measurements += 1
         if abort() or len(self.commands) in self.blind_moves:
+            self.measurement_problem = ('' if abort() else 'the vision node found no valid pose '
+                                        f'in 25 frame(s): {self.blind_reason}')
             return None
+        self.measurement_problem = ''
         return average_frames(np.repeat(self.plant.pose(self.q)[None], frames, axis=0),
                               holes_used=12, residual=1e-6)
 

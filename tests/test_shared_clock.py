@@ -24,7 +24,7 @@ from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_msgs.action import MoveToPose
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(55)]
 SIM = {'real_time_factor': 10.0, 'error_sources': {'enabled': False}}
 ARM1, ARM2 = '/arm1/flexarm_sim', '/arm2/flexarm_sim'
 B6 = (1.30, -0.20, math.radians(-61))     # Table 10

@@ -43,23 +43,28 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
     say(f'calibrating the camera against {reference_topic}: the arm moves RIGID (uncompensated) '
         f'to the {len(targets)} Table 10 poses')
     done = 0
+    problem = ''      # why the last pose gave no measurement: the compensator's words
 
     def measure(target: np.ndarray) -> tuple[np.ndarray, np.ndarray] | None:
-        nonlocal done
+        nonlocal done, problem
         done += 1
         say(f'calibration pose {done}/{len(targets)}: x {target[0] * 1e3:.1f} mm, '
             f'y {target[1] * 1e3:.1f} mm, phi {np.degrees(target[2]):.2f} deg')
         result = client.move_to(*target, mode='rigid', timeout=timeout,
                                 trial=trial_name('calibration', TABLE_10[done - 1].name, 'rigid'))
         if result.error_code != 0 or not result.measured:
-            say(f'calibration pose {done}/{len(targets)}: no measurement '
-                f'({result.error_string})')
+            problem = result.error_string
+            say(f'calibration pose {done}/{len(targets)}: no measurement ({problem})')
             return None
         m = result.measured_pose
         reference = client.poses_from(reference_topic, 3, timeout).mean(axis=0)
         return np.array([m.x, m.y, m.phi]), reference
 
-    found = calibrate_against_reference(targets, measure)
+    try:
+        found = calibrate_against_reference(targets, measure)
+    except ValueError as exc:          # too few poses measured: say why the camera did not
+        raise ValueError(f'{exc}; the last pose without one: {problem}' if problem
+                         else str(exc)) from None
     correction = current + found.correction
     details = {'reference': reference_topic, 'poses': found.poses,
                'spread': list(found.spread), 'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}

@@ -98,6 +98,25 @@ def joint_positions(msg: JointState) -> np.ndarray | None:
         return None
 
 
+def measurement_problem(frames: list[TipPose], wanted: int) -> str:
+    """Why ``frames`` (the tip poses heard while measuring) gave no measurement of ``wanted``
+    valid settled frames: the vision node's own reason where it gave one."""
+    if not frames:
+        return ('no tip pose came from the vision node on /tip_pose: is it running, and does '
+                'the camera publish images?')
+    invalid = [f for f in frames if not f.valid]
+    if len(invalid) == len(frames):
+        return (f'the vision node found no valid pose in {len(frames)} frame(s): '
+                f'{invalid[-1].status or "no reason given"}')
+    settled = [f for f in frames if f.valid and f.settled]
+    if not settled:
+        unsettled = [f for f in frames if f.valid]
+        return f'the tip did not settle: {unsettled[-1].status or "still moving"}'
+    last = invalid[-1].status if invalid else ''
+    return (f'only {len(settled)} of the {wanted} valid settled frames needed'
+            + (f' (the others: {last})' if last else ''))
+
+
 class ArmInterface:
     """Joint commands, joint states and tip poses of one node, with bounded waits."""
 
@@ -110,6 +129,7 @@ class ArmInterface:
         self._joints: JointSnapshot | None = None
         self._joints_heard: float | None = None   # [s, monotonic] when the newest was taken
         self._frames: deque[TipPose] = deque(maxlen=frames_kept)
+        self.measurement_problem = ''     # why the last measure() failed ('' if it did not)
         self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
 
     @contextmanager
@@ -252,9 +272,14 @@ class ArmInterface:
         try:
             if not self.wait_until(lambda: len(usable()) >= frames, timeout, abort,
                                    self.arm_time):
+                with self._lock:
+                    self.measurement_problem = measurement_problem(
+                        [f for f in self._frames if Time.from_msg(f.header.stamp) >= since],
+                        frames)
                 return None
             with self._lock:
                 chosen = usable()[:frames]
+                self.measurement_problem = ''
         finally:
             self._node.destroy_subscription(self._tip_input)
             self._tip_input = None

@@ -53,7 +53,12 @@ class Arm(Protocol):
 
     def measure(self, frames: int, timeout: float, abort: Abort = never,
                 ) -> Measurement | None:
-        """``frames`` valid settled tip poses taken after now, averaged; None on timeout."""
+        """``frames`` valid settled tip poses taken after now, averaged; None on timeout,
+        with the reason in :attr:`measurement_problem`."""
+
+    @property
+    def measurement_problem(self) -> str:
+        """Why the last measurement failed, in the sensor's words ('' if it did not)."""
 
     def hold(self) -> np.ndarray | None:
         """Stop where the arm is; the joints it holds."""

@@ -4,10 +4,13 @@
 For every learning pose, in the order given: move there, measure the tip, and build the
 deflection sample from the joints the controller reports and the measured pose
 (:func:`deflection_sample`); a failed move or measurement is retried ``retries`` times, then
-the pose is skipped and counted, never stored. Each sample is handed to ``store`` (the
-dataset writer: on disk before the next move) as soon as it is taken. Cancel ends the loop
-with the arm held and every stored sample kept. A controller that fell silent ends it too:
-no later pose could be reached.
+the pose is skipped and counted, never stored; the warning of a failed measurement gives the
+vision node's reason. Each sample is handed to ``store`` (the dataset writer: on disk before
+the next move) as soon as it is taken. Cancel ends the loop with the arm held and every stored
+sample kept. A controller that fell silent ends it too: no later pose could be reached. So do
+``BLIND_POSES`` poses in a row without a valid measurement: a camera that measures nothing at
+three poses will not at the next ones, and a campaign that skips through all of them would
+only spend its time (the collection fails with the vision node's reason).
 """
 from __future__ import annotations
 
@@ -20,6 +23,8 @@ from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, n
 from flexarm_control.dataset import Sample
 from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.measurement import Measurement
+
+BLIND_POSES = 3     # poses in a row skipped for want of a valid measurement: the camera is blind
 
 
 def deflection_sample(geometry: ArmGeometry, joints: np.ndarray, measurement: Measurement,
@@ -56,11 +61,13 @@ class Collector:
         self.retries = retries
         self.clock = clock        # [s] the node's time, stamped on each sample
         self.warn = warn
+        self.blind = ''           # why the last pose's measurements failed ('' if they did not)
 
     def sample_at(self, joints: np.ndarray, payload: float, abort: Abort = never
                   ) -> Sample | None:
         """Move to ``joints`` and measure; the sample, or None after the retries failed.
         Raises :class:`Canceled`, and :class:`MoveFailed` when the controller is lost."""
+        self.blind = ''
         for attempt in range(1, 2 + self.retries):
             try:
                 self.motion.move_to(joints, abort)
@@ -68,11 +75,14 @@ class Collector:
                 if exc.controller_lost:
                     raise
                 self.warn(f'joints did not arrive (attempt {attempt}): {exc}')
+                self.blind = ''
                 continue
             measurement = self.motion.measure(abort)
             if measurement is None:
-                self.warn(f'no valid settled tip pose (attempt {attempt})')
+                self.blind = self.motion.arm.measurement_problem or 'no reason given'
+                self.warn(f'no valid settled tip pose (attempt {attempt}): {self.blind}')
                 continue
+            self.blind = ''
             reported = self.motion.arm.positions()
             return deflection_sample(self.geometry, reported, measurement, payload,
                                      self.clock())
@@ -85,6 +95,7 @@ class Collector:
         """Take a sample at every pose (module docstring); ``progress(k, counts, sample)``
         after the k-th pose (sample None if it was skipped)."""
         counts = Collected()
+        blind = 0        # poses in a row without a valid measurement
         for k, joints in enumerate(poses, start=1):
             try:
                 sample = self.sample_at(np.asarray(joints, dtype=float), payload, abort)
@@ -96,8 +107,16 @@ class Collector:
                 return counts
             if sample is None:
                 counts.skipped += 1
+                blind = blind + 1 if self.blind else 0
             else:
                 store(sample)
                 counts.collected += 1
+                blind = 0
             progress(k, counts, sample)
+            if blind >= BLIND_POSES:
+                counts.stopped = (
+                    f'no valid tip measurement at {blind} poses in a row, the camera cannot '
+                    f'measure: {self.blind}; see the vision node on /diagnostics (flexarm '
+                    'status), and its calibration (flexarm calibrate)')
+                return counts
         return counts

@@ -133,12 +133,15 @@ def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensa
         except MoveFailed as exc:
             return ended(CONTROLLER_TIMEOUT, str(exc))
         if measurement is None:
+            why = motion.arm.measurement_problem
             if spec.checked:
                 return ended(MEASUREMENT_FAILED, (
                     f'no valid settled tip pose within {motion.settings.measurement_timeout:.0f}'
                     ' s after the move' + ('' if spec.mode == Mode.CLOSED_LOOP
-                                           else ' to check the tolerance')))
-            return ended(SUCCEEDED, 'moved; no valid settled tip measurement')
+                                           else ' to check the tolerance')
+                    + (f': {why}' if why else '')))
+            return ended(SUCCEEDED, 'moved; no valid settled tip measurement'
+                         + (f' ({why})' if why else ''))
         measured = measurement.pose
         observe(motion.arm.positions(), measured)
         progress(MEASURING, move, plan, measured)

@@ -6,7 +6,7 @@ import pytest
 from fake_arm import FakeArm
 
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
-from flexarm_control.collection import Collector
+from flexarm_control.collection import BLIND_POSES, Collector
 from flexarm_control.kinematics import ArmGeometry, inverse
 from flexarm_control.params import load_config
 from flexarm_sim.plant import Plant
@@ -83,3 +83,15 @@ def test_negative_retries_are_refused(world):
     with pytest.raises(ValueError, match='retries'):
         Collector(ArmMotion(FakeArm(plant, START), geometry, settings), geometry, -1,
                   clock=lambda: 0.0)
+
+
+def test_a_blind_camera_ends_the_collection_after_a_few_poses_with_its_reason(world):
+    counts, stored, progress, warnings, arm = collect(
+        world, lambda arm: arm.blind_moves.update(range(1, 100)))
+    assert (counts.collected, counts.skipped) == (0, BLIND_POSES) and not stored
+    assert len(arm.commands) == 3 * BLIND_POSES          # the 4th pose is not visited
+    assert counts.stopped.startswith(f'no valid tip measurement at {BLIND_POSES} poses in a '
+                                     'row, the camera cannot measure: the vision node found '
+                                     'no valid pose in 25 frame(s): fit residual 0.155 mm')
+    assert all(w.endswith('fit residual 0.155 mm RMS too large') for w in warnings), warnings
+    assert len(progress) == BLIND_POSES

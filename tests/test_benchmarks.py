@@ -52,6 +52,8 @@ def _faults_ran(figures: dict[str, Any]) -> None:
 OFFLINE = [
     Smoke('plant', (), ('pose_us', 'batch_10000_ms', 'table10'),
           ('pose_us', 'batch_10000_ms')),
+    Smoke('camera_robustness', ('--poses', '2', '--scales', '1'),
+          ('poses', 'cases', 'worst', 'worst_10x'), ('worst.valid_fraction',)),
     Smoke('vision', ('--count', '10'), ('valid_rate', 'position_error_mean_mm',
                                         'frames_per_second'),
           ('valid_rate', 'position_error_mean_mm', 'frames_per_second')),

@@ -4,9 +4,10 @@ Pipeline: detect holes (sub-pixel centres, sizes) -> undistort to the camera's m
 classify each hole's code symbol by diameter -> find the grid (angle modulo 90 deg, integer
 cell of every hole relative to a reference hole; off-grid blobs are dropped) -> decode: test
 every plate position and quarter-turn of the observed cells against the plate code, demand an
-exact and unambiguous match -> least-squares rigid fit (2-D Kabsch) of the camera's metric
-points to the matched plate holes -> tip pose through the camera-to-tip offset -> residual
-check. Any failure gives ``valid=False`` with a reason, never an exception.
+exact and unambiguous match -> least-squares fit of the camera's metric points to the matched
+plate holes: a rotation, and the scale and radial stretch the camera's calibration may have
+wrong (:meth:`TipPoseEstimator._fit_pose`) -> tip pose through the camera-to-tip offset ->
+residual check. Any failure gives ``valid=False`` with a reason, never an exception.
 """
 from __future__ import annotations
 
@@ -35,6 +36,8 @@ class Estimate:
     holes_used: int
     residual: float       # RMS distance of the matched holes from their fitted plate position [m]
     status: str           # reason when not valid, '' otherwise
+    scale: float = 1.0    # plate seen this much larger than the camera's calibration says
+    radial: float = 0.0   # radial stretch at the holes' RMS radius the calibration does not hold
 
 
 @dataclass(frozen=True)
@@ -42,6 +45,7 @@ class FitSettings:
     min_holes: int                # fewer matched holes: invalid
     max_residual: float           # [m] RMS fit residual above which the pose is invalid
     max_hole_residual: float      # [m] largest single-hole residual allowed
+    max_scale_error: float        # plate scale beyond 1 -/+ this: the camera model is wrong
     grid_tolerance: float         # fraction of the pitch a hole may lie off its grid cell
     min_grid_coherence: float     # agreement of neighbour directions (1 = perfect grid)
     size_tolerance: float         # [m] diameter deviation still assigned to a code symbol
@@ -52,11 +56,13 @@ class FitSettings:
     def from_dict(cls, d: Mapping[str, Any]) -> FitSettings:
         s = cls(min_holes=int(d['min_holes']), max_residual=float(d['max_residual']),
                 max_hole_residual=float(d['max_hole_residual']),
+                max_scale_error=float(d['max_scale_error']),
                 grid_tolerance=float(d['grid_tolerance']),
                 min_grid_coherence=float(d['min_grid_coherence']),
                 size_tolerance=float(d['size_tolerance']),
                 max_code_errors=int(d['max_code_errors']), code_margin=int(d['code_margin']))
-        if (s.min_holes < 3 or min(s.max_residual, s.max_hole_residual, s.size_tolerance) <= 0
+        if (s.min_holes < 3 or min(s.max_residual, s.max_hole_residual, s.size_tolerance,
+                                   s.max_scale_error) <= 0
                 or not 0 < s.grid_tolerance < 0.5 or s.max_code_errors < 0
                 or s.code_margin < 1):
             raise ValueError(f'invalid fit settings {s}')
@@ -194,22 +200,42 @@ class TipPoseEstimator:
         return self.plate.centre(index[:, 0], index[:, 1]), ''
 
     def _fit_pose(self, metric: np.ndarray, plate_points: np.ndarray) -> Estimate:
-        """Rigid fit plate = optical centre + R(phi) metric; tip pose; residual checks."""
-        q = metric - metric.mean(axis=0)
-        p = plate_points - plate_points.mean(axis=0)
-        phi = math.atan2(float(np.sum(q[:, 0] * p[:, 1] - q[:, 1] * p[:, 0])),
-                         float(np.sum(q[:, 0] * p[:, 0] + q[:, 1] * p[:, 1])))
-        turn = rotation(phi)
-        centre = plate_points.mean(axis=0) - turn @ metric.mean(axis=0)
-        errors = np.hypot(*(plate_points - (metric @ turn.T + centre)).T)
+        """Fit plate = c + a (m + k m |m|^2 / r^2) (complex numbers: a turns and scales, k
+        bends radially, r the holes' RMS radius), so a camera whose focal length, stand-off or
+        radial distortion is a little off its calibration still measures; tip pose from c (the
+        optical centre, m = 0) and arg a; residual checks on what that leaves. The radial term
+        is fitted only with more holes than the least that decode, and as a pure radial
+        stretch: a free complex term would trade with the angle (2.5 times its noise)."""
+        m = metric[:, 0] + 1j * metric[:, 1]
+        p = plate_points[:, 0] + 1j * plate_points[:, 1]
+        similar = np.column_stack([np.ones_like(m), m])
+        c, a = np.linalg.lstsq(similar, p, rcond=None)[0]
+        if len(m) > self.fit.min_holes:
+            bend = a * m * np.abs(m) ** 2 / max(float(np.mean(np.abs(m) ** 2)), 1e-12)
+            design = np.vstack([
+                np.column_stack([np.ones(len(m)), np.zeros(len(m)), m.real, -m.imag, bend.real]),
+                np.column_stack([np.zeros(len(m)), np.ones(len(m)), m.imag, m.real, bend.imag])])
+            x = np.linalg.lstsq(design, np.concatenate([p.real, p.imag]), rcond=None)[0]
+            c, a, radial = complex(x[0], x[1]), complex(x[2], x[3]), float(x[4])
+            fitted = c + a * m + radial * bend
+        else:
+            radial, fitted = 0.0, c + a * m
+        n, scale = len(metric), 1.0 / max(abs(a), 1e-12)     # metric points too large: a < 1
+        if abs(scale - 1.0) > self.fit.max_scale_error:
+            return _invalid(f'plate seen {(scale - 1.0) * 100:+.1f} % off the scale of the '
+                            "camera's calibration (its focal length or stand-off is not what "
+                            'camera_info says)', n)
+        phi = float(np.angle(a))
+        centre = np.array([c.real, c.imag])
+        errors = np.abs(p - fitted)
         rms = float(np.sqrt(np.mean(errors ** 2)))
-        n = len(metric)
         if rms > self.fit.max_residual:
             return _invalid(f'fit residual {rms * 1e3:.3f} mm RMS too large', n, rms)
         if errors.max() > self.fit.max_hole_residual:
             return _invalid(f'hole off its fitted position by {errors.max() * 1e3:.3f} mm',
                             n, rms)
-        return Estimate(self.camera.tip_from_camera(centre, phi), True, n, rms, '')
+        return Estimate(self.camera.tip_from_camera(centre, phi), True, n, rms, '',
+                        scale, radial)
 
 
 def _invalid(status: str, holes: int = 0, residual: float = 0.0) -> Estimate:

@@ -79,6 +79,10 @@ DISTORTION_MODELS = ('plumb_bob', '')   # '' with an empty D: an ideal lens
 STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
 HEALTH_WINDOW = 10.0      # [s, wall] images the measurement health looks back on
 MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health warns
+# The fit's plate scale and radial stretch beyond these: the camera differs from its
+# calibration by more than a careful calibration leaves (0.1 % focal length, k1 0.005)
+LENS_SCALE_WARN = 0.002
+LENS_RADIAL_WARN = 0.002
 NEWEST_IMAGE = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
 
 
@@ -128,6 +132,24 @@ def measurement_status(node: str, camera: str, window: WindowSummary, span: floa
                       camera)
     return status(node, 'measurements', OK, f'{rate}, residual median '
                   f'{window.median * 1e3:.4f} mm', values, camera)
+
+
+def lens_status(node: str, camera: str, lens: tuple[float, float] | None) -> Status:
+    """``<node>: camera model``: how the plate looked in the last valid image against the
+    camera's calibration (``lens``: the fit's scale and radial stretch, None before one). WARN
+    beyond ``LENS_SCALE_WARN`` / ``LENS_RADIAL_WARN``: poses are still measured (the fit takes
+    both), but the calibration no longer describes the camera."""
+    if lens is None:
+        return status(node, 'camera model', OK, 'no valid image yet', hardware_id=camera)
+    scale, radial = lens
+    values = {'plate scale': round(scale, 5), 'radial stretch': round(radial, 5)}
+    seen = (f'plate scale {(scale - 1) * 100:+.2f} %, radial stretch {radial * 100:+.2f} % '
+            'against the calibration')
+    if abs(scale - 1) > LENS_SCALE_WARN or abs(radial) > LENS_RADIAL_WARN:
+        return status(node, 'camera model', WARN, f'{seen}: the camera (focal length, '
+                      'stand-off or lens) is not what camera_info says; poses are still '
+                      'measured, calibrate the camera again', values, camera)
+    return status(node, 'camera model', OK, seen, values, camera)
 
 
 def idle_status(node: str, camera: str) -> Status:
@@ -200,6 +222,7 @@ class VisionNode(Node):
         self._info_used = False       # intrinsics from a camera_info (else config/camera.yaml)
         self._recent = RecentWindow(HEALTH_WINDOW)    # fit residuals of the valid images
         self._last_invalid = ''
+        self._lens: tuple[float, float] | None = None   # scale, radial of the last valid fit
         self._camera_id = ''          # the frame id of the camera's images
         # volatile: matches both a latched (simulator) and a per-frame (driver) camera_info
         self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_info, 1)
@@ -256,13 +279,14 @@ class VisionNode(Node):
                                          raw=True)]
 
     def statuses(self) -> list[Status]:
-        """The node's health (module docstring): measurements, camera_info, tool
-        calibration."""
+        """The node's health (module docstring): measurements, camera model, camera_info,
+        tool calibration."""
         name = self.get_name()
         return [measurement_status(name, self._camera_id,
                                    self._recent.summary(time.monotonic()), HEALTH_WINDOW,
                                    self._last_invalid) if self._inputs else
                 idle_status(name, self._camera_id),
+                lens_status(name, self._camera_id, self._lens),
                 camera_info_status(name, self._camera_id, self._estimator.camera.intrinsics,
                                    self._info_used, self._info_problem),
                 calibration_status(name, self._camera_id, self._calibration_file,
@@ -317,6 +341,8 @@ class VisionNode(Node):
         self._recent.add(time.monotonic(), estimate.residual if estimate.valid else None)
         if not estimate.valid:
             self._last_invalid = estimate.status
+        else:
+            self._lens = (estimate.scale, estimate.radial)
         unsettled = self._settle.update_estimate(
             seconds(msg.header.stamp), estimate.pose if estimate.valid else None)
         out = TipPose(valid=estimate.valid, settled=estimate.valid and unsettled is None,

@@ -78,9 +78,35 @@ def test_lens_distortion_is_undone() -> None:
     rng = np.random.default_rng(3)
     pose = np.array([0.9, 0.2, 2.0])
     image = renderer.render(pose, rng=rng)
-    assert_close(estimator.estimate(image), pose)
-    assert not ideal.estimate(image).valid or abs(
-        ideal.estimate(image).pose[0] - pose[0]) > POSITION_TOL   # the model matters
+    modelled, unmodelled = estimator.estimate(image), ideal.estimate(image)
+    assert_close(modelled, pose)
+    assert abs(modelled.radial) < 1e-3 and abs(modelled.scale - 1) < 1e-4
+    # without the model, the fit sees the distortion as a radial stretch and still measures
+    assert unmodelled.radial > 0.005 and unmodelled.residual > modelled.residual
+    assert_close(unmodelled, pose)
+
+
+@pytest.mark.parametrize('focal', [1.015, 0.985])
+def test_a_camera_off_its_focal_length_still_measures_and_says_so(focal) -> None:
+    true = copy.deepcopy(CONFIG)
+    true['camera'].update(fx=CONFIG['camera']['fx'] * focal, fy=CONFIG['camera']['fy'] * focal)
+    renderer, _ = make(true)
+    _, estimator = make(CONFIG)                      # believes the calibrated focal length
+    pose = np.array([1.2, -0.3, -1.1])
+    estimate = estimator.estimate(renderer.render(pose, rng=np.random.default_rng(5)))
+    assert_close(estimate, pose)
+    assert estimate.scale == pytest.approx(focal, abs=1e-4)   # the plate seen larger/smaller
+
+
+def test_a_camera_far_off_its_calibration_is_refused_with_the_reason() -> None:
+    true = copy.deepcopy(CONFIG)
+    true['camera'].update(standoff=CONFIG['camera']['standoff'] / 1.08)   # 8 % closer
+    renderer, _ = make(true)
+    _, estimator = make(CONFIG)
+    estimate = estimator.estimate(renderer.render(np.array([1.2, -0.3, -1.1]),
+                                                  rng=np.random.default_rng(5)))
+    assert not estimate.valid
+    assert estimate.status.startswith('plate seen +8.0 % off the scale of the camera')
 
 
 def test_occluded_holes_and_dirt(pair) -> None:

@@ -20,6 +20,7 @@ from flexarm_vision.vision_node import (
     camera_info_status,
     image_to_array,
     info_intrinsics,
+    lens_status,
     measurement_status,
     without_stamp,
 )
@@ -263,3 +264,13 @@ def test_images_and_joint_states_are_taken_only_while_someone_wants_tip_poses(
     ros_node.destroy_subscription(wanting)
     wait_for(lambda: not taken(topics.CAMERA_IMAGE) and not taken(topics.JOINT_STATES), 10.0,
              'the vision node to drop them')
+
+
+def test_the_camera_model_status_warns_when_the_plate_shows_the_calibration_is_off() -> None:
+    assert lens_status('flexarm_vision', 'cam', None).message == 'no valid image yet'
+    careful = lens_status('flexarm_vision', 'cam', (1.001, -0.0008))
+    assert careful.level == OK and careful.message.startswith('plate scale +0.10 %')
+    refocused = lens_status('flexarm_vision', 'cam', (1.005, 0.0))
+    assert refocused.level == WARN and 'poses are still measured' in refocused.message
+    assert dict(refocused.values) == {'plate scale': '1.005', 'radial stretch': '0'}
+    assert lens_status('flexarm_vision', 'cam', (1.0, -0.004)).level == WARN

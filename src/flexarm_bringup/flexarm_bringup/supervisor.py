@@ -56,6 +56,7 @@ from flexarm_bringup.launcher import (
 )
 from flexarm_control import liveness, topics
 from flexarm_control.atomic_file import atomic_write
+from flexarm_control.goal_owner import full_name
 from flexarm_control.params import load_config
 
 # Wall-clock limits, times the liveness factor (flexarm_control.liveness):
@@ -149,7 +150,7 @@ class Graph:
                 time.sleep(0.1)
         if chosen is None:
             chosen = sim.parameters['clock_source'] = 'follow'
-        owners = sorted(f'{p.node_namespace.rstrip("/")}/{p.node_name}'
+        owners = sorted(full_name(p.node_namespace, p.node_name)
                         for p in probe.get_publishers_info_by_topic(topics.CLOCK))
         self._report(f'clock: flexarm_sim owns the /clock of ROS domain {self.domain_id}'
                      if chosen == 'own' else

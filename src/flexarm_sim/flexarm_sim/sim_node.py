@@ -69,6 +69,7 @@ from std_msgs.msg import Float64, Float64MultiArray, Header
 
 from flexarm_control import liveness, topics
 from flexarm_control.diagnostics import DiagnosticsPublisher
+from flexarm_control.goal_owner import full_name
 from flexarm_control.health_report import OK, CommandLog, Status, status
 from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_control.node_main import run
@@ -297,7 +298,7 @@ class SimNode(Node):
 
     def _other_clocks(self) -> list[str]:
         """The node names of the domain's /clock publishers other than this node."""
-        names = {f'{p.node_namespace.rstrip("/")}/{p.node_name}'
+        names = {full_name(p.node_namespace, p.node_name)
                  for p in self.get_publishers_info_by_topic(topics.CLOCK)}
         return sorted(names - {self._share.name})
 

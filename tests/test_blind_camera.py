@@ -2,17 +2,20 @@
 length 8 % off what its camera_info says, beyond what the vision node's fit takes for a
 calibration a little off): a collection fails after a few poses with the vision node's reason
 instead of skipping through its whole campaign, and a goal that needs a measurement says the
-same reason. One is off by 5 times the realistic world's camera errors: the graph calibrates,
-learns and reaches its goals. Every other error source is off: the camera alone is tested.
+same reason. One is off by 5 times the realistic world's camera errors: the graph calibrates
+the camera from the plate and against the reference, learns and reaches its goals. Every other
+error source is off: the camera alone is tested.
 """
 import math
 
 import pytest
 
 from flexarm_bringup.cli import Exit, main
+from flexarm_control import topics
 from flexarm_control.collection import BLIND_POSES
 from flexarm_control.params import load_config
 from flexarm_msgs.action import CollectSamples, MoveToPose
+from flexarm_msgs.msg import TipPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(60)]
 SOURCES = ('repeatability', 'hysteresis', 'thermal', 'payload')
@@ -22,7 +25,7 @@ QUICK = {'motion': {'measurement_timeout': 5.0}}     # [s, sim time] per measure
 TARGET = (1.30, -0.20, math.radians(-61))            # Table 10, B6
 SAID = 'the vision node found no valid pose in '
 REALISTIC_CAMERA = {name: load_config('sim.yaml', node_name='flexarm_sim')['error_sources'][
-    'camera'][name] for name in ('focal_length', 'principal_point', 'k1', 'mount_yaw')}
+    'camera'][name] for name in ('focal_length', 'principal_point', 'k1', 'k2', 'mount_yaw')}
 
 
 def test_a_blind_camera_ends_a_collection_within_a_few_poses_and_says_why(
@@ -45,23 +48,34 @@ def test_a_blind_camera_ends_a_collection_within_a_few_poses_and_says_why(
     assert 'to check the tolerance: ' + SAID in moved.error_string, moved.error_string
 
 
-def test_a_camera_five_times_off_its_calibration_still_learns_and_reaches_its_goals(
+def test_a_camera_five_times_off_its_calibration_is_calibrated_learns_and_reaches_its_goals(
         launch, ready_client, tmp_path, capsys, domain_id):
-    """Focal length, principal point, k1 and mount yaw 5 times the realistic world's errors:
-    the vision's fit takes scale and radial stretch, the reference calibration the rest."""
+    """Focal length, principal point, k1, k2 and mount yaw 5 times the realistic world's errors:
+    the vision's fit takes scale and radial stretch and says the camera is off;
+    ``calibrate --camera`` measures focal length over stand-off, k1 and k2 from the plate, the
+    reference calibration the rest."""
     camera = {name: [5 * v for v in value] if isinstance(value, list) else 5 * value
               for name, value in REALISTIC_CAMERA.items()}
     launch('flexarm_sim', real_time_factor=10.0, error_sources={
         'enabled': True, **{s: {'enabled': False} for s in SOURCES},
         'camera': {'enabled': True, **camera}})
-    path = tmp_path / 'tool_camera.json'
-    launch('flexarm_vision', tool_calibration_file=str(path))
+    path, lens = tmp_path / 'tool_camera.json', tmp_path / 'camera.json'
+    launch('flexarm_vision', tool_calibration_file=str(path), camera_calibration_file=str(lens))
     launch('flexarm_learner', data_directory=str(tmp_path / 'data'),
            model_directory=str(tmp_path / 'models'))
     launch('flexarm_compensator')
     client = ready_client()
-    assert main(['calibrate', '--file', str(path), '--quiet', '--domain-id',
-                 str(domain_id)]) == Exit.OK, capsys.readouterr().err
+
+    def valid_pose() -> TipPose:
+        return client.messages_from(topics.TIP_POSE, TipPose, 1, 30, lambda m: m.valid)[0]
+    assert 'camera off its calibration (plate scale +0.4' in valid_pose().status
+    assert main(['calibrate', '--camera', '--camera-file', str(lens), '--file', str(path),
+                 '--quiet', '--domain-id', str(domain_id)]) == Exit.OK, capsys.readouterr().err
+    focal, k1, k2 = client.node_parameter('flexarm_vision', 'camera_correction')
+    assert focal == pytest.approx(1 + camera['focal_length'], abs=1e-4)
+    assert (k1, k2) == pytest.approx((camera['k1'], camera['k2']), abs=4e-3)
+    assert lens.is_file() and 'not determined from the plate: ' in capsys.readouterr().out
+    assert 'camera off its calibration' not in valid_pose().status
     collected = client.collect(12, region='B', dataset='seen', timeout=180)
     assert collected.error_code == CollectSamples.Result.SUCCESSFUL, collected.error_string
     assert collected.skipped == 0

@@ -1,6 +1,17 @@
-"""The tool calibration of a running graph (``flexarm calibrate``, and the first step of
-``flexarm demo`` / ``benchmark`` in the realistic world).
+"""The calibrations of a running graph's camera: its own parameters from the plate
+(``flexarm calibrate --camera``) and its error in the tool frame against a reference
+(``flexarm calibrate``, and the first step of ``flexarm demo`` / ``benchmark`` in the realistic
+world).
 
+Camera (:func:`calibrate_lens`): the arm moves RIGID to the six Table 10 poses; at each one a
+camera image (the arm held still) is decoded against the plate through the intrinsics the
+vision node measures with (its ``~/camera_info``), and
+:func:`~flexarm_vision.camera_calibration.calibrate_camera` finds what the plate can tell of
+what is left (focal length over stand-off, k1, k2). The node's correction plus that is stored
+atomically and set on the running vision node (``camera_correction``), which measures through
+it from then on. A tool calibration must follow: the camera's measured poses moved.
+
+Tool:
 The arm moves RIGID to the six Table 10 poses; at each one the vision node's measured pose
 (averaged, settled) is paired with the mean of 3 poses of the reference instrument (a
 ``flexarm_msgs/TipPose`` topic: a laser tracker at the tool point on a real site, the
@@ -19,18 +30,32 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
+from sensor_msgs.msg import CameraInfo, Image
 
 from flexarm_bringup.trials import trial_name
+from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control.paper import TABLE_10
+from flexarm_control.params import load_config
 from flexarm_control.tool_calibration import (
     ReferenceCalibration,
     ToolCorrection,
     calibrate_against_reference,
     write_calibration,
 )
+from flexarm_vision.camera_calibration import (
+    CameraCalibration,
+    CameraCorrection,
+    calibrate_camera,
+    write_camera_calibration,
+)
+from flexarm_vision.camera_model import Intrinsics
+from flexarm_vision.image_encoding import image_to_array
+from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
 
 VISION_NODE = 'flexarm_vision'
+LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
 def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
@@ -70,4 +95,57 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
                'spread': list(found.spread), 'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
     write_calibration(path, correction, **details)
     client.set_node_parameter(VISION_NODE, 'tool_correction', correction.as_list())
+    return correction, found, details
+
+
+def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
+                   say: Callable[[str], None] = print,
+                   ) -> tuple[CameraCorrection, CameraCalibration, dict[str, Any]]:
+    """Calibrate the camera from the plate (module docstring); the new correction, what was
+    found and the details stored with it at ``path``. ValueError with the reason if the images
+    cannot tell it."""
+    say('calibrating the camera from the plate: the arm moves RIGID (uncompensated) to the '
+        f'{len(TABLE_10)} Table 10 poses, one image at each')
+    images, problems = [], []
+    for n, target in enumerate(TABLE_10, 1):
+        result = client.move_to(*target.pose, mode='rigid', timeout=timeout,
+                                trial=trial_name('calibration', target.name, 'camera'))
+        if result.error_code != 0:
+            problems.append(result.error_string)
+            say(f'camera pose {n}/{len(TABLE_10)}: the move failed ({result.error_string})')
+            continue
+        image = client.messages_from(topics.CAMERA_IMAGE, Image, 1, timeout,
+                                     qos=qos_profile_sensor_data, what='images')[0]
+        images.append((image, target.pose[2]))
+    # what the vision node measures through: the camera's camera_info and its correction
+    current = CameraCorrection.from_list(client.node_parameter(VISION_NODE,
+                                                               'camera_correction'))
+    info = client.messages_from(f'{VISION_NODE}/camera_info', CameraInfo, 1, timeout,
+                                qos=LATCHED, what='camera_info messages')[0]
+    estimator = TipPoseEstimator.from_dict({
+        **load_config('camera.yaml'), **load_config('vision.yaml', node_name=VISION_NODE)})
+    estimator = estimator.with_camera(estimator.camera.with_intrinsics(
+        Intrinsics.from_k_d(info.width, info.height, list(info.k), list(info.d))))
+    views, angles = [], []
+    for image, angle in images:
+        pixels, reason = image_to_array(image)
+        matched = estimator.match(pixels) if pixels is not None else Estimate(
+            None, False, 0, 0.0, reason)
+        if isinstance(matched, Estimate):
+            problems.append(f'the image did not decode: {matched.status}')
+        else:
+            views.append(matched)
+            angles.append(angle)
+    try:
+        found = calibrate_camera(estimator.camera, views, angles)
+    except ValueError as exc:
+        last = f'; the last pose without one: {problems[-1]}' if problems else ''
+        raise ValueError(f'{exc}{last}') from None
+    correction = current + found.correction
+    details = {'views': found.views, 'holes': found.holes,
+               'rms_before_px': found.rms_before_px, 'rms_after_px': found.rms_after_px,
+               'determined': found.determined, 'not_determined': found.not_determined,
+               'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
+    write_camera_calibration(path, correction, **details)
+    client.set_node_parameter(VISION_NODE, 'camera_correction', correction.as_list())
     return correction, found, details

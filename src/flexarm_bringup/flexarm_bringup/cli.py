@@ -960,20 +960,33 @@ def _model_use(args: argparse.Namespace) -> dict[str, Any]:
 
 @command
 def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
-    """Measure the camera's error in the tool frame against a reference; correct for it."""
-    from flexarm_bringup.calibration import calibrate_tool
+    """Measure the camera's error in the tool frame against a reference; correct for it. With
+    --camera, first the camera's own parameters that the plate shows."""
+    from flexarm_bringup.calibration import calibrate_lens, calibrate_tool
     from flexarm_control.paths import CALIBRATION_DIR
 
-    path = Path(args.file) if args.file else CALIBRATION_DIR / args.namespace / 'tool_camera.json'
+    folder = CALIBRATION_DIR / args.namespace
+    path = Path(args.file) if args.file else folder / 'tool_camera.json'
     say = _progress_lines(args)
+    out: dict[str, Any] = {'ok': True}
     with _session(args, learner=False) as client:
+        if args.camera:
+            camera_path = Path(args.camera_file) if args.camera_file else folder / 'camera.json'
+            change, lens, lens_details = calibrate_lens(client, camera_path, args.timeout, say)
+            print(f'camera: {change.describe()} (from {lens.views} images, '
+                  f'{lens.holes} holes; reprojection {lens.rms_before_px:.3f} px -> '
+                  f'{lens.rms_after_px:.3f} px); stored in {camera_path}, the vision node '
+                  f'measures through it from now on.\n  determined: {lens.determined}\n  not '
+                  f'determined from the plate: {lens.not_determined}', flush=True)
+            out.update(camera_correction=change.as_list(), camera_path=str(camera_path),
+                       camera=lens_details)
         c, found, details = calibrate_tool(client, args.reference_topic, path, args.timeout,
                                            say)
     print(f'camera error in the tool frame: axial {mm(c.axial):.4f} mm, lateral '
           f'{mm(c.lateral):.4f} mm, angle {deg(c.angle):.5f} deg ({found.poses} poses; largest '
           f'deviation of one pose {mm(found.spread[0]):.4f} mm, {deg(found.spread[1]):.5f} '
           f'deg); stored in {path}, the vision node corrects for it from now on')
-    return {'ok': True, 'tool_correction': c.as_list(), 'path': str(path), **details}
+    return {**out, 'tool_correction': c.as_list(), 'path': str(path), **details}
 
 
 @command
@@ -1080,6 +1093,13 @@ def _calibrate_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--file', default='', metavar='PATH',
                    help="where to store it (default: calibration/tool_camera.json, the vision "
                         "node's tool_calibration_file)")
+    p.add_argument('--camera', action='store_true',
+                   help="first calibrate the camera's own parameters from the plate (focal "
+                        'length over stand-off, radial distortion k1, k2) at the same poses: '
+                        'for a camera refocused, remounted or off its camera_info')
+    p.add_argument('--camera-file', default='', metavar='PATH',
+                   help="where to store the camera's (default: calibration/camera.json, the "
+                        "vision node's camera_calibration_file)")
 
 
 def _move_arguments(p: argparse.ArgumentParser) -> None:

@@ -98,7 +98,8 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
                             'model_directory': str(run_dir / 'models')},
         'flexarm_recorder': {'bag_name': settings.name},
         # the run's own tool calibration (below), never the site's calibration/ file
-        'flexarm_vision': {'tool_calibration_file': str(run_dir / 'tool_camera.json')},
+        'flexarm_vision': {'tool_calibration_file': str(run_dir / 'tool_camera.json'),
+                           'camera_calibration_file': str(run_dir / 'camera.json')},
         **settings.extra_parameters}
     optional = ('flexarm_recorder',) if settings.record else ()
     region_names = ['A', 'B'] + (['paper'] if settings.table9 else [])

@@ -66,7 +66,8 @@ RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, 
 LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock per graph
 # Per-arm folders (node, parameter) and the config file that names them.
 ARM_FOLDERS = (('flexarm_learner', 'data_directory'), ('flexarm_learner', 'model_directory'),
-               ('flexarm_vision', 'tool_calibration_file'))
+               ('flexarm_vision', 'tool_calibration_file'),
+               ('flexarm_vision', 'camera_calibration_file'))
 CONFIG_FILES = {'flexarm_learner': 'learner.yaml', 'flexarm_vision': 'vision.yaml'}
 # What "ready" means: (kind, name) pairs that must be discovered in the graph.
 READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)

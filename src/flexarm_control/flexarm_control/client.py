@@ -281,18 +281,28 @@ class FlexarmClient(Node):
     def poses_from(self, topic: str, count: int, timeout: float = 10.0) -> np.ndarray:
         """``count`` valid ``flexarm_msgs/TipPose`` poses (count, 3) published on ``topic``
         after this call (e.g. a reference instrument's); TimeoutError if they do not come."""
-        heard: list[TipPose] = []
-        subscription = self.create_subscription(TipPose, topic, heard.append, 100)
+        heard = self.messages_from(topic, TipPose, count, timeout, lambda m: m.valid,
+                                   what='valid poses')
+        return np.array([[m.pose.x, m.pose.y, m.pose.phi] for m in heard])
+
+    def messages_from(self, topic: str, msg_type: type, count: int, timeout: float = 10.0,
+                      accept: Callable[[Any], bool] = lambda _: True, qos: Any = 100,
+                      what: str = 'messages') -> list[Any]:
+        """The first ``count`` messages on ``topic`` after this call that ``accept`` takes;
+        TimeoutError naming ``what`` if they do not come within ``timeout`` seconds."""
+        heard: list[Any] = []
+        subscription = self.create_subscription(
+            msg_type, topic, lambda m: heard.append(m) if accept(m) else None, qos)
         try:
             deadline = time.monotonic() + timeout
-            while sum(m.valid for m in heard) < count:
+            while len(heard) < count:
                 if time.monotonic() > deadline:
-                    raise TimeoutError(f'{count} valid poses on {topic} did not come within '
+                    raise TimeoutError(f'{count} {what} on {topic} did not come within '
                                        f'{timeout:.0f} s')
                 self.spin_once(0.05)
         finally:
             self.destroy_subscription(subscription)
-        return np.array([[m.pose.x, m.pose.y, m.pose.phi] for m in heard if m.valid][:count])
+        return heard[:count]
 
     def node_parameter(self, node: str, name: str, timeout: float = 10.0) -> Any:
         """The value of parameter ``name`` of the graph's node ``node``."""

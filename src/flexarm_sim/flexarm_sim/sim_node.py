@@ -80,6 +80,7 @@ from flexarm_sim.dynamics import ArmDynamics, ArmState
 from flexarm_sim.errors import ArmErrors, active
 from flexarm_sim.plant import Plant
 from flexarm_sim.true_camera import true_renderer
+from flexarm_vision.camera_info import camera_info
 from flexarm_vision.camera_model import CameraModel
 
 FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
@@ -383,13 +384,7 @@ class SimNode(Node):
 
     def _make_camera_info(self) -> CameraInfo:
         """The camera's calibration (config/camera.yaml), not its true intrinsics."""
-        intr = self._calibration
-        return CameraInfo(
-            header=self._header(self._now(), CAMERA_FRAME), width=intr.width,
-            height=intr.height, distortion_model='plumb_bob', d=list(intr.distortion),
-            k=[intr.fx, 0.0, intr.cx, 0.0, intr.fy, intr.cy, 0.0, 0.0, 1.0],
-            r=[1.0, 0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 1.0],
-            p=[intr.fx, 0.0, intr.cx, 0.0, 0.0, intr.fy, intr.cy, 0.0, 0.0, 0.0, 1.0, 0.0])
+        return camera_info(self._calibration, self._header(self._now(), CAMERA_FRAME))
 
     def _now(self) -> TimeMsg:
         sec, nanosec = tick_time(self._tick, self._js_rate)

@@ -2,11 +2,11 @@
 ``error_sources.camera``; issue 17).
 
 The renderer draws what the real camera sees: its own focal length, principal point and radial
-distortion k1, its own mounting on the tip (offset, and a yaw about its optical axis) and the
-plate as manufactured, every hole a fixed random error off its nominal centre. The vision node
-and the simulator's camera_info keep the calibration of config/camera.yaml. Every error is true
-minus believed. A constant error of the camera in the tool frame is a floor for every mode: the
-learner learns the camera's pose, not the tool's.
+distortion (k1, k2), its own mounting on the tip (offset, and a yaw about its optical axis) and
+the plate as manufactured, every hole a fixed random error off its nominal centre. The vision
+node and the simulator's camera_info keep the calibration of config/camera.yaml. Every error is
+true minus believed. A constant error of the camera in the tool frame is a floor for every mode:
+the learner learns the camera's pose, not the tool's.
 """
 from __future__ import annotations
 
@@ -29,7 +29,8 @@ HOLE_STREAM = 1           # generator of the hole errors among the error_sources
 class CameraErrors:
     focal_length: float                   # relative error of fx and fy
     principal_point: tuple[float, float]  # [px] of cx, cy
-    k1: float                             # of the radial distortion
+    k1: float                             # of the radial distortion's r^2 term
+    k2: float                             # ... and its r^4 term
     mount_yaw: float                      # [rad] about the optical axis
     mount_offset: tuple[float, float]     # [m] of the offset, tip frame
     hole_sigma: float                     # [m] per hole and axis
@@ -41,7 +42,8 @@ class CameraErrors:
             return None
         c = d['camera']
         errors = cls(float(c['focal_length']), _pair(c['principal_point']), float(c['k1']),
-                     float(c['mount_yaw']), _pair(c['mount_offset']), float(c['hole_sigma']))
+                     float(c['k2']), float(c['mount_yaw']), _pair(c['mount_offset']),
+                     float(c['hole_sigma']))
         if errors.focal_length <= -1 or errors.hole_sigma < 0:
             raise ValueError('error_sources.camera: focal_length > -1 and hole_sigma >= 0')
         return errors
@@ -71,9 +73,10 @@ def true_renderer(camera_config: Mapping[str, Mapping[str, Any]],
     believed = CameraModel.from_dict(camera_config['camera'])
     i = believed.intrinsics
     scale = 1.0 + errors.focal_length
-    (dcx, dcy), (k1, *rest) = errors.principal_point, i.distortion
+    (dcx, dcy), (k1, k2, *rest) = errors.principal_point, i.distortion
     intrinsics = dataclasses.replace(i, fx=i.fx * scale, fy=i.fy * scale, cx=i.cx + dcx,
-                                     cy=i.cy + dcy, distortion=(k1 + errors.k1, *rest))
+                                     cy=i.cy + dcy,
+                                     distortion=(k1 + errors.k1, k2 + errors.k2, *rest))
     camera = CameraModel(intrinsics, believed.standoff, believed.offset + errors.mount_offset)
     holes = seeded(error_sources, HOLE_STREAM).normal(0.0, errors.hole_sigma, (*plate.shape, 2))
     return CameraRenderer(ManufacturedPlate(plate, holes), camera,

@@ -19,7 +19,8 @@ ESTIMATOR = TipPoseEstimator.from_dict(CAMERA)
 RNG = np.random.default_rng(8)
 POSES = [np.array([RNG.uniform(0.4, 1.8), RNG.uniform(-0.9, 0.7), RNG.uniform(-np.pi, np.pi)])
          for _ in range(6)]
-NONE = {'focal_length': 0.0, 'principal_point': [0.0, 0.0], 'k1': 0.0, 'mount_yaw': 0.0,
+NONE = {'focal_length': 0.0, 'principal_point': [0.0, 0.0], 'k1': 0.0, 'k2': 0.0,
+        'mount_yaw': 0.0,
         'mount_offset': [0.0, 0.0], 'hole_sigma': 0.0}
 
 
@@ -103,10 +104,10 @@ def test_the_true_camera_is_off_by_the_expected_amount():
     geometry predicts, some 0.16 mm and 0.02 deg off the truth."""
     renderer = true_renderer(CAMERA, camera_sources())
     i = renderer.intrinsics
-    assert (i.fx, i.cx, i.cy, i.k1) == pytest.approx(
+    assert (i.fx, i.cx, i.cy, i.k1, i.distortion[1]) == pytest.approx(
         (BELIEVED.intrinsics.fx * (1 + ERRORS['focal_length']),
          BELIEVED.intrinsics.cx + ERRORS['principal_point'][0],
-         BELIEVED.intrinsics.cy + ERRORS['principal_point'][1], ERRORS['k1']))
+         BELIEVED.intrinsics.cy + ERRORS['principal_point'][1], ERRORS['k1'], ERRORS['k2']))
     for pose in POSES:
         estimate = ESTIMATOR.estimate(renderer.render(pose))
         assert estimate.valid, estimate.status

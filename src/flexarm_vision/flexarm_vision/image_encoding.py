@@ -7,6 +7,8 @@ scale (value / 257), so a sensor's saturation stays 255.
 """
 from __future__ import annotations
 
+from typing import Any
+
 import cv2
 import numpy as np
 
@@ -46,3 +48,10 @@ def to_mono8(pixels: np.ndarray, encoding: str) -> np.ndarray:
     if encoding in _TO_GREY:
         return cv2.cvtColor(np.ascontiguousarray(pixels), _TO_GREY[encoding])
     return pixels
+
+
+def image_to_array(msg: Any) -> tuple[np.ndarray | None, str]:
+    """A sensor_msgs/Image -> (height, width) uint8 grey array, or None and the reason."""
+    pixels, reason = unpack(bytes(msg.data), msg.encoding, msg.width, msg.height, msg.step,
+                            bool(msg.is_bigendian))
+    return (None, reason) if pixels is None else (to_mono8(pixels, msg.encoding), '')

@@ -97,6 +97,17 @@ class TipPoseEstimator:
 
     def estimate(self, image: Any) -> Estimate:
         """Tip pose from a mono8 image of the configured size; invalid with a reason if not."""
+        matched = self.match(image)
+        if isinstance(matched, Estimate):
+            return matched
+        pixels, plate_points = matched
+        return self._fit_pose(self.camera.pixels_to_metric(pixels), plate_points)
+
+    def match(self, image: Any) -> tuple[np.ndarray, np.ndarray] | Estimate:
+        """The decoded holes of an image: their centres (n, 2) [px] and the plate centres
+        (n, 2) [m] they are; an invalid :class:`Estimate` with the reason if the image does
+        not decode. What a camera calibration from the plate takes
+        (:mod:`flexarm_vision.camera_calibration`)."""
         i = self.camera.intrinsics
         if not isinstance(image, np.ndarray) or image.dtype != np.uint8 or image.ndim != 2:
             kind = (f'{image.dtype} array of shape {image.shape}'
@@ -108,25 +119,28 @@ class TipPoseEstimator:
         detection = self.detector.detect(image)
         if detection.status:
             return _invalid(detection.status)
-        metric = self.camera.pixels_to_metric(detection.centres)
+        pixels = detection.centres
+        metric = self.camera.pixels_to_metric(pixels)
         diameters = (detection.diameters * self.camera.scale
                      / self.camera.magnification(metric))
         symbols = self._classify(diameters)
-        metric, symbols = metric[symbols != OFF_PLATE], symbols[symbols != OFF_PLATE]
+        kept = symbols != OFF_PLATE
+        pixels, metric, symbols = pixels[kept], metric[kept], symbols[kept]
         if len(metric) < self.fit.min_holes:
             return _invalid(f'too few holes: {len(metric)} < {self.fit.min_holes}', len(metric))
         cells, reason = self._grid_cells(metric)
         if cells is None:
             return _invalid(reason, len(metric))
         inliers = cells[:, 0] != np.iinfo(np.int64).min
-        metric, symbols, cells = metric[inliers], symbols[inliers], cells[inliers]
+        pixels, metric, symbols, cells = (pixels[inliers], metric[inliers], symbols[inliers],
+                                          cells[inliers])
         if len(metric) < self.fit.min_holes:
             return _invalid(f'too few holes on the grid: {len(metric)} < {self.fit.min_holes}',
                             len(metric))
         plate_points, reason = self._decode(cells, symbols)
         if plate_points is None:
             return _invalid(reason, len(metric))
-        return self._fit_pose(metric, plate_points)
+        return np.asarray(pixels, dtype=float), plate_points
 
     def _classify(self, diameters: np.ndarray) -> np.ndarray:
         """Code symbol per hole; UNKNOWN between two diameters, OFF_PLATE if no hole size."""

@@ -19,26 +19,33 @@ Intrinsics: the camera's calibration as its driver publishes it wins. config/cam
 the mounting (standoff, offset) and the intrinsics used until the first camera_info; a
 camera_info with other values (K, plumb_bob D up to k3, size) replaces them, with one log line
 per change. A camera_info the model cannot use (another distortion model, skew) makes every
-image invalid, with the reason, until a usable one comes.
+image invalid, with the reason, until a usable one comes. The camera correction
+``camera_correction`` [focal scale, k1, k2]
+(:class:`~flexarm_vision.camera_calibration.CameraCorrection`, measured from the plate by
+``flexarm calibrate --camera`` and kept in ``camera_calibration_file``) changes those
+intrinsics; the ones in use are published latched on ``~/camera_info``. A valid pose's
+``status`` warns when the plate no longer looks as the calibration says (:func:`lens_warning`).
 
 Tool calibration: the reported pose is the tool's, through ``tool_correction`` [axial m,
 lateral m, angle rad] (:class:`~flexarm_control.tool_calibration.ToolCorrection`: the camera's
-error in the tool frame, measured against a reference by ``flexarm calibrate``). Its value
-comes from the site's calibration file (``tool_calibration_file``, written by ``flexarm
-calibrate``) when there is one, else zeros; ``flexarm calibrate`` also sets the parameter on
-the running node. A damaged file is reported, in the log and as an ERROR on ``/diagnostics``
-(which ``flexarm status`` and ``flexarm up`` show: a log line alone went unseen while every pose
-was off by the camera's error), and the node runs uncorrected.
+error in the tool frame, measured against a reference by ``flexarm calibrate``). Each
+correction's value comes from the site's calibration file (``tool_calibration_file``,
+``camera_calibration_file``, written by ``flexarm calibrate``) when there is one, else the
+neutral one; ``flexarm calibrate`` also sets the parameter on the running node
+(:class:`~flexarm_vision.stored_correction.StoredCorrection`). A damaged file is reported, in
+the log and as an ERROR on ``/diagnostics`` (which ``flexarm status`` and ``flexarm up`` show: a
+log line alone went unseen while every pose was off by the camera's error), and the node runs
+without that correction.
 
 Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
 :func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
-nobody asks for tip poses), :func:`camera_info_status` and :func:`calibration_status`.
+nobody asks for tip poses), :func:`lens_status`, :func:`camera_info_status` and
+:func:`calibration_status` (tool and camera).
 """
 from __future__ import annotations
 
 import math
 import time
-from collections.abc import Mapping
 from typing import Any
 
 import numpy as np
@@ -46,10 +53,11 @@ from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.parameter import Parameter
-from rclpy.qos import QoSProfile, ReliabilityPolicy
+from rclpy.qos import DurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from sensor_msgs.msg import CameraInfo, Image, JointState
+from std_msgs.msg import Header
 
 from flexarm_control import topics
 from flexarm_control.demand import Demand, on_matched
@@ -69,13 +77,15 @@ from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.paths import repo_path
 from flexarm_control.tool_calibration import ToolCorrection, read_calibration
 from flexarm_msgs.msg import PlanarPose, TipPose
+from flexarm_vision.camera_calibration import CameraCorrection, read_camera_calibration
+from flexarm_vision.camera_info import camera_info, info_intrinsics
 from flexarm_vision.camera_model import Intrinsics
-from flexarm_vision.image_encoding import to_mono8, unpack
+from flexarm_vision.image_encoding import image_to_array
 from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
 from flexarm_vision.settling import SettleDetector, SettleSettings
+from flexarm_vision.stored_correction import StoredCorrection
 
 BASE_FRAME = 'base_link'
-DISTORTION_MODELS = ('plumb_bob', '')   # '' with an empty D: an ideal lens
 STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
 HEALTH_WINDOW = 10.0      # [s, wall] images the measurement health looks back on
 MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health warns
@@ -84,25 +94,9 @@ MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health
 LENS_SCALE_WARN = 0.002
 LENS_RADIAL_WARN = 0.002
 NEWEST_IMAGE = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)
-
-
-def image_to_array(msg: Image) -> tuple[np.ndarray | None, str]:
-    """Image -> (height, width) uint8 grey array, or None and the reason."""
-    pixels, reason = unpack(bytes(msg.data), msg.encoding, msg.width, msg.height, msg.step,
-                            bool(msg.is_bigendian))
-    return (None, reason) if pixels is None else (to_mono8(pixels, msg.encoding), '')
-
-
-def info_intrinsics(info: CameraInfo) -> tuple[Intrinsics | None, str]:
-    """The intrinsics a camera_info publishes, or None and why they cannot be used."""
-    if info.distortion_model not in DISTORTION_MODELS or (
-            not info.distortion_model and len(info.d)):
-        return None, (f'camera_info distortion model {info.distortion_model!r} is not '
-                      'supported (plumb_bob only)')
-    try:
-        return Intrinsics.from_k_d(info.width, info.height, list(info.k), list(info.d)), ''
-    except ValueError as exc:
-        return None, f'camera_info not usable: {exc}'
+CALIBRATE = {'tool': 'flexarm calibrate', 'camera': 'flexarm calibrate --camera'}
+UNCALIBRATED = {'tool': "poses carry the camera's own error in the tool frame",
+                'camera': 'the camera_info intrinsics are used as they are'}
 
 
 def seconds(stamp) -> float:
@@ -134,6 +128,16 @@ def measurement_status(node: str, camera: str, window: WindowSummary, span: floa
                   f'{window.median * 1e3:.4f} mm', values, camera)
 
 
+def lens_warning(lens: tuple[float, float] | None) -> str:
+    """What a valid pose's ``status`` says of the camera: '' while the plate looks as the
+    calibration says (``lens``: the fit's scale and radial stretch), else how far it is off."""
+    if lens is None or (abs(lens[0] - 1) <= LENS_SCALE_WARN
+                        and abs(lens[1]) <= LENS_RADIAL_WARN):
+        return ''
+    return (f'camera off its calibration (plate scale {(lens[0] - 1) * 100:+.2f} %, radial '
+            f'stretch {lens[1] * 100:+.2f} %): run flexarm calibrate --camera')
+
+
 def lens_status(node: str, camera: str, lens: tuple[float, float] | None) -> Status:
     """``<node>: camera model``: how the plate looked in the last valid image against the
     camera's calibration (``lens``: the fit's scale and radial stretch, None before one). WARN
@@ -148,7 +152,7 @@ def lens_status(node: str, camera: str, lens: tuple[float, float] | None) -> Sta
     if abs(scale - 1) > LENS_SCALE_WARN or abs(radial) > LENS_RADIAL_WARN:
         return status(node, 'camera model', WARN, f'{seen}: the camera (focal length, '
                       'stand-off or lens) is not what camera_info says; poses are still '
-                      'measured, calibrate the camera again', values, camera)
+                      'measured; run flexarm calibrate --camera', values, camera)
     return status(node, 'camera model', OK, seen, values, camera)
 
 
@@ -158,32 +162,32 @@ def idle_status(node: str, camera: str) -> Status:
                   hardware_id=camera)
 
 
-def calibration_status(node: str, camera: str, path: str, problem: str, in_use: str,
-                       record: Mapping[str, Any] | None = None) -> Status:
-    """``<node>: tool calibration``: ERROR while the calibration file ``path`` is damaged
-    (``problem``: it names the file and the reason), OK otherwise; ``in_use`` says where the
-    correction in use came from ('none', 'parameter' or the file), ``record`` what the file
-    says of its making (:func:`~flexarm_control.tool_calibration.write_calibration`). The
-    message says plainly whether the camera is calibrated: ``up`` and ``status`` show it."""
-    values = {'file': path, 'correction from': in_use, 'problem': problem}
+def calibration_status(node: str, camera: str, stored: StoredCorrection,
+                       what: str = 'tool') -> Status:
+    """``<node>: <what> calibration``: ERROR while its file is damaged (the problem names the
+    file and the reason), OK otherwise, saying plainly whether the camera is calibrated
+    (``up`` and ``status`` show it) and where the correction in use came from (none, the
+    parameter, or the file, with what the file says of its making)."""
+    path, problem, source = stored.path, stored.problem, stored.source
+    name, command = f'{what} calibration', CALIBRATE[what]
+    values = {'file': path, 'correction from': source, 'correction': str(stored.value.as_list()),
+              'problem': problem}
     if problem:
-        return status(node, 'tool calibration', ERROR, f'{problem}; poses are reported '
-                      f'{"uncorrected" if in_use == "none" else f"with the {in_use} correction"}',
+        return status(node, name, ERROR, f'{problem}; poses are measured '
+                      f'{"without it" if source == "none" else f"with the {source} correction"}',
                       values, camera)
-    if in_use == 'none':
-        return status(node, 'tool calibration', OK, f'NOT calibrated (no {path}): poses carry '
-                      "the camera's own error in the tool frame; run flexarm calibrate",
-                      values, camera)
-    if in_use == 'parameter':
-        return status(node, 'tool calibration', OK, 'calibrated by its tool_correction '
-                      f'parameter, which {path} does not hold: a restart of the node loses it '
-                      '(flexarm calibrate writes the file the node reads)', values, camera)
-    made = record or {}
+    if source == 'none':
+        return status(node, name, OK, f'NOT calibrated (no {path}): {UNCALIBRATED[what]}; '
+                      f'run {command}', values, camera)
+    if source == 'parameter':
+        return status(node, name, OK, f'calibrated by its {what}_correction parameter, which '
+                      f'{path} does not hold: a restart of the node loses it ({command} writes '
+                      'the file the node reads)', values, camera)
+    made = stored.record or {}
     when = made.get('stamp', 'at an unknown time')
     against = f" against {made['reference']}" if made.get('reference') else ''
     poses = f" from {made['poses']} poses" if made.get('poses') else ''
-    return status(node, 'tool calibration', OK,
-                  f'calibrated {when}{against}{poses}: {path}', values, camera)
+    return status(node, name, OK, f'calibrated {when}{against}{poses}: {path}', values, camera)
 
 
 def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info: bool,
@@ -212,18 +216,30 @@ class VisionNode(Node):
         self._estimator = TipPoseEstimator.from_dict(trees)
         self._settle = SettleDetector(SettleSettings.from_dict(
             declare_tree(self, 'settle', 'config/vision.yaml')))
-        self._configured = self._estimator.camera.intrinsics
-        self._correction = ToolCorrection.from_list(declare(
-            self, 'tool_correction', self._stored_correction().as_list(),
+        self._base = self._configured = self._estimator.camera.intrinsics
+        self._camera_id = ''          # the frame id of the camera's images
+        self._tool = self._stored('tool', 'calibration/tool_camera.json', read_calibration,
+                                  ToolCorrection())
+        self._tool.value = ToolCorrection.from_list(declare(
+            self, 'tool_correction', self._tool.value.as_list(),
             "[m, m, rad] the camera's error in the tool frame (axial, lateral, angle), removed "
             'from every pose; default: tool_calibration_file'))
+        self._lens_fix = self._stored('camera', 'calibration/camera.json',
+                                      read_camera_calibration, CameraCorrection())
+        self._lens_fix.value = CameraCorrection.from_list(declare(
+            self, 'camera_correction', self._lens_fix.value.as_list(),
+            '[focal scale, k1, k2] the change of the camera_info intrinsics flexarm calibrate '
+            '--camera measured: fx, fy times the scale, k1 and k2 plus theirs; default: '
+            'camera_calibration_file'))
+        latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._info_pub = self.create_publisher(CameraInfo, '~/camera_info', latched)
+        self._use_intrinsics(self._base)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self._info_problem = ''
         self._info_used = False       # intrinsics from a camera_info (else config/camera.yaml)
         self._recent = RecentWindow(HEALTH_WINDOW)    # fit residuals of the valid images
         self._last_invalid = ''
         self._lens: tuple[float, float] | None = None   # scale, radial of the last valid fit
-        self._camera_id = ''          # the frame id of the camera's images
         # volatile: matches both a latched (simulator) and a per-frame (driver) camera_info
         self.create_subscription(CameraInfo, topics.CAMERA_INFO, self._on_info, 1)
         self._last_joints = b''
@@ -235,31 +251,27 @@ class VisionNode(Node):
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
                                f'a {self._estimator.plate.shape} hole plate')
 
-    def _stored_correction(self) -> ToolCorrection:
-        """The correction of the site's calibration file, zeros without a usable one."""
-        self._calibration_file = str(repo_path(declare(
-            self, 'tool_calibration_file', 'calibration/tool_camera.json',
-            'tool calibration written by flexarm calibrate (relative: to the repository)')))
-        record = self._calibration_record = self._read_calibration()
-        self._correction_from = 'none' if record is None else self._calibration_file
-        if self._calibration_problem:
-            self.get_logger().error(f'{self._calibration_problem}; poses are reported '
-                                    'uncorrected')
-        if record is None:
-            return ToolCorrection()
-        self.get_logger().info(f'tool calibration from {self._calibration_file}: '
-                               f'{record["correction"]}')
-        return record['correction']
+    def _stored(self, what: str, default_file: str, read: Any, neutral: Any
+                ) -> StoredCorrection:
+        """The ``<what>_calibration_file`` parameter's correction (module docstring)."""
+        path = str(repo_path(declare(
+            self, f'{what}_calibration_file', default_file, f'{what} calibration written by '
+            'flexarm calibrate (relative: to the repository)')))
+        stored = StoredCorrection(path, read, neutral)
+        if stored.problem:
+            self.get_logger().error(f'{stored.problem}; poses are reported without it')
+        elif stored.record is not None:
+            self.get_logger().info(f'{what} calibration from {path}: {stored.value}')
+        return stored
 
-    def _read_calibration(self) -> dict | None:
-        """The calibration file's record (None: none, or damaged: ``_calibration_problem``
-        says why)."""
-        self._calibration_problem = ''
-        try:
-            return read_calibration(self._calibration_file)
-        except (ValueError, OSError) as exc:
-            self._calibration_problem = str(exc)
-            return None
+    def _use_intrinsics(self, base: Intrinsics) -> None:
+        """Estimate through ``base`` (camera_info's, or config/camera.yaml's) as the camera
+        correction changes it; publish what is in use on ``~/camera_info``."""
+        self._base = base
+        intrinsics = self._lens_fix.value.apply(base)
+        self._estimator = self._estimator.with_camera(
+            self._estimator.camera.with_intrinsics(intrinsics))
+        self._info_pub.publish(camera_info(intrinsics, Header(frame_id=self._camera_id)))
 
     def _measure(self, wanted: bool) -> None:
         """Subscribe the inputs when ``/tip_pose`` gains its first subscriber, drop them when
@@ -289,23 +301,24 @@ class VisionNode(Node):
                 lens_status(name, self._camera_id, self._lens),
                 camera_info_status(name, self._camera_id, self._estimator.camera.intrinsics,
                                    self._info_used, self._info_problem),
-                calibration_status(name, self._camera_id, self._calibration_file,
-                                   self._calibration_problem, self._correction_from,
-                                   self._calibration_record)]
+                calibration_status(name, self._camera_id, self._tool),
+                calibration_status(name, self._camera_id, self._lens_fix, 'camera')]
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         for param in params:
-            if param.name == 'tool_correction':
-                try:
-                    self._correction = ToolCorrection.from_list(param.value)
-                except (ValueError, TypeError) as exc:
-                    return SetParametersResult(successful=False, reason=str(exc))
-                self.get_logger().info(f'tool correction now {self._correction}')
-                record = self._read_calibration()   # flexarm calibrate has just rewritten it
-                stored = record is not None and np.allclose(
-                    record['correction'].as_list(), self._correction.as_list(), rtol=0, atol=1e-12)
-                self._calibration_record = record if stored else None
-                self._correction_from = self._calibration_file if stored else 'parameter'
+            if param.name not in ('tool_correction', 'camera_correction'):
+                continue
+            kind = ToolCorrection if param.name == 'tool_correction' else CameraCorrection
+            try:
+                value = kind.from_list(param.value)
+            except (ValueError, TypeError) as exc:
+                return SetParametersResult(successful=False, reason=str(exc))
+            self.get_logger().info(f'{param.name.replace("_", " ")} now {value}')
+            if kind is ToolCorrection:
+                self._tool.set(value)       # flexarm calibrate has just rewritten its file
+            else:
+                self._lens_fix.set(value)
+                self._use_intrinsics(self._base)
         return SetParametersResult(successful=True)
 
     def _on_info(self, msg: CameraInfo) -> None:
@@ -314,10 +327,9 @@ class VisionNode(Node):
             self.get_logger().error(problem)
         self._info_problem = problem
         self._info_used = self._info_used or intrinsics is not None
-        if intrinsics is None or intrinsics == self._estimator.camera.intrinsics:
+        if intrinsics is None or intrinsics == self._base:
             return
-        self._estimator = self._estimator.with_camera(
-            self._estimator.camera.with_intrinsics(intrinsics))
+        self._use_intrinsics(intrinsics)
         source = ('as config/camera.yaml' if intrinsics == self._configured
                   else f'instead of config/camera.yaml\'s {self._configured}')
         self.get_logger().info(f'intrinsics from camera_info: {intrinsics}, {source}')
@@ -350,9 +362,9 @@ class VisionNode(Node):
         out.header.stamp = msg.header.stamp
         out.header.frame_id = BASE_FRAME
         if estimate.valid:
-            x, y, phi = (float(v) for v in self._correction.pose(estimate.pose))
+            x, y, phi = (float(v) for v in self._tool.value.pose(estimate.pose))
             out.pose = PlanarPose(x=x, y=y, phi=phi)
-            out.status = unsettled or ''
+            out.status = '; '.join(filter(None, (unsettled, lens_warning(self._lens))))
         else:
             out.pose = PlanarPose(x=math.nan, y=math.nan, phi=math.nan)
             out.status = estimate.status

@@ -12,15 +12,18 @@ from std_msgs.msg import Header
 from flexarm_control import topics
 from flexarm_control.health_report import ERROR, OK, STALE, WARN, WindowSummary
 from flexarm_control.params import load_config
+from flexarm_control.tool_calibration import ToolCorrection
 from flexarm_msgs.msg import TipPose
 from flexarm_sim.camera import CameraRenderer
-from flexarm_vision.camera_model import Intrinsics
+from flexarm_vision.camera_calibration import CameraCorrection
+from flexarm_vision.camera_info import camera_info, info_intrinsics
+from flexarm_vision.image_encoding import image_to_array
+from flexarm_vision.stored_correction import StoredCorrection
 from flexarm_vision.vision_node import (
     calibration_status,
     camera_info_status,
-    image_to_array,
-    info_intrinsics,
     lens_status,
+    lens_warning,
     measurement_status,
     without_stamp,
 )
@@ -32,11 +35,6 @@ CAMERA = load_config('camera.yaml')
 OTHER = {**CAMERA, 'camera': {**CAMERA['camera'], 'fx': CAMERA['camera']['fx'] * 1.04,
                               'fy': CAMERA['camera']['fy'] * 1.03, 'cx': 327.5, 'cy': 233.0,
                               'k1': -0.04, 'k2': 0.01, 'p1': 8e-4, 'p2': -5e-4, 'k3': 0.002}}
-
-
-def camera_info(i: Intrinsics) -> CameraInfo:
-    return CameraInfo(width=i.width, height=i.height, distortion_model='plumb_bob',
-                      d=list(i.distortion), k=[i.fx, 0.0, i.cx, 0.0, i.fy, i.cy, 0.0, 0.0, 1.0])
 
 
 def test_camera_info_gives_the_intrinsics_or_why_not() -> None:
@@ -138,25 +136,55 @@ def test_camera_info_health_errs_while_refused() -> None:
     assert refused.level == ERROR and refused.message == "model 'equidistant' refused"
 
 
+def stored(path: str, record: dict | None = None, problem: str = '') -> StoredCorrection:
+    """A tool correction as the vision node keeps it, from a file holding ``record`` (or
+    damaged: ``problem``)."""
+    def read(_: str) -> dict | None:
+        if problem:
+            raise ValueError(problem)
+        return record
+    return StoredCorrection(path, read, ToolCorrection())
+
+
 def test_a_damaged_calibration_file_is_an_error_naming_it() -> None:
     path = '/site/calibration/tool_camera.json'
-    fine = calibration_status('flexarm_vision', 'cam', path, '', path)
+    held = ToolCorrection(1e-4, 0.0, 0.0)
+    fine = calibration_status('flexarm_vision', 'cam', stored(path, {'correction': held}))
     assert fine.level == OK and fine.name == 'flexarm_vision: tool calibration'
     assert fine.message == f'calibrated at an unknown time: {path}' and fine.hardware_id == 'cam'
-    made = calibration_status('flexarm_vision', 'cam', path, '', path, {
-        'stamp': '2026-11-25T10:00:00', 'reference': '/reference/tip_pose', 'poses': 6})
+    made = calibration_status('flexarm_vision', 'cam', stored(path, {
+        'correction': held, 'stamp': '2026-11-25T10:00:00', 'reference': '/reference/tip_pose',
+        'poses': 6}))
     assert made.message == ('calibrated 2026-11-25T10:00:00 against /reference/tip_pose from 6 '
                             f'poses: {path}')
-    none = calibration_status('flexarm_vision', 'cam', path, '', 'none')
+    none = calibration_status('flexarm_vision', 'cam', stored(path))
     assert none.level == OK and none.message.startswith(f'NOT calibrated (no {path})')
     problem = f'tool calibration {path} is damaged (truncated); run flexarm calibrate again'
-    damaged = calibration_status('flexarm_vision', 'cam', path, problem, 'none')
-    assert damaged.level == ERROR
-    assert damaged.message == f'{problem}; poses are reported uncorrected'
-    set_since = calibration_status('flexarm_vision', 'cam', path, problem, 'parameter')
+    damaged = stored(path, problem=problem)
+    assert calibration_status('flexarm_vision', 'cam', damaged).level == ERROR
+    assert calibration_status('flexarm_vision', 'cam', damaged).message == (
+        f'{problem}; poses are measured without it')
+    damaged.set(held)
+    set_since = calibration_status('flexarm_vision', 'cam', damaged)
     assert set_since.level == ERROR and set_since.message.endswith('the parameter correction')
-    unstored = calibration_status('flexarm_vision', 'cam', path, '', 'parameter')
-    assert unstored.level == OK and f'which {path} does not hold' in unstored.message
+    unstored = stored(path, {'correction': held})
+    unstored.set(ToolCorrection(2e-4, 0.0, 0.0))
+    message = calibration_status('flexarm_vision', 'cam', unstored).message
+    assert f'which {path} does not hold' in message
+    unstored.set(held)
+    assert calibration_status('flexarm_vision', 'cam', unstored).message.startswith('calibrated')
+    camera = calibration_status('flexarm_vision', 'cam', StoredCorrection(
+        '/site/camera.json', lambda _: None, CameraCorrection()), 'camera')
+    assert camera.name == 'flexarm_vision: camera calibration'
+    assert camera.message.endswith('run flexarm calibrate --camera')
+
+
+def test_a_valid_pose_warns_of_a_camera_off_its_calibration() -> None:
+    assert lens_warning(None) == '' and lens_warning((1.001, -0.001)) == ''
+    assert lens_warning((1.004, 0.0)) == (
+        'camera off its calibration (plate scale +0.40 %, radial stretch +0.00 %): run '
+        'flexarm calibrate --camera')
+    assert 'radial stretch -0.30 %' in lens_warning((1.0, -0.003))
 
 
 @pytest.mark.node

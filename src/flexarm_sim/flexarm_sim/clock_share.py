@@ -14,7 +14,7 @@ owner goes or comes back, so:
   ``margin`` the one whose node name sorts after the other's yields, so both decide alike.
 
 An owner tells another owner's ``/clock`` from its own by the time: it remembers the ticks it
-published. Two owners publishing the very same ticks are one clock, until they drift apart.
+published, and keeps them when it yields. Two owners publishing the very same ticks are one clock, until they drift apart.
 """
 from __future__ import annotations
 
@@ -59,7 +59,10 @@ class ClockShare:
         self._published.append(tick)
 
     def is_own(self, tick: int) -> bool:
-        return self.role == OWN and tick in self._published
+        """Whether a ``/clock`` at ``tick`` is one this simulator published: also after it
+        yielded, when its last ticks may still arrive behind the other owner's (taken for the
+        owner's clock going back, they would take the clock over again)."""
+        return tick in self._published
 
     def heard(self, now: float, tick: int, own_tick: int) -> bool:
         """A follower heard ``/clock`` at ``tick``: whether it takes the clock over (the

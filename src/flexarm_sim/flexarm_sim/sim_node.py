@@ -327,9 +327,9 @@ class SimNode(Node):
         Owning: another owner's /clock decides which of the two yields."""
         tick = ticks_at(msg.clock.sec, msg.clock.nanosec, self._js_rate)
         share = self._share
+        if share.is_own(tick):
+            return
         if share.role == OWN:
-            if share.is_own(tick):
-                return
             others = self._other_clocks()
             other = others[0] if others else ''
             if not yields(self._tick, share.name, tick, other, share.margin):

@@ -44,9 +44,13 @@ def test_an_owner_tells_its_own_clock_from_another_by_the_ticks_it_published() -
     assert share.is_own(40 * (REMEMBERED + 1)) and not share.is_own(40)   # only the latest
     assert not share.is_own(1234)
     share.follow(ARM2, 50.0)
-    assert share.role == FOLLOW and share.owner == ARM2 and not share.is_own(40 * REMEMBERED)
+    assert share.role == FOLLOW and share.owner == ARM2
+    # its own last ticks, arriving after it yielded, are not the new owner's clock gone back
+    assert share.is_own(40 * REMEMBERED) and not share.is_own(1234)
     assert share.text(0.01) == f'follows the /clock of {ARM2}'
     assert share.silent(51.5)
+    share.take_over(5000)
+    assert not share.is_own(40 * REMEMBERED)        # a new ownership: new ticks
 
 
 def test_an_unknown_role_is_refused() -> None:

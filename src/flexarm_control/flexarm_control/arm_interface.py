@@ -98,6 +98,10 @@ def joint_positions(msg: JointState) -> np.ndarray | None:
         return None
 
 
+WHAT_TO_DO = ("see the vision node's diagnostics (flexarm status); a camera off its camera_info: "
+              'flexarm calibrate --camera')
+
+
 def measurement_problem(frames: list[TipPose], wanted: int) -> str:
     """Why ``frames`` (the tip poses heard while measuring) gave no measurement of ``wanted``
     valid settled frames: the vision node's own reason where it gave one."""
@@ -107,7 +111,7 @@ def measurement_problem(frames: list[TipPose], wanted: int) -> str:
     invalid = [f for f in frames if not f.valid]
     if len(invalid) == len(frames):
         return (f'the vision node found no valid pose in {len(frames)} frame(s): '
-                f'{invalid[-1].status or "no reason given"}')
+                f'{invalid[-1].status or "no reason given"} ({WHAT_TO_DO})')
     settled = [f for f in frames if f.valid and f.settled]
     if not settled:
         unsettled = [f for f in frames if f.valid]

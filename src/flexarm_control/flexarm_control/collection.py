@@ -116,7 +116,6 @@ class Collector:
             if blind >= BLIND_POSES:
                 counts.stopped = (
                     f'no valid tip measurement at {blind} poses in a row, the camera cannot '
-                    f'measure: {self.blind}; see the vision node on /diagnostics (flexarm '
-                    'status), and its calibration (flexarm calibrate)')
+                    f'measure: {self.blind}')
                 return counts
         return counts

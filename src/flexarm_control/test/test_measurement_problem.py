@@ -12,7 +12,9 @@ def test_the_vision_nodes_reason_reaches_the_caller() -> None:
     blind = [frame(False, False, 'plate code not found'),
              frame(False, False, 'fit residual 0.155 mm RMS too large')]
     assert measurement_problem(blind, 3) == (
-        'the vision node found no valid pose in 2 frame(s): fit residual 0.155 mm RMS too large')
+        'the vision node found no valid pose in 2 frame(s): fit residual 0.155 mm RMS too large'
+        " (see the vision node's diagnostics (flexarm status); a camera off its camera_info: "
+        'flexarm calibrate --camera)')
     ringing = [frame(True, False, 'tip moving 0.8 mm/s')]
     assert measurement_problem(ringing, 3) == 'the tip did not settle: tip moving 0.8 mm/s'
     few = [frame(True, True), frame(False, False, 'hole off its fitted position by 0.3 mm')]

@@ -14,7 +14,8 @@ owner goes or comes back, so:
   ``margin`` the one whose node name sorts after the other's yields, so both decide alike.
 
 An owner tells another owner's ``/clock`` from its own by the time: it remembers the ticks it
-published, and keeps them when it yields. Two owners publishing the very same ticks are one clock, until they drift apart.
+published, and keeps them when it yields. Two owners publishing the very same ticks are one
+clock, until they drift apart.
 """
 from __future__ import annotations
 

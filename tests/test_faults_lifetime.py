@@ -188,7 +188,7 @@ def test_damaged_files_are_named_by_up_and_make_status_fail(up, domain_id, damag
     code, found = status(domain_id)
     assert code == Exit.DEGRADED == found['exit_code'], found
     problems = '\n'.join(found['problems'])
-    assert f'{calibration} is damaged (' in problems and 'reported uncorrected' in problems
+    assert f'{calibration} is damaged (' in problems and 'measured without it' in problems
     assert f'{record} is damaged (' in problems and 'versions on disk: v1' in problems
     assert 'no trained predictor' not in problems
 

@@ -146,3 +146,18 @@ def test_hold_stops_short_of_the_target(config):
     while arm.state.is_moving:
         arm.step(0.01)
     assert 0.0 < arm.state.joint_positions[0] < 0.5
+
+
+def test_a_rest_whose_ringing_has_ended_stays_exactly_still_until_something_changes(config):
+    arm = make(config)          # no thermal growth: still means still
+    arm.command(np.array([0.1, 0.65, -0.4, -0.6]))
+    for _ in range(3000):                     # the move, then 26 s of sim time to ring down
+        arm.step(0.01)
+    still = arm.state
+    assert not still.is_moving and not np.any(still.tip_velocity)
+    for _ in range(100):
+        arm.step(0.01)
+    np.testing.assert_array_equal(arm.state.tip_pose, still.tip_pose)
+    arm.set_payload(5.0)                      # a load picked up at rest: the tip sags, rings
+    arm.step(0.01)
+    assert np.any(arm.state.tip_velocity) and arm.state.tip_pose[1] != still.tip_pose[1]

@@ -202,7 +202,8 @@ def test_a_step_at_rest_is_what_evaluating_the_plant_anew_gives_bit_for_bit():
     for step in range(2500):
         for arm in (kept, anew):
             events.get(step, lambda arm: None)(arm)
-        anew._kept = None                   # evaluated anew at every step
+        if anew._kept is not None:          # evaluated anew at every step
+            anew._kept = (anew._kept[0], b'stale', *anew._kept[2:])
         kept.step(0.01)
         anew.step(0.01)
         for field in ('joint_positions', 'joint_velocities', 'tip_pose', 'tip_velocity'):

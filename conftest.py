@@ -3,7 +3,7 @@
 - Runtime files: ``FLEXARM_STATE_DIR`` is a temporary folder of the run (of each xdist
   worker), so no test reads or changes the operator's data, models, runs or calibration, and
   no test sees another run's.
-- Liveness: ``FLEXARM_LIVENESS_SCALE`` is :data:`flexarm_control.liveness.UNDER_TEST` (unless
+- Liveness: ``FLEXARM_LIVENESS_SCALE`` is :data:`flexarm_core.liveness.UNDER_TEST` (unless
   set): the suite runs two workers on two cores, and a starved node is slow, not dead.
 - ROS domains: a test module that starts nodes gets a domain no other module of the run uses
   (:class:`DomainPool`: taken for the whole run, and reserved the way domain_coordinator and
@@ -32,9 +32,9 @@ from typing import Any
 import pytest
 
 _STATE = Path(tempfile.mkdtemp(prefix='flexarm-test-state-'))
-os.environ['FLEXARM_STATE_DIR'] = str(_STATE)   # before flexarm_control.paths is imported
+os.environ['FLEXARM_STATE_DIR'] = str(_STATE)   # before flexarm_core.paths is imported
 
-from flexarm_control import liveness  # noqa: E402
+from flexarm_core import liveness  # noqa: E402
 
 os.environ.setdefault(liveness.ENV, str(liveness.UNDER_TEST))
 SCOPE_ENV = 'FLEXARM_TEST_SCOPE'   # inherited by every process a test module starts

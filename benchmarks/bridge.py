@@ -32,7 +32,7 @@ from std_msgs.msg import Float64MultiArray
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.launcher import NodeProcess, load_graph, ros_env, stop_all
-from flexarm_control import topics
+from flexarm_core import topics
 
 # link_proxy is a test helper in tests/ (no package, so not importable): put tests/ on the path
 sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'tests'))

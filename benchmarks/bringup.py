@@ -25,7 +25,7 @@ from pathlib import Path
 
 from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.supervisor import Graph
-from flexarm_control.paths import RUNS_DIR
+from flexarm_core.paths import RUNS_DIR
 
 
 def main() -> None:

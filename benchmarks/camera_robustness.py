@@ -28,9 +28,9 @@ from typing import Any
 import cv2
 import numpy as np
 
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
 from flexarm_control.tool_calibration import calibrate_against_reference
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
 from flexarm_sim.true_camera import true_renderer
 from flexarm_vision.camera_calibration import calibrate_camera
 from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator

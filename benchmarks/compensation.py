@@ -24,11 +24,12 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from flexarm_control.compensator import Compensator
-from flexarm_control.kinematics import ArmGeometry, inverse
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
 from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core.kinematics import ArmGeometry, inverse
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
 from flexarm_sim.plant import Plant
 
 

@@ -44,14 +44,15 @@ from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calib
 
 from flexarm_control.collection import Collector
 from flexarm_control.goal_execution import SUCCEEDED, GoalSpec, execute
-from flexarm_control.kinematics import forward, pose_error
 from flexarm_control.model_health import HealthSettings, ModelHealth
 from flexarm_control.modes import Mode
 from flexarm_control.planning import Refusal, plan_goal
 from flexarm_control.predictors import Predictor
 from flexarm_control.refresh import refresh_poses, refreshed
-from flexarm_control.sampling import random_targets, regions_from_dict, sample_poses, travel_order
+from flexarm_control.sampling import random_targets, sample_poses, travel_order
 from flexarm_control.training import Screening, fit_robust
+from flexarm_core.kinematics import forward, pose_error
+from flexarm_core.regions import regions_from_dict
 
 SCENARIOS = ('payload', 'thermal', 'bent_link', 'none')
 TARGET_SEED = 7100

@@ -58,21 +58,22 @@ from flexarm_control.arm_motion import Abort, ArmMotion, MotionSettings, never
 from flexarm_control.collection import Collector
 from flexarm_control.compensator import CompensationError, Compensator
 from flexarm_control.goal_execution import SUCCEEDED, GoalSpec, execute
-from flexarm_control.kinematics import ArmGeometry, pose_error
-from flexarm_control.measurement import Measurement
 from flexarm_control.modes import Mode
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
 from flexarm_control.planning import DataLimits, Refusal, plan_goal
-from flexarm_control.sampling import random_targets, regions_from_dict, sample_poses, travel_order
+from flexarm_control.sampling import random_targets, sample_poses, travel_order
 from flexarm_control.tool_calibration import (
-    ToolCorrection,
     calibrate_against_reference,
     fit_reference,
     joint4_sweep,
     sweep_joints,
 )
 from flexarm_control.training import Screening, fit_robust
+from flexarm_core.kinematics import ArmGeometry, pose_error
+from flexarm_core.measurement import Measurement
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
+from flexarm_core.tool_correction import ToolCorrection
 from flexarm_sim.errors import ArmErrors
 from flexarm_sim.plant import Plant
 from flexarm_sim.static_arm import StaticArm

@@ -85,9 +85,9 @@ from flexarm_bringup.launcher import (
     stop_all,
 )
 from flexarm_control.dataset import load_dataset
-from flexarm_control.params import load_config
-from flexarm_control.parent_death import terminate_with_parent
-from flexarm_control.paths import RUNS_DIR, repo_path
+from flexarm_core.params import load_config
+from flexarm_core.parent_death import terminate_with_parent
+from flexarm_core.paths import RUNS_DIR, repo_path
 
 # The attackers are test tooling in tests/ (no package): put tests/ on the path.
 TESTS = Path(__file__).resolve().parents[1] / 'tests'

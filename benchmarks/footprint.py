@@ -47,8 +47,8 @@ from rosgraph_msgs.msg import Clock
 
 from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.supervisor import Graph
-from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
+from flexarm_core import topics
 
 TICK = os.sysconf('SC_CLK_TCK')
 PAGE = os.sysconf('SC_PAGE_SIZE')

@@ -26,7 +26,7 @@ not judged), and so does every goal outcome on ``/armK/compensator/outcomes`` wh
 trial is not one of armK's (trial names carry the arm), and every goal of armK whose outcome was
 not heard there. Apart from the outcomes the monitor subscribes to nothing else: the graph
 makes camera images, tip poses and ``/tf`` only while someone subscribes to them
-(:mod:`flexarm_control.demand`), so a monitor subscribed to every topic would have every arm
+(:mod:`flexarm_core.demand`), so a monitor subscribed to every topic would have every arm
 render and measure all the time.
 
 CPU: user + system time of each arm's node processes and their child processes (the learner's
@@ -80,14 +80,14 @@ from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.study import World
 from flexarm_bringup.supervisor import Graph
 from flexarm_bringup.topic_discovery import request_qos
-from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control.compensator import Compensator
-from flexarm_control.params import load_config
 from flexarm_control.planning import DataLimits, Refusal, plan_goal
 from flexarm_control.predictors import Predictor
 from flexarm_control.sampling import random_targets
 from flexarm_control.training import Screening, fit_robust
+from flexarm_core import topics
+from flexarm_core.params import load_config
 from flexarm_msgs.msg import GoalOutcome
 
 TRAINING_SAMPLES = 40

@@ -29,9 +29,10 @@ from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calib
 
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.collection import Collector
-from flexarm_control.kinematics import forward
-from flexarm_control.sampling import regions_from_dict, sample_poses, travel_order
+from flexarm_control.sampling import sample_poses, travel_order
 from flexarm_control.training import Screening, fit_robust
+from flexarm_core.kinematics import forward
+from flexarm_core.regions import regions_from_dict
 
 PAYLOADS = (0.0, 2.5, 5.0)      # [kg] asked
 

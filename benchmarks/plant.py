@@ -12,9 +12,9 @@ import timeit
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry, inverse
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry, inverse
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
 from flexarm_sim.plant import Plant
 
 

@@ -28,7 +28,7 @@ from sensor_msgs.msg import Image, JointState
 
 from flexarm_bringup.bag_tools import bag_info, read_messages
 from flexarm_bringup.launcher import NodeProcess, load_optional, ros_env, stop_all
-from flexarm_control import topics
+from flexarm_core import topics
 
 WIDTH, HEIGHT = 640, 480
 # Full names (the root namespace): the bag names its topics so, not as topics.py's relative ones

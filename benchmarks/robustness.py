@@ -33,11 +33,11 @@ import numpy as np
 
 from flexarm_bringup.study import World
 from flexarm_control.compensator import CompensationError, Compensator
-from flexarm_control.kinematics import pose_error
-from flexarm_control.params import load_config
 from flexarm_control.planning import DataLimits, Refusal, plan_goal
 from flexarm_control.sampling import random_targets
 from flexarm_control.training import Screening, fit_robust
+from flexarm_core.kinematics import pose_error
+from flexarm_core.params import load_config
 
 OUTLIER = 0.010        # [m] the bad sample's error
 TARGET_SEED = 5000     # targets of region R, seed k: TARGET_SEED + k

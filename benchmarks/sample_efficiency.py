@@ -50,9 +50,10 @@ from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calib
 from flexarm_control.active_sampling import ActivePoses, ActiveSettings, run_now
 from flexarm_control.collection import Collector
 from flexarm_control.dataset import Sample
-from flexarm_control.kinematics import forward, wrap_angle
-from flexarm_control.sampling import path_time, regions_from_dict, sample_poses, travel_order
+from flexarm_control.sampling import path_time, sample_poses, travel_order
 from flexarm_control.training import Screening, fit_robust
+from flexarm_core.kinematics import forward, wrap_angle
+from flexarm_core.regions import regions_from_dict
 
 COUNTS = (8, 10, 12, 15, 20, 25, 30, 40)
 STRATEGIES = ('sobol', 'active')
@@ -206,7 +207,7 @@ def graph_campaigns(count: int, regions: list[str], frames: int | None) -> dict[
     from flexarm_bringup.calibration import calibrate_tool
     from flexarm_bringup.experiment import _client, reserved_domain
     from flexarm_bringup.supervisor import Graph
-    from flexarm_control import topics
+    from flexarm_core import topics
     from flexarm_msgs.msg import DeflectionSample, TipPose
 
     out: dict[str, Any] = {}

@@ -24,7 +24,7 @@ from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 
 from flexarm_bringup.launcher import NodeProcess, load_graph, ros_env, stop_all
-from flexarm_control import topics
+from flexarm_core import topics
 
 
 def measure(rtf: float, seconds: float, domain_id: int, run_dir: Path) -> dict[str, float]:

@@ -55,7 +55,7 @@ def clean_env() -> dict[str, str]:
 
 def _die_with_parent(sig: int) -> None:
     """``sig`` to this process when the thread that started it ends (PR_SET_PDEATHSIG; as
-    flexarm_control.parent_death, which this script, run outside the venv, cannot import)."""
+    flexarm_core.parent_death, which this script, run outside the venv, cannot import)."""
     PRCTL(1, int(sig), 0, 0, 0)
 
 

@@ -17,7 +17,7 @@ import time
 import cv2
 import numpy as np
 
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.pose_estimator import TipPoseEstimator
 

@@ -4,8 +4,8 @@
 #   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
 #   3. the interfaces: tf2_msgs (vendor/, no wheel exists) and flexarm_msgs (ament_cmake +
 #      rosidl, built into the venv prefix),
-#   4. the Python packages flexarm_control, flexarm_bridge, flexarm_vision, flexarm_sim,
-#      flexarm_description, flexarm_bringup (editable).
+#   4. the Python packages flexarm_core, flexarm_description, flexarm_vision, flexarm_bridge,
+#      flexarm_sim, flexarm_control, flexarm_bringup (editable).
 # Each step is skipped when its inputs did not change since it last succeeded, so a re-run
 # takes about a second. Usage: scripts/setup.sh [--force]
 set -euo pipefail
@@ -71,8 +71,8 @@ install_msgs() {
 }
 
 # The Python packages, lowest layer first (each imports only those before it).
-packages=(flexarm_control flexarm_bridge flexarm_vision flexarm_sim flexarm_description
-  flexarm_bringup)
+packages=(flexarm_core flexarm_description flexarm_vision flexarm_bridge flexarm_sim
+  flexarm_control flexarm_bringup)
 
 install_packages() {
   log "installing ${packages[*]} (editable)"

@@ -29,7 +29,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
 from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead, ros_env
-from flexarm_control import liveness, topics
+from flexarm_core import liveness, topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome
 
@@ -161,7 +161,7 @@ class Outcomes:
 def abandoned_goal_s(domain_id: int, namespace: str = '', timeout: float = 60.0) -> float:
     """Seconds from the SIGKILL of a goal's only client, while the arm moves, until the
     compensator had cancelled the goal (module docstring); TimeoutError when it was not
-    within ``timeout`` s (scaled: :mod:`flexarm_control.liveness`), RuntimeError when the
+    within ``timeout`` s (scaled: :mod:`flexarm_core.liveness`), RuntimeError when the
     goal ended otherwise."""
     outcomes = Outcomes(domain_id, namespace)
     try:

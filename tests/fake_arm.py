@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flexarm_control.measurement import Measurement, average_frames
+from flexarm_core.measurement import Measurement, average_frames
 from flexarm_sim.plant import Plant
 
 

@@ -27,7 +27,7 @@ from pathlib import Path
 from typing import IO, Any
 
 from flexarm_bringup.launcher import ros_env
-from flexarm_control import liveness
+from flexarm_core import liveness
 
 MOVED = 1e-4          # [rad, m] a joint that changed by more than this moved
 # [s] the peer tries: two of Fast DDS's 3 s participant announcements (a peer of an open graph
@@ -267,7 +267,7 @@ def _observer(domain_id: int, namespace: str, log_dir: str) -> Iterator[_Lines]:
 def remote_attack(domain_id: int, namespace: str = '', attempt: float = ATTEMPT,
                   host: RemoteHost | None = None) -> dict[str, Any]:
     """Let a peer on another host (``host``, or one made for the call) try for ``attempt``
-    wall seconds (scaled, :func:`flexarm_control.liveness.limit`) to command the arm of the
+    wall seconds (scaled, :func:`flexarm_core.liveness.limit`) to command the arm of the
     graph in ``domain_id`` (under ``/namespace``), which must be publishing ``joint_states``.
 
     Returns ``nodes_seen`` (the nodes the peer discovered; ``seen_after`` [s] the first, or

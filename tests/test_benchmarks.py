@@ -18,7 +18,7 @@ from typing import Any
 
 import pytest
 
-from flexarm_control.parent_death import terminate_with_parent
+from flexarm_core.parent_death import terminate_with_parent
 
 REPO = Path(__file__).resolve().parents[1]
 TAIL = 3000    # [characters] of a failed run's output shown

@@ -11,9 +11,9 @@ import math
 import pytest
 
 from flexarm_bringup.cli import Exit, main
-from flexarm_control import topics
 from flexarm_control.collection import BLIND_POSES
-from flexarm_control.params import load_config
+from flexarm_core import topics
+from flexarm_core.params import load_config
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import TipPose
 

@@ -9,7 +9,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 
 from flexarm_bringup.cli import Exit, main
 from flexarm_bringup.graph_status import CALIBRATION_STATUS
-from flexarm_control import topics
+from flexarm_core import topics
 from flexarm_msgs.msg import TipPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(20)]

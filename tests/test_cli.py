@@ -22,9 +22,9 @@ from sensor_msgs.msg import JointState
 
 from flexarm_bringup.cli import main
 from flexarm_bringup.outcome_text import Exit
-from flexarm_control import liveness, topics
-from flexarm_control.kinematics import ArmGeometry, forward
-from flexarm_control.params import load_config
+from flexarm_core import liveness, topics
+from flexarm_core.kinematics import ArmGeometry, forward
+from flexarm_core.params import load_config
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(75)]
 B4 = ('1000', '-500', '-100')      # [mm, mm, deg] Table 10: a long move from the start pose

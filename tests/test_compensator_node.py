@@ -28,14 +28,15 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
-from flexarm_control import topics
 from flexarm_control.client import FlexarmClient, GoalFailed, GoalRejected
 from flexarm_control.compensator_node import CompensatorNode
-from flexarm_control.health_report import ERROR, WARN
-from flexarm_control.kinematics import ArmGeometry, forward, inverse
-from flexarm_control.params import config_path, load_config
 from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core import topics
+from flexarm_core.health_report import ERROR, WARN
+from flexarm_core.kinematics import ArmGeometry, forward, inverse
+from flexarm_core.params import config_path, load_config
+from flexarm_core.regions import regions_from_dict
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelHealth, ModelInfo
 from flexarm_sim.plant import Plant

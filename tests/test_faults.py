@@ -16,8 +16,8 @@ import rclpy
 from rclpy.context import Context
 
 from flexarm_bringup.launcher import owned_shm
-from flexarm_control import liveness
 from flexarm_control.client import SERVER_SILENCE
+from flexarm_core import liveness
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(80)]
 

@@ -25,10 +25,10 @@ import pytest
 
 from flexarm_bringup.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
 from flexarm_bringup.outcome_text import Exit
-from flexarm_control import liveness
-from flexarm_control.params import load_config
-from flexarm_control.parent_death import terminate_with_parent
-from flexarm_control.paths import CALIBRATION_DIR, MODELS_DIR, RUNS_DIR, repo_path
+from flexarm_core import liveness
+from flexarm_core.params import load_config
+from flexarm_core.parent_death import terminate_with_parent
+from flexarm_core.paths import CALIBRATION_DIR, MODELS_DIR, RUNS_DIR, repo_path
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(105)]
 REPO = Path(__file__).resolve().parents[1]

@@ -23,7 +23,7 @@ from sensor_msgs.msg import JointState
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
-from flexarm_control import liveness, topics
+from flexarm_core import liveness, topics
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(30)]
 

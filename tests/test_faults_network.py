@@ -18,7 +18,7 @@ from collections.abc import Iterator
 import pytest
 from remote_peer import RemoteHost, Unavailable, remote_attack
 
-from flexarm_control import liveness
+from flexarm_core import liveness
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
 

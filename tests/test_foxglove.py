@@ -24,9 +24,9 @@ from websockets.sync.client import ClientConnection, connect
 from flexarm_bringup.bag_schema import message_definition
 from flexarm_bringup.cli import _foxglove_text, build_parser, main
 from flexarm_bringup.outcome_text import Exit
-from flexarm_control import topics
-from flexarm_control.params import config_path
-from flexarm_control.paths import RUNS_DIR
+from flexarm_core import topics
+from flexarm_core.params import config_path
+from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.msg import PlanarPose, TipPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(17)]
@@ -35,7 +35,7 @@ pytestmark = [pytest.mark.node, pytest.mark.duration(17)]
 SUBPROTOCOLS = ['foxglove.sdk.v1', 'foxglove.websocket.v1']
 MESSAGE_DATA = 1          # opcode of a binary message data frame
 TIP_POSE_TYPE = 'flexarm_msgs/msg/TipPose'
-# The graph's names (flexarm_control.topics): what a layout may name.
+# The graph's names (flexarm_core.topics): what a layout may name.
 # The graph's names as a viewer sees a graph without namespace: the constants in full.
 GRAPH_NAMES = {topics.absolute(v) for k, v in vars(topics).items()
                if k.isupper() and isinstance(v, str)}

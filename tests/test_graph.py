@@ -6,7 +6,7 @@ import pytest
 
 from flexarm_bringup.launcher import owned_shm
 from flexarm_bringup.supervisor import Graph
-from flexarm_control import liveness
+from flexarm_core import liveness
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(25)]
 

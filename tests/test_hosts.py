@@ -27,7 +27,7 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.paths import CONFIG_DIR
+from flexarm_core.paths import CONFIG_DIR
 
 pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(50)]
 SUBNET = '10.200.20.{}/30'

@@ -16,11 +16,11 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control.dataset import load_dataset
 from flexarm_control.model_store import read_current, versions_on_disk
 from flexarm_control.predictors import load_predictor
+from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
 

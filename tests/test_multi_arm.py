@@ -23,9 +23,9 @@ from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.supervisor import Graph
-from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
 from flexarm_control.dataset import load_dataset
+from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo
 

@@ -12,9 +12,9 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
-from flexarm_control import topics
-from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, forward
-from flexarm_control.params import load_config
+from flexarm_core import topics
+from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
+from flexarm_core.params import load_config
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
 from tf2_msgs.msg import TFMessage
 

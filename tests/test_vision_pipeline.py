@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control import topics
+from flexarm_core import topics
 from flexarm_msgs.msg import TipPose
 
 pytestmark = pytest.mark.node

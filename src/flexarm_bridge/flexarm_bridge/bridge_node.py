@@ -28,7 +28,7 @@ Link handling (a background thread does all socket I/O; ROS callbacks never bloc
   consecutive frames are rejected, then it is reset.
 
 Health on ``/diagnostics`` (hardware id: the controller's ``host:port``): :func:`link_status`,
-and the commands' :class:`~flexarm_control.health_report.CommandLog` (rejected: refused by the
+and the commands' :class:`~flexarm_core.health_report.CommandLog` (rejected: refused by the
 checks, dropped without a link, or refused by the controller's ACK after forwarding).
 """
 from __future__ import annotations
@@ -44,12 +44,12 @@ from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import PC, LinkAuth, site_key_for
-from flexarm_control import topics
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.health_report import ERROR, OK, WARN, CommandLog, Status, status
-from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
-from flexarm_control.node_main import run
-from flexarm_control.node_params import declare, declare_tree
+from flexarm_core import topics
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.health_report import ERROR, OK, WARN, CommandLog, Status, status
+from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
+from flexarm_core.node_main import run
+from flexarm_core.node_params import declare, declare_tree
 
 
 def link_status(node: str, controller: str, linked: bool, down_for: float, last_error: str,

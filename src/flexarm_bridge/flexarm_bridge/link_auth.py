@@ -31,7 +31,7 @@ import socket
 import stat
 from pathlib import Path
 
-from flexarm_control.atomic_file import atomic_write
+from flexarm_core.atomic_file import atomic_write
 
 KEY_BYTES = 32          # site key length written by make_key; load_key accepts no less
 NONCE_SIZE = 16

@@ -1,6 +1,6 @@
 """Health of the bridge's controller link on /diagnostics (pure builder)."""
 from flexarm_bridge.bridge_node import link_status
-from flexarm_control.health_report import ERROR, OK, WARN
+from flexarm_core.health_report import ERROR, OK, WARN
 
 WHERE = '10.0.0.7:47800'
 

@@ -42,12 +42,12 @@ from mcap_ros2.decoder import DecoderFactory
 
 from flexarm_bringup.outcome_text import code_names
 from flexarm_bringup.trials import trial_name, trial_target
-from flexarm_control import topics
-from flexarm_control.atomic_file import atomic_write
-from flexarm_control.kinematics import ArmGeometry, wrap_angle
-from flexarm_control.paper import TABLE_9, TABLE_10
-from flexarm_control.params import load_config
-from flexarm_control.sampling import Region, regions_from_dict
+from flexarm_core import topics
+from flexarm_core.atomic_file import atomic_write
+from flexarm_core.kinematics import ArmGeometry, wrap_angle
+from flexarm_core.paper import TABLE_9, TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.regions import Region, regions_from_dict
 from flexarm_msgs.action import MoveToPose
 
 if TYPE_CHECKING:
@@ -341,7 +341,7 @@ def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any], prefix: str
 
 
 def arm_topics(namespace: str, *names: str) -> dict[str, str]:
-    """The bag topics of ``names`` (:mod:`flexarm_control.topics`) of the arm in
+    """The bag topics of ``names`` (:mod:`flexarm_core.topics`) of the arm in
     ``namespace`` ('' for a graph without one): full name -> name."""
     return {topics.absolute(name, namespace): name for name in names}
 

@@ -34,16 +34,12 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import CameraInfo, Image
 
 from flexarm_bringup.trials import trial_name
-from flexarm_control import topics
 from flexarm_control.client import FlexarmClient
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
-from flexarm_control.tool_calibration import (
-    ReferenceCalibration,
-    ToolCorrection,
-    calibrate_against_reference,
-    write_calibration,
-)
+from flexarm_control.tool_calibration import ReferenceCalibration, calibrate_against_reference
+from flexarm_core import topics
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.tool_correction import ToolCorrection, write_calibration
 from flexarm_vision.camera_calibration import (
     CameraCalibration,
     CameraCorrection,

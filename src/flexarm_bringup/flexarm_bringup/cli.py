@@ -58,9 +58,9 @@ from flexarm_bringup.outcome_text import (
     is_busy,
     pose_text,
 )
-from flexarm_control import topics
 from flexarm_control.modes import MODE_LABELS
-from flexarm_control.paths import MODELS_DIR, RESULTS_DIR, RUNS_DIR
+from flexarm_core import topics
+from flexarm_core.paths import MODELS_DIR, RESULTS_DIR, RUNS_DIR
 
 COMMANDS: dict[str, Callable[[argparse.Namespace], dict[str, Any]]] = {}
 UINT32_MAX = 2 ** 32 - 1
@@ -161,7 +161,7 @@ def _steps(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, 
 
 # --- checks before connecting ---------------------------------------------------------------
 def _learner_config() -> dict[str, Any]:
-    from flexarm_control.params import load_config
+    from flexarm_core.params import load_config
 
     return load_config('learner.yaml', node_name='flexarm_learner')
 
@@ -244,7 +244,7 @@ def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
 
 
 def _full(args: argparse.Namespace, name: str) -> str:
-    """The full name of a graph name (:mod:`flexarm_control.topics`) of the arm addressed."""
+    """The full name of a graph name (:mod:`flexarm_core.topics`) of the arm addressed."""
     return topics.absolute(name, args.namespace)
 
 
@@ -347,8 +347,8 @@ def _move_interrupted(result: Any) -> str:
     """Where a cancelled goal left the arm: the rigid pose of the joints it stopped at."""
     import numpy as np
 
-    from flexarm_control.kinematics import ArmGeometry, forward
-    from flexarm_control.params import load_config
+    from flexarm_core.kinematics import ArmGeometry, forward
+    from flexarm_core.params import load_config
     from flexarm_msgs.action import MoveToPose
 
     if result is None:
@@ -594,7 +594,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_bringup.experiment import reserved_domain
     from flexarm_bringup.graph_status import FirstReports, GraphWatch
     from flexarm_bringup.supervisor import Graph
-    from flexarm_control import liveness
+    from flexarm_core import liveness
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
@@ -678,7 +678,7 @@ def _bind_lifetime(outlive_parent: bool) -> bool:
     included, and SIGTERM stops the graph as Ctrl-C does. Under init or a service manager that
     changes nothing (the parent outlives the service). A hang-up (the terminal closed) stops it
     too, unless ignored (``nohup``). Whether SIGHUP's handler was set (to undo at the end)."""
-    from flexarm_control.parent_death import signal_on_parent_death
+    from flexarm_core.parent_death import signal_on_parent_death
 
     signal_on_parent_death(0 if outlive_parent else signal.SIGTERM)
     if signal.getsignal(signal.SIGHUP) != signal.SIG_DFL:
@@ -698,7 +698,7 @@ def _remote_text(remote: tuple[str, ...], discovery: str) -> str:
 
 def _foxglove_text(port: int) -> str:
     """Where Foxglove connects (``port`` 0: config/foxglove.yaml's) and which layout."""
-    from flexarm_control.params import config_path, load_config
+    from flexarm_core.params import config_path, load_config
 
     config = load_config('foxglove.yaml', node_name='flexarm_foxglove')
     return (f'Foxglove: open a connection to ws://{config["host"]}:{port or config["port"]} '
@@ -709,7 +709,7 @@ def _starting_model(watch: Any, listen: float = 3.0) -> str:
     """Which model the compensator of a just-started graph runs (it loads the learner's
     current one within a moment of start-up), or why there is none."""
     from flexarm_bringup.graph_status import model_summary, starting_model_text
-    from flexarm_control import liveness
+    from flexarm_core import liveness
 
     def learner() -> Any:
         return watch.statuses.get('flexarm_learner: model')
@@ -724,7 +724,7 @@ def _calibration(watch: Any, listen: float = 3.0) -> str:
     """Whether the camera of a just-started graph is calibrated (its vision node's first
     report)."""
     from flexarm_bringup.graph_status import CALIBRATION_STATUS, calibration_text
-    from flexarm_control import liveness
+    from flexarm_core import liveness
 
     watch.spin(liveness.limit(listen), until=lambda: CALIBRATION_STATUS in watch.statuses)
     return calibration_text(watch.statuses.get(CALIBRATION_STATUS))
@@ -963,7 +963,7 @@ def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
     """Measure the camera's error in the tool frame against a reference; correct for it. With
     --camera, first the camera's own parameters that the plate shows."""
     from flexarm_bringup.calibration import calibrate_lens, calibrate_tool
-    from flexarm_control.paths import CALIBRATION_DIR
+    from flexarm_core.paths import CALIBRATION_DIR
 
     folder = CALIBRATION_DIR / args.namespace
     path = Path(args.file) if args.file else folder / 'tool_camera.json'

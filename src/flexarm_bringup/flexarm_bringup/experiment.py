@@ -35,14 +35,15 @@ from flexarm_bringup.trials import (
     run_trials,
     summarise,
 )
-from flexarm_control import topics
 from flexarm_control.dataset import load_dataset
-from flexarm_control.kinematics import ArmGeometry, pose_error
 from flexarm_control.modes import MODE_LABELS
-from flexarm_control.paper import TABLE_9, TABLE_10
-from flexarm_control.params import load_config
-from flexarm_control.paths import BAGS_DIR, RESULTS_DIR, RUNS_DIR
-from flexarm_control.sampling import Region, random_targets, regions_from_dict
+from flexarm_control.sampling import random_targets
+from flexarm_core import topics
+from flexarm_core.kinematics import ArmGeometry, pose_error
+from flexarm_core.paper import TABLE_9, TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.paths import BAGS_DIR, RESULTS_DIR, RUNS_DIR
+from flexarm_core.regions import Region, regions_from_dict
 
 
 @dataclass
@@ -261,7 +262,7 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path, geometry: A
     figures of :mod:`flexarm_bringup.plots` — errors.png (ours beside the paper),
     deflection_field.png, prediction.png and iterations.png (CLOSED_LOOP goals)."""
     from flexarm_bringup import plots
-    from flexarm_control.atomic_file import atomic_write
+    from flexarm_core.atomic_file import atomic_write
 
     out_dir.mkdir(parents=True, exist_ok=True)
     atomic_write(out_dir / 'summary.json', lambda f: f.write(

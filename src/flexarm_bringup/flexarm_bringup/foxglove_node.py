@@ -36,8 +36,8 @@ from flexarm_bringup.topic_discovery import (
     TopicSelection,
     spin_until_signalled,
 )
-from flexarm_control import topics
-from flexarm_control.node_params import declare
+from flexarm_core import topics
+from flexarm_core.node_params import declare
 
 SERVER_NAME = 'flexarm'
 

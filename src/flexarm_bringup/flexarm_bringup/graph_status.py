@@ -40,9 +40,9 @@ from sensor_msgs.msg import JointState
 
 from flexarm_bringup.launcher import load_graph, load_optional
 from flexarm_bringup.supervisor import RECORD
-from flexarm_control import liveness, topics
-from flexarm_control.health_report import ERROR, LEVEL_NAMES
 from flexarm_control.predictors.base import read_model
+from flexarm_core import liveness, topics
+from flexarm_core.health_report import ERROR, LEVEL_NAMES
 from flexarm_msgs.msg import ModelHealth, ModelInfo
 
 CONTROLLERS = {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}

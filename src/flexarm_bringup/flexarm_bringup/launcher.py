@@ -22,8 +22,8 @@ from typing import IO, Any
 import yaml
 
 from flexarm_bringup.transport import transport_env
-from flexarm_control.params import config_path
-from flexarm_control.parent_death import signal_on_parent_death
+from flexarm_core.params import config_path
+from flexarm_core.parent_death import signal_on_parent_death
 
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
 # that inherits it would skip its own re-exec and fail to import rclpy.

@@ -41,14 +41,14 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
-from flexarm_control.atomic_file import atomic_write
 from flexarm_control.deflection_field import deflection_field
-from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_control.modes import MODE_LABELS
-from flexarm_control.paper import TABLE_9, TABLE_10
-from flexarm_control.params import load_config
 from flexarm_control.predictors import load_predictor
-from flexarm_control.sampling import Region
+from flexarm_core.atomic_file import atomic_write
+from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_core.paper import TABLE_9, TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.regions import Region
 
 # predict(joints (N, 4), payload (N,) [kg]) -> deflections (N, 3) [m, m, rad]
 Predict = Callable[[np.ndarray, np.ndarray], np.ndarray]

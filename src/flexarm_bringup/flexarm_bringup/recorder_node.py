@@ -41,11 +41,11 @@ from flexarm_bringup.topic_discovery import (
     TopicSelection,
     spin_until_signalled,
 )
-from flexarm_control import topics
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.health_report import OK, WARN, Status, status
-from flexarm_control.node_params import declare
-from flexarm_control.paths import BAGS_DIR
+from flexarm_core import topics
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.health_report import OK, WARN, Status, status
+from flexarm_core.node_params import declare
+from flexarm_core.paths import BAGS_DIR
 
 DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded

@@ -35,13 +35,14 @@ from typing import Any
 import numpy as np
 
 from flexarm_bringup.plots import write_csv
-from flexarm_control.atomic_file import atomic_write
-from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
-from flexarm_control.paper import TABLE_7, TABLE_8
-from flexarm_control.params import load_config
-from flexarm_control.paths import RESULTS_DIR
 from flexarm_control.predictors import KINDS, AutoPredictor, make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core.atomic_file import atomic_write
+from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_core.paper import TABLE_7, TABLE_8
+from flexarm_core.params import load_config
+from flexarm_core.paths import RESULTS_DIR
+from flexarm_core.regions import regions_from_dict
 
 FULL_SAMPLES = (10, 20, 30, 40, 50, 80, 120, 160)
 QUICK_SAMPLES = (20, 40)

@@ -19,7 +19,7 @@ node processes in which domain, how often each was restarted and the exit code o
 stays down (``flexarm status`` names a node whose process is gone).
 
 Several arms: a graph with a ``namespace`` runs every node under ``/<namespace>`` (its names are
-relative: :mod:`flexarm_control.topics`), with the learner's data and model folders and the
+relative: :mod:`flexarm_core.topics`), with the learner's data and model folders and the
 tool calibration in a subfolder ``<namespace>`` of the configured ones, so arms of one domain
 share nothing but ``/clock`` and ``/diagnostics``. The domain lock and the name check are per
 namespace. The first arm's simulator owns ``/clock``; a graph that finds a ``/clock``
@@ -54,12 +54,12 @@ from flexarm_bringup.launcher import (
     select_nodes,
     stop_all,
 )
-from flexarm_control import liveness, topics
-from flexarm_control.atomic_file import atomic_write
-from flexarm_control.goal_owner import full_name
-from flexarm_control.params import load_config
+from flexarm_core import liveness, topics
+from flexarm_core.atomic_file import atomic_write
+from flexarm_core.goal_owner import full_name
+from flexarm_core.params import load_config
 
-# Wall-clock limits, times the liveness factor (flexarm_control.liveness):
+# Wall-clock limits, times the liveness factor (flexarm_core.liveness):
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 CLOCK_WAIT = 5.0       # [s] more for a namespaced arm to find another arm's /clock
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts

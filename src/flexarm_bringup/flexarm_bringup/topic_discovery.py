@@ -33,7 +33,7 @@ from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPo
 from rclpy.signals import SignalHandlerOptions
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from flexarm_control import topics
+from flexarm_core import topics
 
 # A handler of one topic's raw messages: (serialized message, message info).
 RawHandler = Callable[[bytes, Any], None]

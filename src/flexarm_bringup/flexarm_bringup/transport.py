@@ -14,7 +14,7 @@ from __future__ import annotations
 
 from collections.abc import Mapping, MutableMapping
 
-from flexarm_control.params import config_path
+from flexarm_core.params import config_path
 
 RANGE_ENV = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
 PEERS_ENV = 'ROS_STATIC_PEERS'

@@ -21,9 +21,9 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from flexarm_control import topics
-from flexarm_control.kinematics import pose_error, wrap_angle
 from flexarm_control.modes import MODE_LABELS
+from flexarm_core import topics
+from flexarm_core.kinematics import pose_error, wrap_angle
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import PlanarPose, TipPose
 

@@ -22,12 +22,13 @@ from flexarm_bringup.bag_tools import (
 )
 from flexarm_bringup.bag_writer import BagWriter
 from flexarm_bringup.cli import main
-from flexarm_control import topics
-from flexarm_control.kinematics import ArmGeometry, forward
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
 from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core import topics
+from flexarm_core.kinematics import ArmGeometry, forward
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo, PlanarPose, TipPose
 

@@ -19,7 +19,7 @@ from flexarm_bringup.outcome_text import (
     TRAIN_HINT,
     busy_text,
 )
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 from flexarm_msgs.action import MoveToPose
 
 PARSER = cli.build_parser()
@@ -175,8 +175,8 @@ def test_a_compensated_move_is_reached(fields):
 
 def test_the_closed_loop_planners_note_is_what_tells_it_from_rigid():
     from flexarm_control.compensator import Compensator
-    from flexarm_control.kinematics import ArmGeometry
     from flexarm_control.planning import DataLimits, plan_goal
+    from flexarm_core.kinematics import ArmGeometry
 
     config = load_config('arm.yaml', 'compensator.yaml', node_name='flexarm_compensator')
     compensator = Compensator(ArmGeometry.from_dict(config['arm']), config['compensation'])

@@ -18,7 +18,7 @@ from flexarm_bringup.graph_status import (
     status_text,
     supervisor_record,
 )
-from flexarm_control.health_report import ERROR, OK, WARN
+from flexarm_core.health_report import ERROR, OK, WARN
 
 MODEL = {'version': '4', 'kind': 'gp', 'dataset': 'B', 'payloads': [0.0], 'samples': 40,
          'validation': '5-fold cross-validation', 'max_error': [1e-4, 2e-4, 1e-5],

@@ -10,7 +10,7 @@ import pytest
 import yaml
 
 from flexarm_bringup.launcher import NodeSpec, load_graph, node_command, ros_env, write_overrides
-from flexarm_control.params import config_path
+from flexarm_core.params import config_path
 
 
 def test_node_command_names_the_node_and_its_params(tmp_path) -> None:

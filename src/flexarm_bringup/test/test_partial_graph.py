@@ -7,7 +7,7 @@ import pytest
 from flexarm_bringup.graph_status import status_text
 from flexarm_bringup.launcher import select_nodes
 from flexarm_bringup.supervisor import READY_ACTIONS, READY_SERVICES, READY_TOPICS, Graph
-from flexarm_control import topics
+from flexarm_core import topics
 
 CORE = ['flexarm_sim', 'flexarm_vision', 'flexarm_learner', 'flexarm_compensator']
 

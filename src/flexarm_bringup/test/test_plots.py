@@ -18,12 +18,13 @@ from flexarm_bringup.bag_tools import export_figures
 from flexarm_bringup.bag_writer import BagWriter
 from flexarm_bringup.experiment import write_results
 from flexarm_bringup.trials import MOVE_CSV_FIELDS, TRIAL_CSV_FIELDS, Trial, summarise
-from flexarm_control import topics
 from flexarm_control.dataset import DatasetWriter, Sample
-from flexarm_control.kinematics import ArmGeometry, forward, inverse
-from flexarm_control.params import load_config
 from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import Region, regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core import topics
+from flexarm_core.kinematics import ArmGeometry, forward, inverse
+from flexarm_core.params import load_config
+from flexarm_core.regions import Region, regions_from_dict
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo, PlanarPose, TipPose
 
 GEOMETRY = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])

@@ -34,7 +34,7 @@ from flexarm_bringup.bag_tools import (
     trials_figure,
 )
 from flexarm_bringup.bag_writer import BagWriter
-from flexarm_control import topics
+from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
 

@@ -23,7 +23,7 @@ from flexarm_bringup.running_graphs import (
     stop,
 )
 from flexarm_bringup.supervisor import RECORD, lock_name, parse_lock_name
-from flexarm_control.parent_death import terminate_with_parent
+from flexarm_core.parent_death import terminate_with_parent
 
 # Locks LOCK_FILE as supervisor._lock_domain does, says so, then waits; SIGINT (Python's
 # default: KeyboardInterrupt) ends it, unless IGNORE_SIGINT.

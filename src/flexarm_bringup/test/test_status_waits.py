@@ -14,7 +14,7 @@ from flexarm_bringup.graph_status import (
     record_nodes,
     status_text,
 )
-from flexarm_control.health_report import OK
+from flexarm_core.health_report import OK
 
 RECORD = {'supervisor_pid': 1, 'robot': 'sim', 'run_dir': 'runs/x', 'remote': ['flexarm_learner'],
           'nodes': {'flexarm_sim': {'pid': 10, 'restarts': 0, 'exit_code': None},

@@ -13,7 +13,7 @@ from flexarm_bringup.study import (
     study_settings,
     write_study,
 )
-from flexarm_control.paper import TABLE_7, TABLE_8
+from flexarm_core.paper import TABLE_7, TABLE_8
 
 pytestmark = pytest.mark.duration(13)
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 import pytest
 
 from flexarm_bringup.topic_discovery import TopicSelection, message_class
-from flexarm_control import topics
+from flexarm_core import topics
 
 IMAGE, INFO, TIP, MODEL = (topics.absolute(t) for t in (
     topics.CAMERA_IMAGE, topics.CAMERA_INFO, topics.TIP_POSE, topics.MODEL))

@@ -37,9 +37,10 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import Region, sample_poses, travel_order, travel_times
+from flexarm_control.sampling import sample_poses, travel_order, travel_times
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.regions import Region
 
 Samples = Callable[[], tuple[np.ndarray, np.ndarray]]   # joints (n, 4), deflections (n, 3)
 Runner = Callable[..., 'Future[int]']                     # run(choose, *args) -> its future

@@ -12,7 +12,7 @@ seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can the
 
 Inputs are subscribed only while they are used: ``/joint_states`` while a goal drives the arm
 (:meth:`ArmInterface.attached`), ``/tip_pose`` while a measurement waits for it; nobody asking
-for tip poses lets the vision node and the camera rest (:mod:`flexarm_control.demand`). And
+for tip poses lets the vision node and the camera rest (:mod:`flexarm_core.demand`). And
 they are taken, not called back: the waiting thread takes what arrived each time it looks
 (every ``_POLL`` s), so no message wakes the node's executor (at a 10x real-time factor
 ``/joint_states`` alone is 1000 messages a wall second, and a wake-up costs more than the
@@ -39,9 +39,9 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flexarm_control import liveness, topics
-from flexarm_control.kinematics import JOINT_NAMES
-from flexarm_control.measurement import Measurement, average_frames
+from flexarm_core import liveness, topics
+from flexarm_core.kinematics import JOINT_NAMES
+from flexarm_core.measurement import Measurement, average_frames
 from flexarm_msgs.msg import TipPose
 
 # A wait of T s of sim time may take at most this many times T (+ slack) of wall time.
@@ -49,7 +49,7 @@ _WALL_FACTOR = 3.0
 _WALL_SLACK = 10.0
 _POLL = 0.02   # [s] waits take the inputs that arrived this often
 # [s, wall] without /joint_states, once they came, after which the controller counts as gone
-# (times the liveness factor, :mod:`flexarm_control.liveness`). At 100 Hz of sim time even a
+# (times the liveness factor, :mod:`flexarm_core.liveness`). At 100 Hz of sim time even a
 # simulator at a tenth of real time publishes every 0.1 s, but a starved simulator or
 # subscriber has paused for over 1 s on a busy 2-core machine, so 3 s: still "within a few
 # seconds" for a dead controller. The bridge's own link-loss timeout (heartbeats,

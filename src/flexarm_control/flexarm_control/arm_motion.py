@@ -27,8 +27,8 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.measurement import Measurement
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.measurement import Measurement
 
 Abort = Callable[[], bool]
 

@@ -10,7 +10,7 @@ it runs out; a goal that the server rejects raises :class:`GoalRejected` with it
 one that ends without success but without an error code raises :class:`GoalFailed`. While a
 goal runs the client watches its server (:class:`ServerWatch`): a server that stops answering
 for ``SERVER_SILENCE`` seconds (times the liveness factor,
-:mod:`flexarm_control.liveness`: killed) or is replaced by another instance (restarted: it
+:mod:`flexarm_core.liveness`: killed) or is replaced by another instance (restarted: it
 does not know the goal) raises :class:`ServerLost`, naming the node, instead of waiting out
 the timeout. A timeout
 or a Ctrl-C (KeyboardInterrupt) while a goal runs cancels it (bounded wait) before the
@@ -47,9 +47,9 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from flexarm_control import liveness, topics
-from flexarm_control.goal_owner import own_participant, participant, send_goal_writers, sender_of
 from flexarm_control.modes import Mode
+from flexarm_core import liveness, topics
+from flexarm_core.goal_owner import own_participant, participant, send_goal_writers, sender_of
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
 from flexarm_msgs.srv import Train, UseModel

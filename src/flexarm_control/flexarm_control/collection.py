@@ -21,8 +21,8 @@ import numpy as np
 
 from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
 from flexarm_control.dataset import Sample
-from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
-from flexarm_control.measurement import Measurement
+from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_core.measurement import Measurement
 
 BLIND_POSES = 3     # poses in a row skipped for want of a valid measurement: the camera is blind
 

@@ -35,7 +35,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from flexarm_control.kinematics import (
+from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,
     elbow_bend,

@@ -15,7 +15,7 @@ reports feedback and results, and hot-reloads the predictor the learner announce
 ``/learner/model`` and republishes the one it uses on the latched
 ``/compensator/active_model``. For rviz and Foxglove it publishes each goal's target on
 ``/scene/target_pose`` and every commanded x* on ``/scene/commanded_pose`` (PoseStamped in
-``base_link``, latched: :mod:`flexarm_control.plane`). An announcement stamped before the one
+``base_link``, latched: :mod:`flexarm_core.plane`). An announcement stamped before the one
 in use is ignored: DDS may hand a late joiner the latched older announcement after a newer live
 one, and a roll back (``/learner/use_model``) is a new announcement with a new stamp.
 
@@ -30,7 +30,7 @@ arm at its current joint positions (the result's ``joint_positions`` are those).
 No goal holds the arm for ever: the server ends a goal itself (aborted with CANCELED, "canceled
 by the server: <why>", the arm held) when it outlasts its time limit (the arm's time,
 :func:`~flexarm_control.goal_bounds.time_limit`) or when every client that may have sent it
-has left the graph (:mod:`flexarm_control.goal_owner`: the candidates are taken at acceptance,
+has left the graph (:mod:`flexarm_core.goal_owner`: the candidates are taken at acceptance,
 looked for every ``SENDER_CHECK`` s while it runs). A canceled goal's result names them
 ("goal sent by /node"), which is how ``flexarm cancel`` tells who sent the goal it cancelled;
 the ``goals`` diagnostics name them while it runs.
@@ -55,7 +55,7 @@ goal gives one: the measured error must be within it (TOLERANCE_NOT_MET otherwis
 MEASUREMENT_FAILED if the tip could not be measured to check it). A ``dry_run`` goal is planned
 and answered with the plan; nothing moves.
 
-A goal executes in a thread of its own (:class:`~flexarm_control.node_main.Offload`), which
+A goal executes in a thread of its own (:class:`~flexarm_core.node_main.Offload`), which
 takes the arm's inputs itself, subscribed only while the goal runs
 (:class:`~flexarm_control.arm_interface.ArmInterface`); the node's single-threaded executor
 serves cancel requests, new goals and ``/clock`` meanwhile.
@@ -81,12 +81,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
-from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.compensator import Compensator, Plan
-from flexarm_control.diagnostics import DiagnosticsPublisher
 from flexarm_control.goal_bounds import GoalBounds, GoalWatch, goal_error, time_limit
 from flexarm_control.goal_execution import (
     CANCELED,
@@ -99,19 +97,21 @@ from flexarm_control.goal_execution import (
     execute,
     sanity_bound,
 )
-from flexarm_control.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
-from flexarm_control.health_report import ERROR, OK, WARN, Status, status
-from flexarm_control.kinematics import ArmGeometry, UnreachableError, forward, pose_error
 from flexarm_control.model_health import HealthSettings, ModelHealth
 from flexarm_control.model_health import RegionHealth as RegionReport
 from flexarm_control.model_store import payload_warning
 from flexarm_control.modes import Mode
-from flexarm_control.node_main import Offload, finish_goal, run
-from flexarm_control.node_params import declare, declare_tree
 from flexarm_control.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
 from flexarm_control.predictors import Predictor, load_predictor
-from flexarm_control.sampling import regions_from_dict
-from flexarm_control.scene_msgs import pose_stamped
+from flexarm_core import topics
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
+from flexarm_core.health_report import ERROR, OK, WARN, Status, status
+from flexarm_core.kinematics import ArmGeometry, UnreachableError, forward, pose_error
+from flexarm_core.node_main import Offload, finish_goal, run
+from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.regions import regions_from_dict
+from flexarm_core.scene_msgs import pose_stamped
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
@@ -342,7 +342,7 @@ class CompensatorNode(Node):
         return GoalResponse.ACCEPT
 
     def _on_accepted(self, handle: ServerGoalHandle) -> None:
-        """Note who may have sent the goal (:mod:`flexarm_control.goal_owner`), then run it."""
+        """Note who may have sent the goal (:mod:`flexarm_core.goal_owner`), then run it."""
         if self._host is None:
             self._host = next((bytes(i.endpoint_gid) for i in self.get_publishers_info_by_topic(
                 f'{self._action}/_action/status') if i.node_name == self.get_name()

@@ -12,8 +12,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry, UnreachableError, inverse
-from flexarm_control.sampling import Region
+from flexarm_core.kinematics import ArmGeometry, UnreachableError, inverse
+from flexarm_core.regions import Region
 
 
 def region_grid(region: Region, count: int) -> np.ndarray:

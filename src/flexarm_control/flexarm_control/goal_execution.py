@@ -32,8 +32,8 @@ import numpy as np
 
 from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
 from flexarm_control.compensator import Compensator, Plan
-from flexarm_control.kinematics import UnreachableError, pose_error
 from flexarm_control.modes import Mode
+from flexarm_core.kinematics import UnreachableError, pose_error
 
 # Execution.status values (the node maps them to MoveToPose result codes).
 SUCCEEDED = 'succeeded'

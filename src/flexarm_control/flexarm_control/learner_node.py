@@ -48,7 +48,7 @@ dataset), as is one while a timed-out training job still occupies the worker. Ev
 gives an error code or message; nothing escapes a callback. A collection or refresh runs in a
 thread of its own, which takes the arm's inputs itself, subscribed only while it runs
 (:class:`~flexarm_control.arm_interface.ArmInterface`), and training and model changes in
-another, one at a time (:class:`~flexarm_control.node_main.Offload`); the node's
+another, one at a time (:class:`~flexarm_core.node_main.Offload`); the node's
 single-threaded executor serves cancel requests, ``/clock`` and parameters meanwhile.
 
 Health on ``/diagnostics``: :func:`learner_statuses` (activity, training, model).
@@ -73,15 +73,11 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
-from flexarm_control import topics
 from flexarm_control.active_sampling import ActivePoses
 from flexarm_control.arm_interface import ArmInterface
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.collection import Collected, Collector
 from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.health_report import ERROR, OK, WARN, Status, status
-from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.model_store import (
     DamagedRecord,
     arm_fingerprint,
@@ -93,19 +89,18 @@ from flexarm_control.model_store import (
     unloadable_text,
     write_current,
 )
-from flexarm_control.node_main import Offload, finish_goal, run
-from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.paths import repo_path
 from flexarm_control.predictors import KINDS, load_predictor, make_predictor
 from flexarm_control.refresh import refresh_poses, refresh_regions, refreshed
-from flexarm_control.sampling import (
-    STRATEGIES,
-    Region,
-    regions_from_dict,
-    sample_poses,
-    travel_order,
-)
+from flexarm_control.sampling import STRATEGIES, sample_poses, travel_order
 from flexarm_control.training import Metrics, Screening, TrainingWorker, train
+from flexarm_core import topics
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.health_report import ERROR, OK, WARN, Status, status
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.node_main import Offload, finish_goal, run
+from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.paths import repo_path
+from flexarm_core.regions import Region, regions_from_dict
 from flexarm_msgs.action import CollectSamples, RefreshModel
 from flexarm_msgs.msg import (
     DeflectionSample,

@@ -25,7 +25,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.sampling import Region
+from flexarm_core.regions import Region
 
 ELSEWHERE = 'elsewhere'
 

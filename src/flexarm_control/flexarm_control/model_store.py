@@ -26,7 +26,7 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
-from flexarm_control.atomic_file import atomic_write
+from flexarm_core.atomic_file import atomic_write
 
 CURRENT = 'current.json'
 _MODEL_VERSION = re.compile(r'-v(\d+)\.model$')

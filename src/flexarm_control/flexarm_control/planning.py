@@ -23,7 +23,7 @@ goal runs, and when the model is not trusted.
   prediction cannot be planned or lies beyond the learned data, it starts from the rigid
   plan — it measures the tip and corrects, so it needs no model to converge, only more moves.
 
-:class:`~flexarm_control.kinematics.UnreachableError` escapes for a target the rigid arm
+:class:`~flexarm_core.kinematics.UnreachableError` escapes for a target the rigid arm
 cannot reach at all.
 """
 from __future__ import annotations
@@ -35,9 +35,9 @@ import numpy as np
 
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.compensator import CompensationError, Compensator, Plan
-from flexarm_control.kinematics import inverse
 from flexarm_control.modes import Mode
 from flexarm_control.predictors import Predictor
+from flexarm_core.kinematics import inverse
 
 # [kg] a payload this close to a trained one counts as that one: the tip sags at most 3.6 mm
 # per kg over the learner's regions (simulated arm), so 10 g is <= 0.04 mm, the joints'

@@ -15,9 +15,10 @@ from typing import Any
 import numpy as np
 
 from flexarm_control.drift_correction import fit_correction
-from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.predictors import Predictor
-from flexarm_control.sampling import Region, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.regions import Region
 
 
 def refresh_regions(region: str, force: bool, health: Sequence[Any], known: Collection[str],

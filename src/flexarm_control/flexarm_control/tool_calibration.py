@@ -3,10 +3,10 @@
 The vision node reports the tool pose through the believed camera mounting. A constant error of
 the camera in the tool frame (principal point, mounting offset and yaw) moves every measured
 pose by the same tool-frame vector and angle, and the learner learns the camera's pose, not the
-tool's: a floor for every mode. :class:`ToolCorrection` removes such an error from every
-measurement; :func:`fit_reference` finds it from poses measured by the camera and by a
-reference instrument at the same time (a laser tracker at commissioning; the simulator's ground
-truth stands in for it): the mean tool-frame difference.
+tool's: a floor for every mode. A :class:`~flexarm_core.tool_correction.ToolCorrection`
+removes such an error from every measurement; :func:`fit_reference` finds it from poses
+measured by the camera and by a reference instrument at the same time (a laser tracker at
+commissioning; the simulator's ground truth stands in for it): the mean tool-frame difference.
 
 Why a reference and not the arm's own motions: a constant tool-frame error of the camera is
 indistinguishable from the same error of the arm itself (link 4's length, joint 4's zero, a
@@ -20,56 +20,14 @@ benchmarks/error_budget.py: the sweep's estimate is 1-2 mm off, for a 0.17 mm ca
 """
 from __future__ import annotations
 
-import dataclasses
-import json
 import math
-from collections.abc import Callable, Iterable, Sequence
+from collections.abc import Callable, Iterable
 from dataclasses import dataclass
-from pathlib import Path
-from typing import Any
 
 import numpy as np
 
-from flexarm_control.atomic_file import atomic_write
-from flexarm_control.kinematics import ArmGeometry, wrap_angle
-from flexarm_control.measurement import Measurement
-
-
-@dataclass(frozen=True)
-class ToolCorrection:
-    """The measured tool pose's error in the tool frame: measured minus true."""
-
-    axial: float = 0.0      # [m] along the tool axis
-    lateral: float = 0.0    # [m] across it (+: to the tool's left, the +phi side)
-    angle: float = 0.0      # [rad]
-
-    @classmethod
-    def from_list(cls, values: Sequence[float]) -> ToolCorrection:
-        """From ``[axial, lateral, angle]``; ValueError unless 3 finite values."""
-        values = [float(v) for v in values]
-        if len(values) != 3 or not all(math.isfinite(v) for v in values):
-            raise ValueError(f'a tool correction is 3 finite values [m, m, rad], got {values}')
-        return cls(*values)
-
-    def as_list(self) -> list[float]:
-        return [self.axial, self.lateral, self.angle]
-
-    def __add__(self, other: ToolCorrection) -> ToolCorrection:
-        """Both corrections (exact to first order: they are micrometres and millidegrees)."""
-        return ToolCorrection(self.axial + other.axial, self.lateral + other.lateral,
-                              self.angle + other.angle)
-
-    def pose(self, measured: np.ndarray) -> np.ndarray:
-        """The tool pose (3,) [m, m, rad] behind a measured one."""
-        x, y, phi = (float(v) for v in measured)
-        phi = wrap_angle(phi - self.angle)
-        c, s = math.cos(phi), math.sin(phi)
-        return np.array([x - c * self.axial + s * self.lateral,
-                         y - s * self.axial - c * self.lateral, phi])
-
-    def apply(self, measurement: Measurement) -> Measurement:
-        """The measurement with the correction applied to its pose."""
-        return dataclasses.replace(measurement, pose=self.pose(measurement.pose))
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.tool_correction import ToolCorrection
 
 
 def fit_reference(measured: np.ndarray, reference: np.ndarray) -> ToolCorrection:
@@ -113,27 +71,6 @@ def calibrate_against_reference(
                    for e in each)
     angle = max(abs(e.angle - correction.angle) for e in each)
     return ReferenceCalibration(correction, len(pairs), (position, angle))
-
-
-def read_calibration(path: str | Path) -> dict[str, Any] | None:
-    """The calibration record at ``path`` (:func:`write_calibration`), None if there is none;
-    ValueError naming the file if it is damaged."""
-    path = Path(path)
-    if not path.exists():
-        return None
-    try:
-        record = json.loads(path.read_text(encoding='utf-8'))
-        record['correction'] = ToolCorrection.from_list(record['tool_correction'])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f'tool calibration {path} is damaged ({exc}); run flexarm calibrate '
-                         'again') from exc
-    return record
-
-
-def write_calibration(path: str | Path, correction: ToolCorrection, **details: Any) -> None:
-    """Store ``correction`` with ``details`` (how it was found) at ``path``, atomically."""
-    record = {'tool_correction': correction.as_list(), **details}
-    atomic_write(path, lambda f: f.write(json.dumps(record, indent=1).encode() + b'\n'))
 
 
 def sweep_joints(joints: np.ndarray, geometry: ArmGeometry, span: float = 0.5,

@@ -46,9 +46,9 @@ import numpy as np
 
 from flexarm_control.compensator import deflection_slope
 from flexarm_control.dataset import Dataset
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.parent_death import signal_on_parent_death
 from flexarm_control.predictors import Predictor, make_predictor
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.parent_death import signal_on_parent_death
 
 MIN_SAMPLES = 8
 # [rad, m] Samples whose joints all differ by less than this are one pose, visited again: the

@@ -6,10 +6,11 @@ import numpy as np
 import pytest
 
 from flexarm_control.active_sampling import ActivePoses, ActiveSettings, choose
-from flexarm_control.kinematics import ArmGeometry, forward
-from flexarm_control.params import load_config
 from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core.kinematics import ArmGeometry, forward
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
 from flexarm_sim.plant import Plant
 
 START = np.array([0.0, 0.6, -0.5, -0.5])

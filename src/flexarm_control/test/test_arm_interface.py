@@ -7,8 +7,8 @@ import rclpy
 from rclpy.clock import ClockType
 from rosgraph_msgs.msg import Clock
 
-from flexarm_control import topics
 from flexarm_control.arm_interface import ArmInterface
+from flexarm_core import topics
 
 pytestmark = pytest.mark.node
 START = 1000.0      # [s] sim time of the first /clock

@@ -8,7 +8,6 @@ import numpy as np
 import pytest
 
 from flexarm_control import training
-from flexarm_control.params import load_config
 from flexarm_control.predictors import (
     AutoPredictor,
     greybox,
@@ -16,6 +15,7 @@ from flexarm_control.predictors import (
     load_predictor,
     make_predictor,
 )
+from flexarm_core.params import load_config
 
 SAMPLES = 24
 LOWER = np.array([-0.6, 0.3, -1.6, -1.0])

@@ -7,8 +7,8 @@ from fake_arm import FakeArm
 
 from flexarm_control.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.collection import BLIND_POSES, Collector
-from flexarm_control.kinematics import ArmGeometry, inverse
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry, inverse
+from flexarm_core.params import load_config
 from flexarm_sim.plant import Plant
 
 START = np.array([0.0, 0.6, 0.0, 0.0])

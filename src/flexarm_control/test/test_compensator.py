@@ -6,14 +6,14 @@ import numpy as np
 import pytest
 
 from flexarm_control.compensator import CompensationError, Compensator, deflection_slope
-from flexarm_control.kinematics import (
+from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,
     forward,
     inverse,
     limit_violation,
 )
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 from flexarm_sim.plant import Plant
 
 TARGETS = [(1.45, -0.15, -45), (1.55, 0.0, -22), (1.0, -0.5, -100), (1.3, -0.2, -61),

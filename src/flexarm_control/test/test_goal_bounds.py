@@ -13,9 +13,9 @@ from flexarm_control.goal_bounds import (
     move_budget,
     time_limit,
 )
-from flexarm_control.kinematics import ArmGeometry
 from flexarm_control.modes import Mode
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.params import load_config
 
 BOUNDS = GoalBounds.nominal()
 A1 = (1.45, -0.15, math.radians(-45))

@@ -21,9 +21,9 @@ from flexarm_control.goal_execution import (
     execute,
     sanity_bound,
 )
-from flexarm_control.kinematics import ArmGeometry, pose_error
 from flexarm_control.modes import Mode
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry, pose_error
+from flexarm_core.params import load_config
 from flexarm_sim.plant import Plant
 
 TARGET = np.array([1.45, -0.15, math.radians(-45)])          # Table 10, A1

@@ -10,10 +10,11 @@ import pytest
 
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.gravity_moments import ArmMasses
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.params import load_config
 from flexarm_control.predictors import greybox, kinematic, load_predictor, make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
 from flexarm_sim.plant import Plant
 
 LOWER = np.array([-0.6, 0.3, -1.6, -1.0])

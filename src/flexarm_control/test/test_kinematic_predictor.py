@@ -39,8 +39,8 @@ def test_recovers_zero_offsets_and_link_errors(fitted: kinematic.KinematicPredic
 
 
 def test_the_rigid_pose_of_perturbed_pose_is_the_arm_model() -> None:
-    from flexarm_control.kinematics import ArmGeometry, forward
-    from flexarm_control.params import load_config
+    from flexarm_core.kinematics import ArmGeometry, forward
+    from flexarm_core.params import load_config
 
     joints = random_joints(20, seed=3)
     pose = kinematic.perturbed_pose(kinematic.nominal_geometry(), joints,

@@ -8,12 +8,13 @@ import pytest
 
 from flexarm_control.at_payload import AtPayload
 from flexarm_control.compensator import Compensator
-from flexarm_control.kinematics import ArmGeometry, forward
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
 from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.predictors import Predictor, make_predictor
-from flexarm_control.sampling import regions_from_dict, sample_poses
+from flexarm_control.sampling import sample_poses
+from flexarm_core.kinematics import ArmGeometry, forward
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
 from flexarm_sim.plant import Plant
 
 TARGET = np.array([1.30, -0.20, math.radians(-61)])          # Table 10, B6

@@ -2,15 +2,10 @@
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.params import load_config
-from flexarm_control.sampling import (
-    STRATEGIES,
-    path_time,
-    regions_from_dict,
-    sample_poses,
-    travel_order,
-)
+from flexarm_control.sampling import STRATEGIES, path_time, sample_poses, travel_order
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.params import load_config
+from flexarm_core.regions import regions_from_dict
 
 
 def greedy(joints, start, velocity):

@@ -5,18 +5,16 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.measurement import Measurement
-from flexarm_control.params import load_config
 from flexarm_control.tool_calibration import (
-    ToolCorrection,
     calibrate_against_reference,
     fit_reference,
     joint4_sweep,
-    read_calibration,
     sweep_joints,
-    write_calibration,
 )
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.measurement import Measurement
+from flexarm_core.params import load_config
+from flexarm_core.tool_correction import ToolCorrection, read_calibration, write_calibration
 
 
 @pytest.fixture(scope='module')

@@ -218,8 +218,8 @@ def test_settings_not_given_are_chosen_by_validation() -> None:
 
 
 def test_a_model_the_compensator_could_not_solve_with_is_refused() -> None:
-    from flexarm_control.kinematics import ArmGeometry
-    from flexarm_control.params import load_config
+    from flexarm_core.kinematics import ArmGeometry
+    from flexarm_core.params import load_config
 
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
     joints, deflections = plant_like(30, seed=2)

@@ -1,7 +1,7 @@
 """The arm as a chain of frames in 3-D (pure): one description for the URDF and for ``/tf``.
 
 Frames (REP 103): ``base_link`` is z up and the arm moves in its x–z plane
-(:mod:`flexarm_control.plane`). Every revolute joint of the arm turns about −y, so a positive
+(:mod:`flexarm_core.plane`). Every revolute joint of the arm turns about −y, so a positive
 joint angle raises the arm as in the paper's planar model.
 
 Chain (Table 1; ``d`` the lateral offset of the No.2 arm, joint2 the No.2 arm length)::
@@ -12,7 +12,7 @@ Chain (Table 1; ``d`` the lateral offset of the No.2 arm, joint2 the No.2 arm le
       -tip_camera_optical_joint(fixed)-> tip_camera_optical_frame
 
 ``tip_link`` is the tool (camera reference point) of the rigid model: ``base_link -> tip_link``
-equals :func:`flexarm_control.kinematics.forward` at the joint positions. The camera looks at
+equals :func:`flexarm_core.kinematics.forward` at the joint positions. The camera looks at
 the hole plate, which lies behind the arm's plane (+y): ``tip_camera_link`` is tool-aligned,
 its optical frame has z along +y (the optical axis), x along the tool axis (image u) and y
 along −z of the tool (image v), as :mod:`flexarm_vision.camera_model` maps the plate to pixels.
@@ -30,8 +30,8 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from flexarm_control import plane
-from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry
+from flexarm_core import plane
+from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry
 
 if TYPE_CHECKING:
     from scipy.spatial.transform import Rotation

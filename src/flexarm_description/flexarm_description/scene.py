@@ -8,8 +8,8 @@ from __future__ import annotations
 
 import numpy as np
 
-from flexarm_control import plane
-from flexarm_control.sampling import Region
+from flexarm_core import plane
+from flexarm_core.regions import Region
 
 
 def region_outline(region: Region) -> np.ndarray:

@@ -14,7 +14,7 @@ simulator publishes joint states at 100 Hz of sim time, 1000 a second at 10x rea
 the stamp of the message it comes from, like robot_state_publisher's ``publish_frequency``:
 joint states are taken raw and only the one published is parsed.
 
-On demand (:mod:`flexarm_control.demand`): each input is subscribed only while what it makes
+On demand (:mod:`flexarm_core.demand`): each input is subscribed only while what it makes
 is watched — ``/joint_states`` while ``/tf`` has a subscriber, ``/tip_pose`` while ``/tf`` or
 ``/scene/measured_tip`` has one, ``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip``
 has one. Decision: watching the arm (rviz, Foxglove, a recorder) asks for the measured tip too,
@@ -41,14 +41,14 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
-from flexarm_control import topics
-from flexarm_control.demand import Demand, on_matched
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.health_report import OK, STALE, WARN, Status, status
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.node_main import run
-from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.scene_msgs import pose_stamped
+from flexarm_core import topics
+from flexarm_core.demand import Demand, on_matched
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.health_report import OK, STALE, WARN, Status, status
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.node_main import run
+from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.scene_msgs import pose_stamped
 from flexarm_description.chain import (
     BASE_FRAME,
     Transform,

@@ -13,7 +13,7 @@ from __future__ import annotations
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 
-from flexarm_control.kinematics import ArmGeometry
+from flexarm_core.kinematics import ArmGeometry
 from flexarm_description.chain import (
     BASE_FRAME,
     CAMERA_FRAME,

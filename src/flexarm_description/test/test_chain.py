@@ -5,9 +5,9 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 
-from flexarm_control import plane
-from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, forward
-from flexarm_control.params import load_config
+from flexarm_core import plane
+from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
+from flexarm_core.params import load_config
 from flexarm_description.chain import (
     BASE_FRAME,
     CAMERA_OPTICAL_FRAME,

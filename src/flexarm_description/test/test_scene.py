@@ -3,9 +3,9 @@ import numpy as np
 import pytest
 
 from flexarm_control.deflection_field import deflection_field, region_grid
-from flexarm_control.kinematics import ArmGeometry, forward
-from flexarm_control.params import load_config
-from flexarm_control.sampling import Region
+from flexarm_core.kinematics import ArmGeometry, forward
+from flexarm_core.params import load_config
+from flexarm_core.regions import Region
 from flexarm_description.scene import deflection_arrows, region_outline, sample_points
 
 

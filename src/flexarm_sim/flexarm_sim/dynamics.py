@@ -36,7 +36,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry, command_error, wrap_angle
+from flexarm_core.kinematics import ArmGeometry, command_error, wrap_angle
 from flexarm_sim.errors import ArmErrors, Move
 from flexarm_sim.plant import Plant
 

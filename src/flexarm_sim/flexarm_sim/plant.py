@@ -32,7 +32,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 
 MM = 1e-3
 

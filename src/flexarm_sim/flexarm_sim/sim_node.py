@@ -29,7 +29,7 @@ achieved rate.
 
 Only what someone consumes is made: ``/joint_states``, the ground truth and the camera images
 are built and published while they have a subscriber (an image costs ~10 ms to render; the
-vision node subscribes only while a node measures, :mod:`flexarm_control.demand`). The
+vision node subscribes only while a node measures, :mod:`flexarm_core.demand`). The
 plant is stepped regardless: its state is the arm's.
 
 Several arms in one ROS domain (``flexarm up --namespace``) share one ``/clock``: the simulator
@@ -46,7 +46,7 @@ restarted owner that had no follower starts again at 0. The role is in the ``con
 diagnostics (``clock``).
 
 Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
-:func:`controller_status` and the commands' :class:`~flexarm_control.health_report.CommandLog`.
+:func:`controller_status` and the commands' :class:`~flexarm_core.health_report.CommandLog`.
 """
 from __future__ import annotations
 
@@ -67,13 +67,13 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64, Float64MultiArray, Header
 
-from flexarm_control import liveness, topics
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.goal_owner import full_name
-from flexarm_control.health_report import OK, CommandLog, Status, status
-from flexarm_control.kinematics import JOINT_NAMES, ArmGeometry, command_error
-from flexarm_control.node_main import run
-from flexarm_control.node_params import declare, declare_tree
+from flexarm_core import liveness, topics
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.goal_owner import full_name
+from flexarm_core.health_report import OK, CommandLog, Status, status
+from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
+from flexarm_core.node_main import run
+from flexarm_core.node_params import declare, declare_tree
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_sim.clock_share import OWN, ClockShare, yields
 from flexarm_sim.dynamics import ArmDynamics, ArmState

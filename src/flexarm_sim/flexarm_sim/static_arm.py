@@ -14,7 +14,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from flexarm_control.measurement import Measurement, average_frames
+from flexarm_core.measurement import Measurement, average_frames
 from flexarm_sim.camera import CameraRenderer
 from flexarm_sim.errors import ArmErrors
 from flexarm_sim.plant import Plant

@@ -1,5 +1,5 @@
 """Health of the simulated controllers on /diagnostics (pure builders)."""
-from flexarm_control.health_report import OK, WARN
+from flexarm_core.health_report import OK, WARN
 from flexarm_sim.fake_controller import link_status
 from flexarm_sim.sim_node import controller_status
 

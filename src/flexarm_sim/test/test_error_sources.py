@@ -5,8 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.params import load_config
 from flexarm_sim.dynamics import ArmDynamics, NaturalFrequency
 from flexarm_sim.errors import ArmErrors, Thermal
 from flexarm_sim.plant import Plant

@@ -4,8 +4,8 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import ArmGeometry, forward, inverse
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry, forward, inverse
+from flexarm_core.params import load_config
 from flexarm_sim.plant import Plant
 
 HORIZONTAL = np.array([0.0, 0.8, 0.0, 0.0])   # fully extended along +x (1.6 m)

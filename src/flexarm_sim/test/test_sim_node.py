@@ -13,7 +13,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
-from flexarm_control import topics
+from flexarm_core import topics
 from flexarm_msgs.msg import TipPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(15)]
@@ -149,8 +149,8 @@ def test_the_payload_changes_at_run_time_with_its_error_source_on(alone, launch,
     from rclpy.qos import QoSDurabilityPolicy, QoSProfile
     from sensor_msgs.msg import CameraInfo
 
-    from flexarm_control.kinematics import ArmGeometry
-    from flexarm_control.params import load_config
+    from flexarm_core.kinematics import ArmGeometry
+    from flexarm_core.params import load_config
     from flexarm_sim.plant import Plant
 
     heard = {'truth': None, 'info': None}

@@ -5,8 +5,8 @@ import copy
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.params import load_config
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.params import load_config
 from flexarm_sim.errors import ArmErrors
 from flexarm_sim.plant import Plant
 from flexarm_sim.static_arm import StaticArm

@@ -5,7 +5,7 @@ import copy
 import numpy as np
 import pytest
 
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 from flexarm_sim.camera import CameraRenderer
 from flexarm_sim.true_camera import CameraErrors, true_renderer
 from flexarm_vision.camera_model import CameraModel, rotation

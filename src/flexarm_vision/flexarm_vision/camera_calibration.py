@@ -32,7 +32,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from flexarm_control.atomic_file import atomic_write
+from flexarm_core.atomic_file import atomic_write
 from flexarm_vision.camera_model import CameraModel, Intrinsics
 
 MIN_VIEWS = 3             # views of the plate at distinct tool angles a calibration needs

@@ -23,7 +23,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from flexarm_control.kinematics import wrap_angle
+from flexarm_core.kinematics import wrap_angle
 
 # cv2.undistortPoints: fixed-point iterations until converged far below a pixel's 1e-6.
 UNDISTORT_CRITERIA = (cv2.TERM_CRITERIA_COUNT | cv2.TERM_CRITERIA_EPS, 20, 1e-12)

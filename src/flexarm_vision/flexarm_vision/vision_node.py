@@ -7,7 +7,7 @@ pose comes from :class:`TipPoseEstimator`; whether the arm was at rest from
 :class:`SettleDetector`. An invalid measurement carries NaN coordinates and the reason in
 ``status``.
 
-On demand (:mod:`flexarm_control.demand`): images and joint states are subscribed only while
+On demand (:mod:`flexarm_core.demand`): images and joint states are subscribed only while
 ``/tip_pose`` has a subscriber — a node that measures (the learner and the compensator
 subscribe for a measurement only), the state publisher while someone watches ``/tf``, a
 recorder, a viewer. Otherwise nothing is received or estimated, and the simulator renders no
@@ -27,7 +27,7 @@ intrinsics; the ones in use are published latched on ``~/camera_info``. A valid 
 ``status`` warns when the plate no longer looks as the calibration says (:func:`lens_warning`).
 
 Tool calibration: the reported pose is the tool's, through ``tool_correction`` [axial m,
-lateral m, angle rad] (:class:`~flexarm_control.tool_calibration.ToolCorrection`: the camera's
+lateral m, angle rad] (:class:`~flexarm_core.tool_correction.ToolCorrection`: the camera's
 error in the tool frame, measured against a reference by ``flexarm calibrate``). Each
 correction's value comes from the site's calibration file (``tool_calibration_file``,
 ``camera_calibration_file``, written by ``flexarm calibrate``) when there is one, else the
@@ -59,10 +59,10 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 
-from flexarm_control import topics
-from flexarm_control.demand import Demand, on_matched
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.health_report import (
+from flexarm_core import topics
+from flexarm_core.demand import Demand, on_matched
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.health_report import (
     ERROR,
     OK,
     STALE,
@@ -72,10 +72,10 @@ from flexarm_control.health_report import (
     WindowSummary,
     status,
 )
-from flexarm_control.node_main import run
-from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.paths import repo_path
-from flexarm_control.tool_calibration import ToolCorrection, read_calibration
+from flexarm_core.node_main import run
+from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.paths import repo_path
+from flexarm_core.tool_correction import ToolCorrection, read_calibration
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_calibration import CameraCorrection, read_camera_calibration
 from flexarm_vision.camera_info import camera_info, info_intrinsics

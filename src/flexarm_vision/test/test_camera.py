@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_model import CameraModel, rotation
 

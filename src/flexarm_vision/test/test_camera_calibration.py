@@ -5,8 +5,8 @@ import json
 import numpy as np
 import pytest
 
-from flexarm_control.paper import TABLE_10
-from flexarm_control.params import load_config
+from flexarm_core.paper import TABLE_10
+from flexarm_core.params import load_config
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_calibration import (
     CameraCorrection,

@@ -5,7 +5,7 @@ import cv2
 import numpy as np
 import pytest
 
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.plate import PlateLayout, design_code
 from flexarm_vision.pose_estimator import TipPoseEstimator

@@ -9,10 +9,10 @@ from rclpy.serialization import deserialize_message, serialize_message
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 
-from flexarm_control import topics
-from flexarm_control.health_report import ERROR, OK, STALE, WARN, WindowSummary
-from flexarm_control.params import load_config
-from flexarm_control.tool_calibration import ToolCorrection
+from flexarm_core import topics
+from flexarm_core.health_report import ERROR, OK, STALE, WARN, WindowSummary
+from flexarm_core.params import load_config
+from flexarm_core.tool_correction import ToolCorrection
 from flexarm_msgs.msg import TipPose
 from flexarm_sim.camera import CameraRenderer
 from flexarm_vision.camera_calibration import CameraCorrection

@@ -68,8 +68,8 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.atomic_file import atomic_write
 from flexarm_control.drift_correction import Correction
+from flexarm_core.atomic_file import atomic_write
 
 if TYPE_CHECKING:
     from threadpoolctl import ThreadpoolController

@@ -30,7 +30,7 @@ def read_config(*names: str) -> dict[str, Any]:
     """``load_config(*names)``, parsed again only when one of the files changed (shared: not
     to be modified). Parsing the YAML (~15 ms) took longer than fitting a kinematic model,
     and a cross-validation fits tens of models."""
-    from flexarm_control.params import config_path, load_config
+    from flexarm_core.params import config_path, load_config
 
     stamps = tuple(config_path(name).stat().st_mtime_ns for name in names)
     cached = _CONFIGS.get(names)

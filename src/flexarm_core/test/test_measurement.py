@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.measurement import average_frames
+from flexarm_core.measurement import average_frames
 
 
 def test_average_and_spread() -> None:

@@ -6,10 +6,12 @@ import threading
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
-from flexarm_control import topics
 from flexarm_control.compensator_node import goals_status, model_health_status, model_status
-from flexarm_control.diagnostics import DiagnosticsPublisher, diagnostic_array
-from flexarm_control.health_report import (
+from flexarm_control.learner_node import learner_statuses
+from flexarm_control.model_health import RegionHealth
+from flexarm_core import topics
+from flexarm_core.diagnostics import DiagnosticsPublisher, diagnostic_array
+from flexarm_core.health_report import (
     ERROR,
     OK,
     STALE,
@@ -19,8 +21,6 @@ from flexarm_control.health_report import (
     status,
     value_text,
 )
-from flexarm_control.learner_node import learner_statuses
-from flexarm_control.model_health import RegionHealth
 from flexarm_msgs.msg import ModelInfo
 
 

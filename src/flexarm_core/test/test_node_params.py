@@ -5,8 +5,8 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from flexarm_control.node_params import declare_tree
-from flexarm_control.params import config_path, flatten, load_config, unflatten
+from flexarm_core.node_params import declare_tree
+from flexarm_core.params import config_path, flatten, load_config, unflatten
 
 
 @pytest.fixture

@@ -1,7 +1,7 @@
 """Demand: inputs wanted while any watched output has a subscriber."""
 from types import SimpleNamespace
 
-from flexarm_control.demand import Demand, on_matched
+from flexarm_core.demand import Demand, on_matched
 
 
 def test_wanted_from_the_first_subscriber_of_any_output_to_the_last_one_leaving():

@@ -11,7 +11,7 @@ from typing import Any
 
 import yaml
 
-from flexarm_control.paths import CONFIG_DIR
+from flexarm_core.paths import CONFIG_DIR
 
 
 def config_path(name: str) -> Path:

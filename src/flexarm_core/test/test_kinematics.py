@@ -4,7 +4,7 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.kinematics import (
+from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,
     elbow_bend,
@@ -15,7 +15,7 @@ from flexarm_control.kinematics import (
     reach_margins,
     wrap_angle,
 )
-from flexarm_control.params import load_config
+from flexarm_core.params import load_config
 
 
 @pytest.fixture(scope='module')
@@ -78,7 +78,7 @@ def test_far_target_takes_an_extension_with_reach_to_spare(geometry):
 def test_reach_margin_is_the_distance_the_wrist_can_move_out(geometry):
     """Moving the target radially outward by just under the margin stays reachable with the
     same extension; by just over it, it does not."""
-    from flexarm_control.kinematics import _solve_fixed
+    from flexarm_core.kinematics import _solve_fixed
 
     rng = np.random.default_rng(7)
     checked = 0
@@ -146,7 +146,7 @@ def test_geometry_rejects_bad_config():
 
 def test_extension_rule_matches_an_exhaustive_search(geometry):
     """The rule picks what trying every grid value in the rule's order would pick."""
-    from flexarm_control.kinematics import _solve_fixed
+    from flexarm_core.kinematics import _solve_fixed
 
     lo, hi, step = geometry.lower[1], geometry.upper[1], geometry.extension_step
     grid = np.round(np.linspace(lo, hi, int(round((hi - lo) / step)) + 1), 9)

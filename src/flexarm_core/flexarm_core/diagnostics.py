@@ -1,4 +1,4 @@
-"""``/diagnostics`` for a node (rclpy side of :mod:`flexarm_control.health_report`).
+"""``/diagnostics`` for a node (rclpy side of :mod:`flexarm_core.health_report`).
 
 Every flexarm node publishes its statuses as one ``diagnostic_msgs/DiagnosticArray`` on
 ``/diagnostics`` once a second of wall-clock time, also when the graph runs on the
@@ -21,8 +21,8 @@ from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks, QoSPublisherMatchedInfo
 from rclpy.node import Node
 
-from flexarm_control import topics
-from flexarm_control.health_report import ERROR, Status, status
+from flexarm_core import topics
+from flexarm_core.health_report import ERROR, Status, status
 
 PERIOD = 1.0                    # [s, wall] between two reports
 

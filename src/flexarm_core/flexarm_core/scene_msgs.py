@@ -1,4 +1,4 @@
-"""Planar poses as ROS 3-D messages (the node side of :mod:`flexarm_control.plane`)."""
+"""Planar poses as ROS 3-D messages (the node side of :mod:`flexarm_core.plane`)."""
 from __future__ import annotations
 
 from collections.abc import Sequence
@@ -7,7 +7,7 @@ from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Pose, PoseStamped, Quaternion
 from std_msgs.msg import Header
 
-from flexarm_control import plane
+from flexarm_core import plane
 
 BASE_FRAME = 'base_link'
 

@@ -4,7 +4,7 @@ import subprocess
 import sys
 from types import SimpleNamespace
 
-from flexarm_control.goal_owner import (
+from flexarm_core.goal_owner import (
     Owner,
     ProcTable,
     full_name,

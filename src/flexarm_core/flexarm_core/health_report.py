@@ -1,5 +1,5 @@
 """A node's health as diagnostic_updater reports it, without ROS (the publishing shell is
-:mod:`flexarm_control.diagnostics`).
+:mod:`flexarm_core.diagnostics`).
 
 A node reports one :class:`Status` per concern: ``name`` is ``"<node name>: <concern>"``, the
 level is diagnostic_msgs/DiagnosticStatus's (OK, WARN degraded, ERROR broken, STALE no

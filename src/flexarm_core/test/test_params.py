@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_control.params import load_node_params, unflatten
+from flexarm_core.params import load_node_params, unflatten
 
 
 def test_node_section_overrides_wildcard(tmp_path: Path) -> None:
@@ -28,7 +28,7 @@ def test_unflatten_nests_dotted_names() -> None:
 def test_shipped_config_files_are_ros_params_files(name: str) -> None:
     import yaml
 
-    from flexarm_control.params import config_path
+    from flexarm_core.params import config_path
 
     doc = yaml.safe_load(config_path(name).read_text())
     assert doc, f'{name} is empty'

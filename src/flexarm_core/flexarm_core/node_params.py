@@ -1,4 +1,4 @@
-"""Declaring parameters in the node shells (rclpy side of :mod:`flexarm_control.params`).
+"""Declaring parameters in the node shells (rclpy side of :mod:`flexarm_core.params`).
 
 Scalar node settings are declared one by one with a default and a description. Physical
 parameter trees (``arm.*``, ``plant.*``, ``camera.*`` ...) come from the ``config/*.yaml``
@@ -17,7 +17,7 @@ from typing import Any
 from rcl_interfaces.msg import ParameterDescriptor
 from rclpy.node import Node
 
-from flexarm_control.params import config_path, flatten, load_node_params, unflatten
+from flexarm_core.params import config_path, flatten, load_node_params, unflatten
 
 
 def declare(node: Node, name: str, default: Any, description: str,

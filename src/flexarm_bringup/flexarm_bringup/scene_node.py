@@ -23,14 +23,14 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import ColorRGBA, Float64, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flexarm_control import topics
 from flexarm_control.deflection_field import deflection_field
-from flexarm_control.diagnostics import DiagnosticsPublisher
-from flexarm_control.health_report import OK, WARN, Status, status
-from flexarm_control.kinematics import ArmGeometry
-from flexarm_control.node_main import run
-from flexarm_control.node_params import declare, declare_tree
-from flexarm_control.sampling import regions_from_dict
+from flexarm_core import topics
+from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.health_report import OK, WARN, Status, status
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.node_main import run
+from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.regions import regions_from_dict
 from flexarm_description.chain import BASE_FRAME
 from flexarm_description.scene import (
     deflection_arrows,

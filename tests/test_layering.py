@@ -55,3 +55,16 @@ def test_a_package_imports_only_the_layers_below_it_and_declares_them(package):
 
 def test_every_package_is_in_a_layer():
     assert {p.name for p in SRC.iterdir() if (p / 'package.xml').exists()} == set(LAYERS)
+
+
+def test_only_the_simulator_reads_its_truth():
+    """config/sim.yaml defines the simulated real arm: no other package's code names it (the
+    control side reads the nominal robot description, config/arm.yaml)."""
+    readers = set()
+    for package in LAYERS[1:]:
+        for path in (SRC / package / package).rglob('*.py'):
+            for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+                if isinstance(node, ast.Constant) and node.value in ('sim.yaml',
+                                                                      'config/sim.yaml'):
+                    readers.add(package)
+    assert readers == {'flexarm_sim'}

@@ -87,12 +87,12 @@ class World:
 
     def __init__(self) -> None:
         from flexarm_sim.camera import CameraRenderer
-        from flexarm_sim.plant import Plant
+        from flexarm_sim.plant import configured_plant
         from flexarm_vision.pose_estimator import TipPoseEstimator
 
-        config = load_config('arm.yaml', 'sim.yaml', 'camera.yaml')
+        config = load_config('arm.yaml', 'camera.yaml')
         self.geometry = ArmGeometry.from_dict(config['arm'])
-        self.plant = Plant.from_dict(config['plant'], self.geometry)
+        self.plant = configured_plant(self.geometry)
         self.camera = CameraRenderer.from_dict(config)
         vision = load_config('vision.yaml', node_name='flexarm_vision')['vision']
         self.estimator = TipPoseEstimator.from_dict({**config, 'vision': vision})

@@ -1,12 +1,13 @@
 """Gravity moments of the arm's parts about its compliant elements (pure; no rclpy).
 
-The structure of the grey-box deflection model (:mod:`.predictors.greybox`): the Table 3 part
-masses (config/sim.yaml ``plant.masses``) and the payload at the tip, placed along the rigid
-arm (config/arm.yaml ``arm.*``) — No.2 arm beam centred ``beam_length``/2 behind joint3, the
-joint2 drive ``second_axis_position`` along the arm from joint1, each link's mass at its middle,
-the joint3 and joint4 axes at their joints, the end effector ``end_effector_com`` beyond the
-tip. The moment about an element is M_z = −g Σ m (x − x_element) over the parts beyond it
-(small-deflection approximation: on the rigid pose), in N·m; it is linear in the payload.
+The structure of the grey-box deflection model (:mod:`.predictors.greybox`): the nominal part
+masses of the robot description (config/arm.yaml ``arm.inertia``: what a site knows, not the
+simulator's truth) and the payload at the tip, placed along the rigid arm (``arm.*``) — No.2
+arm beam centred ``beam_length``/2 behind joint3, the joint2 drive ``second_axis_position``
+along the arm from joint1, each link's mass at its middle, the joint3 and joint4 axes at their
+joints, the end effector ``end_effector_com`` beyond the tip. The moment about an element is
+M_z = −g Σ m (x − x_element) over the parts beyond it (small-deflection approximation: on the
+rigid pose), in N·m; it is linear in the payload.
 """
 from __future__ import annotations
 
@@ -29,7 +30,7 @@ class ArmMasses:
     link3: float                  # joint3 -> joint4
     link4: float                  # joint4 -> tip
     offset: float                 # lateral offset of the No.2 arm axis
-    masses: Mapping[str, float]   # Table 3, the names of PARTS
+    masses: Mapping[str, float]   # the names of PARTS
     beam_length: float            # the sliding No.2 arm
     second_axis_position: float   # joint2 drive along the arm from joint1
     end_effector_com: float       # end-effector CoM beyond the tip
@@ -45,13 +46,10 @@ class ArmMasses:
                    float(d['end_effector_com']))
 
     @classmethod
-    def from_config(cls, config: Mapping[str, Any]) -> ArmMasses:
-        """From merged config/arm.yaml and config/sim.yaml parameters (``arm``, ``plant``)."""
-        arm, plant = config['arm'], config['plant']
+    def from_description(cls, arm: Mapping[str, Any]) -> ArmMasses:
+        """From the robot description: config/arm.yaml ``arm`` (geometry and ``inertia``)."""
         return cls.from_dict({**{k: arm[k] for k in ('link3', 'link4', 'offset')},
-                              **{k: plant[k] for k in ('masses', 'beam_length',
-                                                       'second_axis_position',
-                                                       'end_effector_com')}})
+                              **arm['inertia']})
 
     def as_dict(self) -> dict[str, Any]:
         return {**asdict(self), 'masses': dict(self.masses)}

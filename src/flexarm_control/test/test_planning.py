@@ -23,11 +23,13 @@ LIMITS = DataLimits(max_distance=3.0, max_std=0.3e-3)
 
 @pytest.fixture(scope='module')
 def world():
+    """The compensator and a plant with the masses the robot description gives (what the
+    grey-box knows): planning is tested, not the mass model (test_greybox_predictor)."""
     config = load_config('arm.yaml', 'sim.yaml', 'compensator.yaml',
                          node_name='flexarm_compensator')
     geometry = ArmGeometry.from_dict(config['arm'])
-    return Compensator(geometry, config['compensation']), Plant.from_dict(config['plant'],
-                                                                          geometry)
+    return Compensator(geometry, config['compensation']), Plant.from_dict(
+        {**config['plant'], **config['arm']['inertia']}, geometry)
 
 
 def model(plant: Plant, distance: float = 0.5, std: float = 0.0, predict=None):

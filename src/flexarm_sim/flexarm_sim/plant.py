@@ -33,6 +33,7 @@ from typing import Any
 import numpy as np
 
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
+from flexarm_core.params import load_config
 
 MM = 1e-3
 
@@ -189,3 +190,9 @@ def _unit(angle: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Unit vector along ``angle`` and its left normal, each (..., 2)."""
     c, s = np.cos(angle), np.sin(angle)
     return np.stack([c, s], axis=-1), np.stack([-s, c], axis=-1)
+
+
+def configured_plant(geometry: ArmGeometry) -> Plant:
+    """The simulated real arm of config/sim.yaml ``plant``: the simulator's truth, which only
+    the simulator's side reads (the control side has the nominal robot description)."""
+    return Plant.from_dict(load_config('sim.yaml', node_name='flexarm_sim')['plant'], geometry)

@@ -82,8 +82,8 @@ RESIDUALS = ('none', 'gp')
 
 
 def load_arm() -> ArmMasses:
-    """The arm of config/arm.yaml and config/sim.yaml ``plant``."""
-    return ArmMasses.from_config(read_config('arm.yaml', 'sim.yaml'))
+    """The arm as the robot description has it (config/arm.yaml ``arm``: nominal masses)."""
+    return ArmMasses.from_description(read_config('arm.yaml')['arm'])
 
 
 class GreyboxPredictor(Predictor):

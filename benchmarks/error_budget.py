@@ -21,7 +21,7 @@ in an hour of work.
 Sources (``sources`` in the JSON, each alone; ``all``: every one together; ``ideal``: none):
 repeatability, hysteresis, thermal, camera as config/sim.yaml describes them; payload: the arm
 picks up a ``--payload`` kg tool at run time before the campaign and learns with it (a model
-that was not told is issue 18's drift detection).
+that was not told is the model health's drift detection).
 
 The camera source's floor (``sources.camera.before_mm``: the CLOSED_LOOP p95 with the camera
 alone) comes from camera errors that are constant in the tool frame: the principal point

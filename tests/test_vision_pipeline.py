@@ -37,6 +37,6 @@ def test_settled_tip_pose_matches_the_truth(launch, ros_node, wait_for):
     pairs = wait_for(paired, 60.0, '3 valid, settled tip poses with their ground truth')
     for m, true_pose in pairs:
         error = np.array([m.pose.x, m.pose.y, m.pose.phi]) - true_pose
-        assert math.hypot(error[0], error[1]) < 0.2e-3          # issue 4: max 0.2 mm
+        assert math.hypot(error[0], error[1]) < 0.2e-3          # the vision: max 0.2 mm
         assert abs(error[2]) < math.radians(0.01)
         assert m.holes_used >= 9 and m.status == ''

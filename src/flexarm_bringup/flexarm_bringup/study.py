@@ -11,7 +11,7 @@ does not decide. Table 7's "fitting precision" is read as a normalised error: RM
 range of the true deflection, averaged over x, y, φ.
 
 Beyond the paper, every predictor kind is fitted on the same samples, next to what a user would
-pick instead of a learned model (issue 18): ``kinematic`` calibration, the ``greybox`` physics
+pick instead of a learned model: ``kinematic`` calibration, the ``greybox`` physics
 model, the learned ``mlp``, ``rbf`` and ``gp``, and ``auto`` (the learner's default, which
 chooses among them by cross-validation; the row says what it chose per seed); the rigid model
 (no prediction: the error is the whole deflection) is the reference. Pure core (no rclpy)::

@@ -1,4 +1,4 @@
-"""Mending a model that no longer fits the arm from a few samples (pure; issue 18 part 2).
+"""Mending a model that no longer fits the arm from a few samples (pure).
 
 When the arm changes after training — a heavier tool nobody declared, thermal growth, a link
 bent by a knock — the learned deflection Δ(θ) is off everywhere by something smooth and

@@ -227,7 +227,7 @@ class LearnerNode(Node):
         self._coverage = np.array(declare(
             self, 'coverage_margin', [0.03, 0.03, 0.0436],
             '[m, m, rad] learning poses cover the region grown by this on every side'))
-        self._default_kind = declare(self, 'default_kind', 'gp', f'one of {", ".join(KINDS)}')
+        self._default_kind = declare(self, 'default_kind', 'auto', f'one of {", ".join(KINDS)}')
         self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds')
         self._screening = Screening.from_dict(
             declare_tree(self, 'training', 'config/learner.yaml'))

@@ -1,4 +1,4 @@
-"""Does the model still fit the arm? Watched from every measured goal (pure; issue 18 part 2).
+"""Does the model still fit the arm? Watched from every measured goal (pure).
 
 Every measurement the compensator takes (any mode, every move of a goal, whenever the camera
 sees the plate) is a free check of the model: the measured deflection (measured tip − rigid

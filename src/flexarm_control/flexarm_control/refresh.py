@@ -1,4 +1,4 @@
-"""A model refresh: where to measure, and the refreshed model (pure; issue 18 part 2).
+"""A model refresh: where to measure, and the refreshed model (pure).
 
 :func:`refresh_poses` plans the few learning poses of a refresh: half of them (rounded up)
 where the model health saw its largest residuals (:meth:`ModelHealth.worst_joints`), the rest

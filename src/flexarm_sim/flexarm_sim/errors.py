@@ -1,4 +1,4 @@
-"""Error sources of the real arm (config/sim.yaml ``error_sources.*``; issue 17).
+"""Error sources of the real arm (config/sim.yaml ``error_sources.*``).
 
 * Repeatability: the servos stop each joint a random N(0, sigma) off its target, drawn anew
   for every joint whose target a command changes. The encoders report the commanded motion;

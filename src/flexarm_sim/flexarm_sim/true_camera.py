@@ -1,5 +1,5 @@
 """The true tip camera, as it differs from its calibration (config/sim.yaml
-``error_sources.camera``; issue 17).
+``error_sources.camera``).
 
 The renderer draws what the real camera sees: its own focal length, principal point and radial
 distortion (k1, k2), its own mounting on the tip (offset, and a yaw about its optical axis) and

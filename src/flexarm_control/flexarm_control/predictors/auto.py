@@ -1,6 +1,6 @@
 """``auto``: the kind that fits the dataset best, chosen by grouped cross-validation.
 
-No single kind wins everywhere (issue 18): the grey-box where the arm follows its structure
+No single kind wins everywhere (`flexarm study`): the grey-box where the arm follows its structure
 (on the simulated arm, every region and size), the GP where something the structure lacks
 dominates (paper region with friction, 40 samples: on the worst seed), kinematic calibration
 alone where the arm is stiff and only miscalibrated. So ``auto`` cross-validates every setting

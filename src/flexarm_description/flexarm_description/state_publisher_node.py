@@ -96,7 +96,8 @@ def transform_msg(t: Transform, header: Header) -> TransformStamped:
 class StatePublisher(Node):
     def __init__(self) -> None:
         super().__init__('flexarm_state_publisher')
-        geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        arm = declare_tree(self, 'arm', 'config/arm.yaml')
+        geometry = ArmGeometry.from_dict(arm)
         camera = declare_tree(self, 'camera', 'config/camera.yaml')
         frequency = declare(self, 'publish_frequency', 30.0,
                             '[Hz, wall clock] at most this many /tf (and tip pose) messages a '
@@ -104,7 +105,7 @@ class StatePublisher(Node):
         self._joints = arm_joints(geometry, camera['offset'])
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.create_publisher(String, topics.ROBOT_DESCRIPTION, latched).publish(
-            String(data=robot_description(geometry, camera['offset'])))
+            String(data=robot_description(geometry, arm['inertia'], camera['offset'])))
         header = Header(stamp=self.get_clock().now().to_msg())
         self.create_publisher(TFMessage, topics.TF_STATIC, latched).publish(TFMessage(
             transforms=[transform_msg(t, header) for t in fixed_transforms(self._joints)]))

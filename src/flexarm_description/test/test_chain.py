@@ -21,6 +21,8 @@ from flexarm_description.chain import (
 )
 from flexarm_description.urdf_model import robot_description
 
+INERTIA = load_config('arm.yaml')['arm']['inertia']
+
 
 @pytest.fixture(scope='module')
 def geometry() -> ArmGeometry:
@@ -78,7 +80,7 @@ def test_missing_joint_positions_are_an_error(geometry) -> None:
 
 
 def test_urdf_has_the_four_joints_with_table_1_limits(geometry) -> None:
-    robot = ET.fromstring(robot_description(geometry, (0.03, 0.0)))
+    robot = ET.fromstring(robot_description(geometry, INERTIA, (0.03, 0.0)))
     joints = {j.get('name'): j for j in robot.iter('joint')}
     moving = [name for name, j in joints.items() if j.get('type') != 'fixed']
     assert moving == list(JOINT_NAMES)
@@ -93,3 +95,21 @@ def test_urdf_has_the_four_joints_with_table_1_limits(geometry) -> None:
     assert {BASE_FRAME, TIP_FRAME, 'tip_camera_link', CAMERA_OPTICAL_FRAME} <= links
     assert all(j.find('parent').get('link') in links and j.find('child').get('link') in links
                for j in joints.values())
+
+
+def test_urdf_links_carry_the_nominal_masses_where_the_gravity_model_puts_them(geometry) -> None:
+    robot = ET.fromstring(robot_description(geometry, INERTIA))
+    inertial = {link.get('name'): link.find('inertial') for link in robot.iter('link')
+                if link.find('inertial') is not None}
+    assert set(inertial) == {'link1', 'link2', 'link3', 'link4'}
+    mass = {name: float(e.find('mass').get('value')) for name, e in inertial.items()}
+    assert sum(mass.values()) == pytest.approx(sum(INERTIA['masses'].values()))
+    m = INERTIA['masses']
+    assert mass['link4'] == pytest.approx(m['fourth_arm'] + m['end_effector'])
+    centre = float(inertial['link4'].find('origin').get('xyz').split()[0])
+    tip = geometry.link4 + INERTIA['end_effector_com']
+    assert centre == pytest.approx((m['fourth_arm'] * geometry.link4 / 2
+                                    + m['end_effector'] * tip) / mass['link4'])
+    for e in inertial.values():
+        tensor = e.find('inertia')
+        assert all(float(tensor.get(k)) > 0 for k in ('ixx', 'iyy', 'izz'))

@@ -313,29 +313,28 @@ def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(real_time_graph):
     context = Context()
     rclpy.init(context=context, domain_id=client.context.get_domain_id())
     second = FlexarmClient('second_client', context=context)
-    outcome, phases = {}, []
-    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.move_to(
-        *far, mode='rigid', timeout=120, feedback=lambda fb: phases.append(fb.phase))))
     try:
         second.wait_until_ready(timeout=30.0, learner=False)   # ready before the move starts
-        thread.start()
+        run = client.move_async(*far, mode='rigid', timeout=120)   # no thread: polled here
         deadline = time.monotonic() + 20
-        while MoveToPose.Feedback.PHASE_MOVING not in phases and time.monotonic() < deadline:
+        while (getattr(run.feedback(), 'phase', None) != MoveToPose.Feedback.PHASE_MOVING
+               and not run.done() and time.monotonic() < deadline):
             time.sleep(0.02)
-        time.sleep(0.5)                               # the arm is on its way
+        spin_for(client, 0.5)                         # the arm is on its way
+        assert not run.done()
         with pytest.raises(GoalRejected, match='busy'):
             second.move_to(*TARGET, mode='rigid', timeout=20)
     finally:
         second.destroy_node()
         rclpy.try_shutdown(context=context)
-    client.cancel()
-    thread.join(timeout=30)
-    assert outcome['result'].error_code == Result.CANCELED
+    run.cancel()
+    result = run.result()
+    assert result.error_code == Result.CANCELED
     spin_for(client, 3.0)                             # braking (and settling back) is over
     stopped = joints['q'].copy()
     spin_for(client, 1.0)
     np.testing.assert_allclose(joints['q'], stopped, atol=1e-9)
-    np.testing.assert_allclose(outcome['result'].joint_positions, stopped, atol=0.02)
+    np.testing.assert_allclose(result.joint_positions, stopped, atol=0.02)
     goal = inverse(ArmGeometry.from_dict(load_config('arm.yaml')['arm']), np.array(far))
     assert np.max(np.abs(joints['q'] - goal)) > 0.05
 

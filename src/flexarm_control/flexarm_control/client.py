@@ -6,7 +6,15 @@
     client.destroy_node()
 
 Every call blocks with a timeout (seconds, wall clock) and raises :class:`TimeoutError` when
-it runs out; a goal that the server rejects raises :class:`GoalRejected` with its reason, and
+it runs out, or, for a goal, returns at once as a :class:`GoalRun` to poll and cancel from the
+script's own loop (``move_async``, ``collect_async``; the blocking ones wait on it):
+
+    run = client.move_async(1.45, -0.15, math.radians(-45), mode='rigid')
+    while not run.done():
+        print(run.feedback())
+    result = run.result()      # or run.cancel()
+
+A goal's errors: a goal that the server rejects raises :class:`GoalRejected` with its reason, and
 one that ends without success but without an error code raises :class:`GoalFailed`. While a
 goal runs the client watches its server (:class:`ServerWatch`): a server that stops answering
 for ``SERVER_SILENCE`` seconds (times the liveness factor,
@@ -155,9 +163,111 @@ class ServerWatch:
         return None
 
 
+class GoalRun:
+    """A goal sent and running, in nav2_simple_commander's non-blocking shape: poll
+    :meth:`done` and :meth:`feedback` from a script's own loop, :meth:`cancel` it, take its
+    :meth:`result` (which blocks until it ends). Each call spins the client; none waits longer
+    than its timeout or the goal's (``timeout`` at sending, wall clock). Errors are the
+    blocking calls': :class:`GoalRejected`, :class:`ServerLost`, :class:`GoalFailed`,
+    TimeoutError (the goal is then cancelled), :class:`GoalInterrupted` on Ctrl-C in
+    :meth:`result` (cancelled too)."""
+
+    def __init__(self, client: FlexarmClient, action: ActionClient, goal: Any, timeout: float,
+                 feedback: Callable[[Any], None] | None = None) -> None:
+        self._client, self._action, self._timeout = client, action, timeout
+        self._deadline = time.monotonic() + timeout
+        self._feedback: Any = None
+        self._on_feedback = feedback
+        if not action.wait_for_server(timeout_sec=min(timeout, 10.0)):
+            raise TimeoutError(f'action server {action._action_name} not available')
+        client._wait_responsive(action, self._deadline)
+        self._sent = action.send_goal_async(goal, feedback_callback=self._feedback_received)
+        self._handle: ClientGoalHandle | None = None
+        self._result: Future | None = None
+        self._watch: ServerWatch | None = None
+        client._running = self
+
+    def done(self) -> bool:
+        """Whether the goal has ended; spins the client once without waiting."""
+        self._client.spin_once(0.0)
+        if self._handle is None:
+            if not self._sent.done():
+                return False
+            self._accepted(self._sent.result())
+        reason = self._watch.lost()
+        if reason is not None and not self._result.done():
+            raise ServerLost(reason)
+        return self._result.done()
+
+    def feedback(self) -> Any:
+        """The latest feedback (None before the first)."""
+        return self._feedback
+
+    def cancel(self, timeout: float = 10.0) -> None:
+        """Cancel the goal and wait (``timeout``) until the server acknowledges it."""
+        handle = self._handle or self._accepted(self._client._spin_until(
+            self._sent, timeout, 'goal acceptance'))
+        self._client._spin_until(handle.cancel_goal_async(), timeout, 'cancel')
+
+    def result(self) -> Any:
+        """Wait for the goal's result (module docstring of the errors)."""
+        client, name = self._client, self._action._action_name
+        try:
+            if self._handle is None:
+                self._accepted(client._spin_until(self._sent, self._remaining(),
+                                                  'goal acceptance'))
+            response = client._spin_until(self._result, self._remaining(), 'the result',
+                                          self._watch.lost)
+        except TimeoutError as exc:
+            running = self._handle is not None
+            if running:
+                self.cancel()
+            raise TimeoutError(f'{name}: {exc}' + ('; the goal was cancelled' if running
+                                                   else '')) from exc
+        except KeyboardInterrupt:   # Ctrl-C, possibly before the acceptance arrived
+            end, accepted, ended = time.monotonic() + CANCEL_WAIT, None, None
+            with contextlib.suppress(TimeoutError, RuntimeError):   # no answer, or shut down
+                handle = client._spin_until(self._sent, end - time.monotonic(),
+                                            'goal acceptance')
+                accepted = handle.accepted
+                if accepted:
+                    client._spin_until(handle.cancel_goal_async(), end - time.monotonic(),
+                                       'cancel')
+                    ended = client._spin_until(self._result or handle.get_result_async(),
+                                               end - time.monotonic(), 'the cancelled result')
+            raise GoalInterrupted(accepted, None if ended is None else ended.result) from None
+        finally:
+            if client._running is self:
+                client._running = None
+        if response.status != GoalStatus.STATUS_SUCCEEDED and response.result.error_code == 0:
+            raise GoalFailed(f'{name}: the goal ended '
+                             f'{_ENDED.get(response.status, f"in status {response.status}")} '
+                             'without an error code (see the server log)')
+        return response.result
+
+    def _remaining(self) -> float:
+        return self._deadline - time.monotonic()
+
+    def _accepted(self, handle: ClientGoalHandle) -> ClientGoalHandle:
+        if not handle.accepted:
+            if self._client._running is self:
+                self._client._running = None
+            raise GoalRejected(f'{self._action._action_name} rejected the goal: the server '
+                               'runs one goal at a time and is busy')
+        self._handle, self._result = handle, handle.get_result_async()
+        self._watch = ServerWatch(self._client, self._action)
+        return handle
+
+    def _feedback_received(self, msg: Any) -> None:
+        self._feedback = msg.feedback
+        if self._on_feedback is not None:
+            self._on_feedback(msg.feedback)
+
+
 class FlexarmClient(Node):
-    """Blocking client of the compensator and the learner (of the arm in ``namespace``, '' for
-    a graph without one: ``flexarm up --namespace``)."""
+    """Client of the compensator and the learner (of the arm in ``namespace``, '' for a graph
+    without one: ``flexarm up --namespace``): each goal blocking, or running as a
+    :class:`GoalRun` (``move_async``, ``collect_async``)."""
 
     def __init__(self, node_name: str = 'flexarm_client', context: Context | None = None,
                  namespace: str = '') -> None:
@@ -173,7 +283,7 @@ class FlexarmClient(Node):
         # One per node, made on first use; its service clients go with destroy_node.
         self._parameter_clients: dict[str, AsyncParameterClient] = {}
         self._executor.add_node(self)
-        self._goal_handle: Any = None
+        self._running: GoalRun | None = None     # the goal this client sent last, running
         self.active_model: ModelInfo | None = None
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.create_subscription(ModelInfo, topics.ACTIVE_MODEL,
@@ -208,13 +318,14 @@ class FlexarmClient(Node):
                                        'discovered but hangs or is overloaded (see its log)'
                                        ) from exc
 
-    def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
-                position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
-                max_corrections: int = 0, trial: str = '', timeout: float = 300.0,
-                allow_extrapolation: bool = False, dry_run: bool = False,
-                feedback: Callable[[MoveToPose.Feedback], None] | None = None,
-                ) -> MoveToPose.Result:
-        """Send a MoveToPose goal and wait for its result (``allow_extrapolation``: run a
+    def move_async(self, x: float, y: float, phi: float, mode: str = 'predictive', *,
+                   position_tolerance: float = 0.0, angle_tolerance: float = 0.0,
+                   max_corrections: int = 0, trial: str = '', timeout: float = 300.0,
+                   allow_extrapolation: bool = False, dry_run: bool = False,
+                   feedback: Callable[[MoveToPose.Feedback], None] | None = None,
+                   ) -> GoalRun:
+        """Send a MoveToPose goal and return at once: poll the :class:`GoalRun` (``done``,
+        ``feedback``), ``cancel`` it, take its ``result`` (``allow_extrapolation``: run a
         PREDICTIVE goal beyond the learned data with a warning instead of its refusal;
         ``dry_run``: only plan, the result holds the plan and nothing moves)."""
         goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
@@ -224,16 +335,25 @@ class FlexarmClient(Node):
                                max_corrections=int(max_corrections), trial=trial,
                                allow_extrapolation=bool(allow_extrapolation),
                                dry_run=bool(dry_run))
-        return self._run_goal(self._move, goal, timeout, feedback)
+        return GoalRun(self, self._move, goal, timeout, feedback)
 
-    def collect(self, count: int, region: str = '', strategy: str = '', seed: int = 0,
-                dataset: str = '', timeout: float = 3600.0,
-                feedback: Callable[[CollectSamples.Feedback], None] | None = None,
-                ) -> CollectSamples.Result:
-        """Collect ``count`` deflection samples and wait for the result."""
+    def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive',
+                **options: Any) -> MoveToPose.Result:
+        """:meth:`move_async` (same arguments) and wait for its result."""
+        return self.move_async(x, y, phi, mode, **options).result()
+
+    def collect_async(self, count: int, region: str = '', strategy: str = '', seed: int = 0,
+                      dataset: str = '', timeout: float = 3600.0,
+                      feedback: Callable[[CollectSamples.Feedback], None] | None = None,
+                      ) -> GoalRun:
+        """Start collecting ``count`` deflection samples; the running :class:`GoalRun`."""
         goal = CollectSamples.Goal(count=int(count), region=region, strategy=strategy,
                                    seed=int(seed), dataset=dataset)
-        return self._run_goal(self._collect, goal, timeout, feedback)
+        return GoalRun(self, self._collect, goal, timeout, feedback)
+
+    def collect(self, count: int, region: str = '', **options: Any) -> CollectSamples.Result:
+        """:meth:`collect_async` (same arguments) and wait for its result."""
+        return self.collect_async(count, region, **options).result()
 
     def refresh(self, count: int = 0, region: str = '', timeout: float = 1800.0,
                 feedback: Callable[[RefreshModel.Feedback], None] | None = None,
@@ -242,7 +362,7 @@ class FlexarmClient(Node):
         ``region`` ('': the regions the model health reports stale; ``force``: even where the
         model health sees it fit) and wait for the result."""
         goal = RefreshModel.Goal(count=int(count), region=region, force=force)
-        return self._run_goal(self._refresh, goal, timeout, feedback)
+        return GoalRun(self, self._refresh, goal, timeout, feedback).result()
 
     def set_payload(self, kg: float, timeout: float = 10.0) -> None:
         """Declare the payload [kg] the arm carries now (the learner's ``payload``, published
@@ -348,8 +468,8 @@ class FlexarmClient(Node):
 
     def cancel(self, timeout: float = 10.0) -> None:
         """Cancel the goal in progress (if any) and wait for the server to acknowledge."""
-        if self._goal_handle is not None:
-            self._spin_until(self._goal_handle.cancel_goal_async(), timeout, 'cancel')
+        if self._running is not None:
+            self._running.cancel(timeout)
 
     def cancel_all(self, timeout: float = 10.0) -> list[CanceledGoal]:
         """Cancel every goal that runs on the arm's action servers (MoveToPose, and
@@ -391,50 +511,6 @@ class FlexarmClient(Node):
         self._refresh.destroy()
         self._executor.shutdown(timeout_sec=1.0)
         super().destroy_node()
-
-    def _run_goal(self, client: ActionClient, goal: Any, timeout: float,
-                  feedback: Callable[[Any], None] | None) -> Any:
-        deadline = time.monotonic() + timeout
-        if not client.wait_for_server(timeout_sec=min(timeout, 10.0)):
-            raise TimeoutError(f'action server {client._action_name} not available')
-        self._wait_responsive(client, deadline)
-        callback = None if feedback is None else (lambda msg: feedback(msg.feedback))
-        sent = client.send_goal_async(goal, feedback_callback=callback)
-        result_future: Future | None = None
-        try:
-            handle = self._spin_until(sent, deadline - time.monotonic(), 'goal acceptance')
-            if not handle.accepted:
-                raise GoalRejected(f'{client._action_name} rejected the goal: the server runs '
-                                   'one goal at a time and is busy')
-            self._goal_handle = handle
-            result_future = handle.get_result_async()
-            response = self._spin_until(result_future, deadline - time.monotonic(),
-                                        'the result', ServerWatch(self, client).lost)
-        except TimeoutError as exc:
-            running = self._goal_handle is not None
-            self.cancel()
-            raise TimeoutError(f'{client._action_name}: {exc}' + (
-                '; the goal was cancelled' if running else '')) from exc
-        except KeyboardInterrupt:   # Ctrl-C, possibly before the acceptance arrived
-            end, accepted, ended = time.monotonic() + CANCEL_WAIT, None, None
-            with contextlib.suppress(TimeoutError, RuntimeError):   # no answer, or shut down
-                handle = self._spin_until(sent, end - time.monotonic(), 'goal acceptance')
-                accepted = handle.accepted
-                if accepted:
-                    self._spin_until(handle.cancel_goal_async(), end - time.monotonic(),
-                                     'cancel')
-                    if result_future is None:
-                        result_future = handle.get_result_async()
-                    ended = self._spin_until(result_future, end - time.monotonic(),
-                                             'the cancelled result')
-            raise GoalInterrupted(accepted, None if ended is None else ended.result) from None
-        finally:
-            self._goal_handle = None
-        if response.status != GoalStatus.STATUS_SUCCEEDED and response.result.error_code == 0:
-            raise GoalFailed(f'{client._action_name}: the goal ended '
-                             f'{_ENDED.get(response.status, f"in status {response.status}")} '
-                             'without an error code (see the server log)')
-        return response.result
 
     def _wait_responsive(self, client: ActionClient, deadline: float) -> None:
         """Wait until the action server has answered a request of this client.

@@ -365,7 +365,7 @@ def write_dataset() -> Callable[..., None]:
 def _write_dataset(path: Path, count: int = 12, bad: int | None = None) -> None:
     import numpy as np
 
-    from flexarm_control.dataset import DatasetWriter, Sample
+    from flexarm_control.learning.dataset import DatasetWriter, Sample
 
     joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
                                                (count, 4))
@@ -384,7 +384,7 @@ def ready_client(domain_id: int) -> Iterator[Callable[..., Any]]:
     import rclpy
     from rclpy.context import Context
 
-    from flexarm_control.client import FlexarmClient
+    from flexarm_control.ros.client import FlexarmClient
 
     made: list[tuple[Any, Any]] = []
 

@@ -28,7 +28,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from flexarm_control.tool_calibration import calibrate_against_reference
+from flexarm_control.execution.tool_calibration import calibrate_against_reference
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config
 from flexarm_sim.true_camera import true_renderer

@@ -23,9 +23,9 @@ import numpy as np
 from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
-from flexarm_control.compensator import Compensator
-from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.execution.compensator import Compensator
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, inverse
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config

@@ -2,18 +2,18 @@
 CLOSED_LOOP, alone and all together, judged against the simulator's truth.
 
 Offline and deterministic: the control core's own policies (the learner's collection loop and
-training, the compensator's planning and goal execution, :mod:`flexarm_control.arm_motion`
-with config/motion.yaml's approach leg and averaging) drive the simulated arm without its
-dynamics (:class:`flexarm_sim.static_arm.StaticArm`: the error sources of config/sim.yaml
-``error_sources`` at their configured magnitudes, images of the plate rendered by the true
-camera and measured by the vision estimator with the calibrated one). Per source set, region
-(A, B) and training seed (``--seeds``: its learning poses, joint errors and image noise):
-``--samples`` learning samples at the learner's poses, the learner's default training, then
-``--targets`` targets uniform in the region's box (the same for every seed and set), each run
-PREDICTIVE (one move) and CLOSED_LOOP (corrected from the measured tip, the compensator's
-tolerances). The error of a goal is its true tip pose against the target; the figures pool
-every region and seed (``worst_run_*``: the worst single run), over the goals that succeeded:
-``failed`` counts the others (the user was told), ``refused`` PREDICTIVE refusals, and
+training, the compensator's planning and goal execution,
+:mod:`flexarm_control.execution.arm_motion` with config/motion.yaml's approach leg and averaging)
+drive the simulated arm without its dynamics (:class:`flexarm_sim.static_arm.StaticArm`: the error
+sources of config/sim.yaml ``error_sources`` at their configured magnitudes, images of the plate
+rendered by the true camera and measured by the vision estimator with the calibrated one). Per
+source set, region (A, B) and training seed (``--seeds``: its learning poses, joint errors and
+image noise): ``--samples`` learning samples at the learner's poses, the learner's default
+training, then ``--targets`` targets uniform in the region's box (the same for every seed and
+set), each run PREDICTIVE (one move) and CLOSED_LOOP (corrected from the measured tip, the
+compensator's tolerances). The error of a goal is its true tip pose against the target; the
+figures pool every region and seed (``worst_run_*``: the worst single run), over the goals that
+succeeded: ``failed`` counts the others (the user was told), ``refused`` PREDICTIVE refusals, and
 ``out_of_reach`` targets the sagging true arm cannot reach (robustness.py). Sim time runs on
 through the campaign (travel time + 2 s settling per move), so thermal drift acts as it would
 in an hour of work.
@@ -30,8 +30,8 @@ learner learns the camera's pose, not the tool's, and CLOSED_LOOP drives the cam
 the target. ``sources.camera.after_mm``: the same after ``flexarm calibrate``'s procedure
 (:func:`reference_calibration`: the camera against a reference instrument at the six Table 10
 poses; a laser tracker's noise on the truth). ``sources.camera.sweep_after_mm``: after the
-joint-4 sweep instead, the arm's own motion (:mod:`flexarm_control.tool_calibration` says why
-it cannot work; ``sweep.runs[*].calibration`` holds its estimate, the camera's true error
+joint-4 sweep instead, the arm's own motion (:mod:`flexarm_control.execution.tool_calibration`
+says why it cannot work; ``sweep.runs[*].calibration`` holds its estimate, the camera's true error
 and the arm's own link-4 errors). ``all``: every source, calibrated by the reference procedure
 as the realistic world is run; ``all_uncalibrated``: without it.
 
@@ -54,20 +54,20 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.arm_motion import Abort, ArmMotion, MotionSettings, never
-from flexarm_control.collection import Collector
-from flexarm_control.compensator import CompensationError, Compensator
-from flexarm_control.goal_execution import SUCCEEDED, GoalSpec, execute
-from flexarm_control.modes import Mode
-from flexarm_control.planning import DataLimits, Refusal, plan_goal
-from flexarm_control.sampling import random_targets, sample_poses, travel_order
-from flexarm_control.tool_calibration import (
+from flexarm_control.execution.arm_motion import Abort, ArmMotion, MotionSettings, never
+from flexarm_control.execution.collection import Collector
+from flexarm_control.execution.compensator import CompensationError, Compensator
+from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execute
+from flexarm_control.execution.modes import Mode
+from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
+from flexarm_control.execution.tool_calibration import (
     calibrate_against_reference,
     fit_reference,
     joint4_sweep,
     sweep_joints,
 )
-from flexarm_control.training import Screening, fit_robust
+from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
+from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.measurement import Measurement
 from flexarm_core.paper import TABLE_10

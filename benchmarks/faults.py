@@ -84,7 +84,7 @@ from flexarm_bringup.launcher import (
     shm_in_use,
     stop_all,
 )
-from flexarm_control.dataset import load_dataset
+from flexarm_control.learning.dataset import load_dataset
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import RUNS_DIR, repo_path

@@ -6,7 +6,7 @@ domain (or ``--domain-id``), twice: at a real-time factor of 1, then of 10 (the 
 factor is fixed at start). Each time it waits until the graph is ready and ``--settle`` seconds
 more (start-up work: imports, discovery), then measures a stretch of ``--seconds`` doing
 nothing (``idle_x1``, ``idle_x10``); at x10 it then collects ``--samples`` deflection samples
-through the learner's ``/collect_samples`` (:class:`~flexarm_control.client.FlexarmClient`,
+through the learner's ``/collect_samples`` (:class:`~flexarm_control.ros.client.FlexarmClient`,
 into a temporary data folder) and measures that stretch too (``collect_x10``).
 
 CPU: user + system time of each node's process and its child processes from
@@ -47,7 +47,7 @@ from rosgraph_msgs.msg import Clock
 
 from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.supervisor import Graph
-from flexarm_control.client import FlexarmClient
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 
 TICK = os.sysconf('SC_CLK_TCK')

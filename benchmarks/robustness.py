@@ -32,10 +32,10 @@ import time
 import numpy as np
 
 from flexarm_bringup.study import World
-from flexarm_control.compensator import CompensationError, Compensator
-from flexarm_control.planning import DataLimits, Refusal, plan_goal
-from flexarm_control.sampling import random_targets
-from flexarm_control.training import Screening, fit_robust
+from flexarm_control.execution.compensator import CompensationError, Compensator
+from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
+from flexarm_control.learning.sampling import random_targets
+from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import pose_error
 from flexarm_core.params import load_config
 
@@ -97,7 +97,7 @@ def run(world: World, compensator: Compensator, limits: DataLimits, learner: dic
 
 
 def _defaults(kind: str) -> dict:
-    from flexarm_control.predictors import make_predictor
+    from flexarm_control.learning.predictors import make_predictor
     return make_predictor(kind).defaults
 
 

@@ -1,15 +1,15 @@
 """Sample efficiency: learning curves of the collection strategies, and sim seconds per sample.
 
 Learning curves (offline, pure core, the realistic world): the learner's collection loop
-(:class:`~flexarm_control.collection.Collector`, config/motion.yaml's approach leg and
+(:class:`~flexarm_control.execution.collection.Collector`, config/motion.yaml's approach leg and
 averaging) drives the simulated arm without its dynamics
 (:class:`flexarm_sim.static_arm.StaticArm`, config/sim.yaml's error sources: repeatability,
 friction hysteresis, thermal drift, the true camera; the camera calibrated against the
 reference first, as the realistic world is run; error_budget.py's rig). Per strategy (sobol:
 the learner's poses, visited in travel order; active:
-:mod:`flexarm_control.active_sampling`), region (A, B) and seed (its poses, joint errors and
-image noise) one campaign of the largest sample count; the curve at n samples fits the
-learner's training (:func:`~flexarm_control.training.fit_robust`, each ``--kinds``) on the
+:mod:`flexarm_control.learning.active_sampling`), region (A, B) and seed (its poses, joint errors
+and image noise) one campaign of the largest sample count; the curve at n samples fits the
+learner's training (:func:`~flexarm_control.learning.training.fit_robust`, each ``--kinds``) on the
 first n poses of the strategy's sequence (Sobol order for sobol, the order chosen for
 active) and judges it on ``--held-out`` poses uniform in the region's box against the plant's
 TRUE deflection there (approached from below as every move is, at the campaign's end
@@ -47,11 +47,11 @@ from typing import Any
 import numpy as np
 from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calibration
 
-from flexarm_control.active_sampling import ActivePoses, ActiveSettings, run_now
-from flexarm_control.collection import Collector
-from flexarm_control.dataset import Sample
-from flexarm_control.sampling import path_time, sample_poses, travel_order
-from flexarm_control.training import Screening, fit_robust
+from flexarm_control.execution.collection import Collector
+from flexarm_control.learning.active_sampling import ActivePoses, ActiveSettings, run_now
+from flexarm_control.learning.dataset import Sample
+from flexarm_control.learning.sampling import path_time, sample_poses, travel_order
+from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import forward, wrap_angle
 from flexarm_core.regions import regions_from_dict
 

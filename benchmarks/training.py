@@ -16,8 +16,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from flexarm_control.predictors import KINDS, make_predictor
-from flexarm_control.training import validate
+from flexarm_control.learning.predictors import KINDS, make_predictor
+from flexarm_control.learning.training import validate
 
 LOWER = np.array([-0.5, 0.3, -1.5, -1.0])   # working region [rad, m, rad, rad]
 UPPER = np.array([0.5, 0.8, 0.5, 1.0])

@@ -1,5 +1,5 @@
-"""An :class:`~flexarm_control.arm_motion.Arm` for the policy tests: the simulator's plant,
-no ROS. Joints arrive at once unless told otherwise; the tip is measured without noise."""
+"""An :class:`~flexarm_control.execution.arm_motion.Arm` for the policy tests: the simulator's
+plant, no ROS. Joints arrive at once unless told otherwise; the tip is measured without noise."""
 from __future__ import annotations
 
 import numpy as np

@@ -11,7 +11,7 @@ import math
 import pytest
 
 from flexarm_bringup.cli import Exit, main
-from flexarm_control.collection import BLIND_POSES
+from flexarm_control.execution.collection import BLIND_POSES
 from flexarm_core import topics
 from flexarm_core.params import load_config
 from flexarm_msgs.action import CollectSamples, MoveToPose

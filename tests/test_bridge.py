@@ -28,7 +28,7 @@ from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import make_key
 from flexarm_bringup.launcher import stop_all
 from flexarm_bringup.supervisor import Graph
-from flexarm_control.client import FlexarmClient
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import liveness, topics
 from flexarm_msgs.action import MoveToPose
 

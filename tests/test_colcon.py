@@ -33,8 +33,8 @@ OUTER_ROS = ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH', 'COLCON_PREFIX_PATH', 'PY
 
 
 def expected_executables(package: str) -> set[str]:
-    """The package's node modules with a main(), and its other executables."""
-    nodes = {path.stem for path in (SRC / package / package).glob('*_node.py')
+    """The package's node modules (at any depth) with a main(), and its other executables."""
+    nodes = {path.stem for path in (SRC / package / package).rglob('*_node.py')
              if re.search(r'^def main\(', path.read_text(encoding='utf-8'), re.MULTILINE)}
     return nodes | OTHER_EXECUTABLES.get(package, set())
 
@@ -95,7 +95,7 @@ def test_the_install_space_imports_and_runs_as_its_setup_script_sets_it_up(works
     install = workspace / 'install'
     site = Path('lib', f'python{sys.version_info.major}.{sys.version_info.minor}',
                 'site-packages')
-    code = ('import flexarm_bringup.cli, flexarm_control.compensator, flexarm_msgs.msg\n'
+    code = ('import flexarm_bringup.cli, flexarm_control.execution.compensator, flexarm_msgs.msg\n'
             'from rclpy.serialization import serialize_message\n'
             'assert serialize_message(flexarm_msgs.msg.PlanarPose(x=1.5))\n'
             'for m in (flexarm_msgs, flexarm_control, flexarm_bringup):\n'

@@ -28,10 +28,10 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
-from flexarm_control.client import FlexarmClient, GoalFailed, GoalRejected
-from flexarm_control.compensator_node import CompensatorNode
-from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import sample_poses
+from flexarm_control.ros.client import FlexarmClient, GoalFailed, GoalRejected
+from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import topics
 from flexarm_core.health_report import ERROR, WARN
 from flexarm_core.kinematics import ArmGeometry, forward, inverse

@@ -18,9 +18,9 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_control.client import FlexarmClient
-from flexarm_control.dataset import load_dataset
-from flexarm_control.predictors import load_predictor
+from flexarm_control.learning.dataset import load_dataset
+from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelHealth

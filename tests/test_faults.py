@@ -16,7 +16,7 @@ import rclpy
 from rclpy.context import Context
 
 from flexarm_bringup.launcher import owned_shm
-from flexarm_control.client import SERVER_SILENCE
+from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(80)]
@@ -196,7 +196,7 @@ def kill_mid_move(client, victim) -> tuple[dict, float]:
 
 
 def test_a_client_notices_its_server_die_mid_goal(moving_graph):
-    from flexarm_control.client import ServerLost
+    from flexarm_control.ros.client import ServerLost
 
     _, compensator, client = moving_graph
     outcome, seconds = kill_mid_move(client, compensator)
@@ -209,8 +209,8 @@ def test_a_collection_client_notices_the_learner_die_and_no_sample_is_lost(launc
                                                                           ready_client):
     import threading
 
-    from flexarm_control.client import ServerLost
-    from flexarm_control.dataset import load_dataset
+    from flexarm_control.learning.dataset import load_dataset
+    from flexarm_control.ros.client import ServerLost
 
     launch('flexarm_sim', real_time_factor=10.0)
     launch('flexarm_vision')
@@ -406,7 +406,7 @@ def test_the_link_leaves_loopback_only_with_a_key(launch, domain_id, wait_for):
 
 
 def test_a_goal_fails_at_once_when_the_controller_dies_mid_move(moving_graph):
-    from flexarm_control.arm_interface import JOINT_SILENCE
+    from flexarm_control.ros.arm_interface import JOINT_SILENCE
     from flexarm_msgs.action import MoveToPose
 
     sim, _, client = moving_graph

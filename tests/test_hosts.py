@@ -35,7 +35,7 @@ ROBOT_SIDE = 'sim,vision,state_publisher'
 LEARNING_SIDE = 'learner,compensator,scene'
 CLIENT = '''
 import json, math
-from flexarm_control.client import init_client
+from flexarm_control.ros.client import init_client
 client = init_client()
 try:
     client.wait_until_ready(timeout=60.0)

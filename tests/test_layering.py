@@ -68,3 +68,22 @@ def test_only_the_simulator_reads_its_truth():
                                                                       'config/sim.yaml'):
                     readers.add(package)
     assert readers == {'flexarm_sim'}
+
+
+def test_in_the_controller_only_its_ros_shell_imports_rclpy():
+    """flexarm_control's learning and execution are pure: the nodes, the arm interface and the
+    client (``flexarm_control/ros``) are its only modules that import rclpy."""
+    package = SRC / 'flexarm_control' / 'flexarm_control'
+    shell = {path.relative_to(package).parts[0] for path in package.rglob('*.py')
+             if _imports_rclpy(path)}
+    assert shell == {'ros'}
+
+
+def _imports_rclpy(path: Path) -> bool:
+    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+        if isinstance(node, ast.Import) and any(a.name.split('.')[0] == 'rclpy'
+                                                 for a in node.names):
+            return True
+        if isinstance(node, ast.ImportFrom) and (node.module or '').split('.')[0] == 'rclpy':
+            return True
+    return False

@@ -16,10 +16,10 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_control.client import FlexarmClient
-from flexarm_control.dataset import load_dataset
-from flexarm_control.model_store import read_current, versions_on_disk
-from flexarm_control.predictors import load_predictor
+from flexarm_control.learning.dataset import load_dataset
+from flexarm_control.learning.model_store import read_current, versions_on_disk
+from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
@@ -203,22 +203,18 @@ def test_damaged_files_or_outside_name_are_refused_and_the_learner_serves_on(tra
 
 def test_training_is_refused_while_a_collection_runs(trainer, second_client):
     client, _ = trainer
-    outcome, progress = {}, []
-    thread = threading.Thread(target=lambda: outcome.setdefault('result', client.collect(
-        100, region='B', dataset=fresh('busy'), timeout=120,    # far more poses than it runs
-        feedback=lambda fb: progress.append(fb.k))))
-    thread.start()
+    run = client.collect_async(100, region='B', dataset=fresh('busy'),   # far more poses than
+                               timeout=120)                                # it runs
     try:
         deadline = time.monotonic() + 20
-        while not progress and time.monotonic() < deadline:    # a pose done: it runs
-            time.sleep(0.05)
-        assert client._goal_handle is not None and progress, 'the collection did not start'
+        while run.feedback() is None and not run.done() and time.monotonic() < deadline:
+            time.sleep(0.05)                                    # a pose done: it runs
+        assert run.feedback() is not None and not run.done(), 'the collection did not start'
         refused = second_client.train('rbf', dataset='good', timeout=60)
         assert not refused.success and 'busy' in refused.message, refused.message
     finally:
-        client.cancel()
-        thread.join(timeout=30)
-    assert outcome['result'].error_code == CollectSamples.Result.CANCELED
+        run.cancel()
+    assert run.result().error_code == CollectSamples.Result.CANCELED
 
 
 def test_an_outlier_is_excluded_and_reported(trainer, write_dataset):

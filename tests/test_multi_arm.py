@@ -23,8 +23,8 @@ from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.supervisor import Graph
-from flexarm_control.client import FlexarmClient
-from flexarm_control.dataset import load_dataset
+from flexarm_control.learning.dataset import load_dataset
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo

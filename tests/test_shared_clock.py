@@ -23,7 +23,7 @@ from flexarm_bringup.cli import main
 from flexarm_bringup.launcher import stop_all
 from flexarm_bringup.outcome_text import Exit
 from flexarm_bringup.supervisor import RECORD
-from flexarm_control.client import FlexarmClient
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.action import MoveToPose

@@ -15,7 +15,7 @@ Tool:
 The arm moves RIGID to the six Table 10 poses; at each one the vision node's measured pose
 (averaged, settled) is paired with the mean of 3 poses of the reference instrument (a
 ``flexarm_msgs/TipPose`` topic: a laser tracker at the tool point on a real site, the
-simulator's ground truth here), :func:`~flexarm_control.tool_calibration.
+simulator's ground truth here), :func:`~flexarm_control.execution.tool_calibration.
 calibrate_against_reference` fits the camera's error in the tool frame, and the correction is
 stored atomically and set on the running vision node (``tool_correction``), which reports
 every pose through it from then on. Its goals are named ``calibration/<target>/rigid``, so a
@@ -34,8 +34,11 @@ from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import CameraInfo, Image
 
 from flexarm_bringup.trials import trial_name
-from flexarm_control.client import FlexarmClient
-from flexarm_control.tool_calibration import ReferenceCalibration, calibrate_against_reference
+from flexarm_control.execution.tool_calibration import (
+    ReferenceCalibration,
+    calibrate_against_reference,
+)
+from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config

@@ -58,7 +58,7 @@ from flexarm_bringup.outcome_text import (
     is_busy,
     pose_text,
 )
-from flexarm_control.modes import MODE_LABELS
+from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_core import topics
 from flexarm_core.paths import MODELS_DIR, RESULTS_DIR, RUNS_DIR
 
@@ -184,7 +184,7 @@ def _check_region(region: str) -> None:
 
 def _check_dataset(name: str) -> None:
     if name:
-        from flexarm_control.learner_node import dataset_name_error
+        from flexarm_control.ros.learner_node import dataset_name_error
 
         reason = dataset_name_error(name)
         if reason is not None:
@@ -193,7 +193,7 @@ def _check_dataset(name: str) -> None:
 
 def _check_kind(kind: str) -> None:
     if kind:
-        from flexarm_control.predictors import KINDS
+        from flexarm_control.learning.predictors import KINDS
 
         if kind not in KINDS:
             raise usage(f'unknown predictor kind "{kind}"; known kinds: {", ".join(KINDS)}')
@@ -201,7 +201,7 @@ def _check_kind(kind: str) -> None:
 
 def _check_strategy(strategy: str) -> None:
     if strategy:
-        from flexarm_control.sampling import STRATEGIES
+        from flexarm_control.learning.sampling import STRATEGIES
 
         if strategy not in STRATEGIES:
             raise usage(f'unknown strategy "{strategy}"; known: {", ".join(STRATEGIES)}')
@@ -226,7 +226,7 @@ def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
     when the block ends."""
     import rclpy
 
-    from flexarm_control.client import init_client
+    from flexarm_control.ros.client import init_client
 
     client = init_client(args.domain_id, args.namespace)
     try:
@@ -251,7 +251,7 @@ def _full(args: argparse.Namespace, name: str) -> str:
 def _goal(run: Callable[[], Any], server: str, interrupted: Callable[[Any], str]) -> Any:
     """``run()``'s result; busy, lost and interrupted goals as outcomes
     (``interrupted(result)`` words the cancelled goal's result, None if none arrived)."""
-    from flexarm_control.client import GoalInterrupted, GoalRejected, ServerLost
+    from flexarm_control.ros.client import GoalInterrupted, GoalRejected, ServerLost
 
     try:
         return run()
@@ -270,7 +270,7 @@ def _goal(run: Callable[[], Any], server: str, interrupted: Callable[[Any], str]
 
 
 def _no_result() -> str:
-    from flexarm_control.client import CANCEL_WAIT
+    from flexarm_control.ros.client import CANCEL_WAIT
 
     return f'cancelled; no result from the server within {CANCEL_WAIT:.0f} s'
 
@@ -292,8 +292,8 @@ def _is_rigid(result: Any) -> bool:
     """Whether a successful MoveToPose result is of a RIGID goal. The result does not carry
     the mode. Only RIGID and CLOSED_LOOP without a model to trust plan with neither a model
     (``model_version`` '') nor compensation steps; that CLOSED_LOOP goal notes ``RIGID_START``
-    in ``error_string`` (:func:`flexarm_control.planning.plan_goal`) and may make corrective
-    moves, where RIGID makes one."""
+    in ``error_string`` (:func:`flexarm_control.execution.planning.plan_goal`) and may make
+    corrective moves, where RIGID makes one."""
     return (not result.model_version and result.compensation_iterations == 0
             and result.iterations <= 1 and RIGID_START not in result.error_string)
 
@@ -880,7 +880,7 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
         status_text,
         supervisor_record,
     )
-    from flexarm_control.client import init_client
+    from flexarm_control.ros.client import init_client
 
     client = init_client(args.domain_id, args.namespace)
     try:
@@ -917,8 +917,8 @@ def cmd_model(args: argparse.Namespace) -> dict[str, Any]:
 
 def _model_list(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_bringup.graph_status import file_summary, model_line
-    from flexarm_control.model_store import list_models
-    from flexarm_control.predictors.base import read_model
+    from flexarm_control.learning.model_store import list_models
+    from flexarm_control.learning.predictors.base import read_model
 
     directory = Path(args.models) if args.models else MODELS_DIR / args.namespace
     entries = list_models(directory, lambda path: read_model(path)[0])

@@ -35,9 +35,9 @@ from flexarm_bringup.trials import (
     run_trials,
     summarise,
 )
-from flexarm_control.dataset import load_dataset
-from flexarm_control.modes import MODE_LABELS
-from flexarm_control.sampling import random_targets
+from flexarm_control.execution.modes import MODE_LABELS
+from flexarm_control.learning.dataset import load_dataset
+from flexarm_control.learning.sampling import random_targets
 from flexarm_core import topics
 from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.paper import TABLE_9, TABLE_10
@@ -201,7 +201,7 @@ def _client(domain_id: int):
     import rclpy
     from rclpy.context import Context
 
-    from flexarm_control.client import FlexarmClient
+    from flexarm_control.ros.client import FlexarmClient
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)

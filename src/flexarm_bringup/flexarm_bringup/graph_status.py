@@ -40,7 +40,7 @@ from sensor_msgs.msg import JointState
 
 from flexarm_bringup.launcher import load_graph, load_optional
 from flexarm_bringup.supervisor import RECORD
-from flexarm_control.predictors.base import read_model
+from flexarm_control.learning.predictors.base import read_model
 from flexarm_core import liveness, topics
 from flexarm_core.health_report import ERROR, LEVEL_NAMES
 from flexarm_msgs.msg import ModelHealth, ModelInfo

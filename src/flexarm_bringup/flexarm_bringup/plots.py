@@ -41,9 +41,9 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
-from flexarm_control.deflection_field import deflection_field
-from flexarm_control.modes import MODE_LABELS
-from flexarm_control.predictors import load_predictor
+from flexarm_control.execution.modes import MODE_LABELS
+from flexarm_control.learning.deflection_field import deflection_field
+from flexarm_control.learning.predictors import load_predictor
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.paper import TABLE_9, TABLE_10
@@ -129,7 +129,8 @@ def field_panel(region: Region, geometry: ArmGeometry, samples: Deflections,
                 targets: Mapping[str, np.ndarray], points: int = 9, note: str = '',
                 ) -> FieldPanel:
     """The predicted field on ``points`` x ``points`` poses over the region's box at its middle
-    tip angle (:func:`~flexarm_control.deflection_field.deflection_field`), at ``payload``."""
+    tip angle (:func:`~flexarm_control.learning.deflection_field.deflection_field`), at
+    ``payload``."""
     if predict is None:
         return FieldPanel(region, samples, np.empty((0, 3)), np.empty((0, 3)), targets, note)
     grid, predicted = deflection_field(

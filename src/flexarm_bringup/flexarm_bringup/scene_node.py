@@ -5,7 +5,7 @@ Namespaces: ``regions`` and ``region_labels`` (the ``regions`` of config/learner
 ``regions_shown``), ``samples`` (the measured tip of every ``/learner/samples`` message since
 start, the last ``max_samples``), ``deflection`` (one arrow per grid pose of each shown region:
 the deflection the model in use predicts there, × ``arrow_scale``, from the rigid tip position;
-:mod:`flexarm_control.deflection_field`). The model is the compensator's
+:mod:`flexarm_control.learning.deflection_field`). The model is the compensator's
 (``/compensator/active_model``), run at the payload on ``/payload``; without one, no arrows.
 The array is republished at most once a second (wall clock) when something changed.
 
@@ -23,7 +23,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import ColorRGBA, Float64, Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flexarm_control.deflection_field import deflection_field
+from flexarm_control.learning.deflection_field import deflection_field
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, WARN, Status, status
@@ -104,8 +104,8 @@ class SceneNode(Node):
         if self._model is None or not self._model.path:
             return
         # The predictors (scipy: some 45 MB of the process) are loaded once a model is in use.
-        from flexarm_control.at_payload import AtPayload
-        from flexarm_control.predictors import load_predictor
+        from flexarm_control.learning.at_payload import AtPayload
+        from flexarm_control.learning.predictors import load_predictor
 
         try:
             model = AtPayload(load_predictor(self._model.path), self._payload)

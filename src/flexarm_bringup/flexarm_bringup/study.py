@@ -35,8 +35,8 @@ from typing import Any
 import numpy as np
 
 from flexarm_bringup.plots import write_csv
-from flexarm_control.predictors import KINDS, AutoPredictor, make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.predictors import KINDS, AutoPredictor, make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.paper import TABLE_7, TABLE_8

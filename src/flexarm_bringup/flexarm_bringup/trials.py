@@ -21,14 +21,14 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from flexarm_control.modes import MODE_LABELS
+from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_core import topics
 from flexarm_core.kinematics import pose_error, wrap_angle
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import PlanarPose, TipPose
 
 if TYPE_CHECKING:       # the client pulls in rclpy; bag_tools names trials without it
-    from flexarm_control.client import FlexarmClient
+    from flexarm_control.ros.client import FlexarmClient
 
 TRIAL_CSV_FIELDS = (
     'name', 'group', 'region', 'mode', 'error_code', 'error_string', 'iterations',

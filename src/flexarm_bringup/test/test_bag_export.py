@@ -22,8 +22,8 @@ from flexarm_bringup.bag_tools import (
 )
 from flexarm_bringup.bag_writer import BagWriter
 from flexarm_bringup.cli import main
-from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core import topics
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.paper import TABLE_10

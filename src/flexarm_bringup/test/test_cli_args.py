@@ -154,7 +154,7 @@ def test_status_without_a_graph_says_so_and_exits_3(domain_id, capsys):
 
 
 def test_model_list_marks_the_current_model_and_says_why_one_is_unusable(tmp_path, capsys):
-    from flexarm_control.model_store import write_current
+    from flexarm_control.learning.model_store import write_current
 
     (tmp_path / 'b-rbf-v1.model').write_bytes(b'not a model')
     write_current(tmp_path, 1, 'rbf', str(tmp_path / 'b-rbf-v1.model'), '')

@@ -27,9 +27,9 @@ SUBPARSERS: dict[str, argparse.ArgumentParser] = next(
     a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)).choices
 # modules whose messages reach the operator through `flexarm`
 SPEAKING = ['flexarm_bringup.cli', 'flexarm_bringup.outcome_text', 'flexarm_bringup.graph_status',
-            'flexarm_control.client', 'flexarm_control.model_store',
-            'flexarm_control.model_health', 'flexarm_control.compensator_node',
-            'flexarm_control.learner_node', 'flexarm_bridge.link_auth']
+            'flexarm_control.ros.client', 'flexarm_control.learning.model_store',
+            'flexarm_control.learning.model_health', 'flexarm_control.ros.compensator_node',
+            'flexarm_control.ros.learner_node', 'flexarm_bridge.link_auth']
 # A mention of `flexarm COMMAND` is read as a command line to type: up to the end of its
 # clause (; , ) ` & '. ' or the line's end).
 COMMAND_LINE = re.compile(rf'\bflexarm ((?:{"|".join(SUBPARSERS)})\b[^;,)`&\n]*)')
@@ -113,7 +113,7 @@ def test_every_option_named_exists_on_its_command(command, option):
 
 
 def test_help_names_the_learners_defaults_and_every_kind(capsys):
-    from flexarm_control.predictors import KINDS
+    from flexarm_control.learning.predictors import KINDS
 
     learner = load_config('learner.yaml', node_name='flexarm_learner')
     assert all(re.search(rf'\b{kind}\b', cli.KIND_HELP) for kind in KINDS)
@@ -174,8 +174,8 @@ def test_a_compensated_move_is_reached(fields):
 
 
 def test_the_closed_loop_planners_note_is_what_tells_it_from_rigid():
-    from flexarm_control.compensator import Compensator
-    from flexarm_control.planning import DataLimits, plan_goal
+    from flexarm_control.execution.compensator import Compensator
+    from flexarm_control.execution.planning import DataLimits, plan_goal
     from flexarm_core.kinematics import ArmGeometry
 
     config = load_config('arm.yaml', 'compensator.yaml', node_name='flexarm_compensator')

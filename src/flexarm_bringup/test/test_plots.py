@@ -18,9 +18,9 @@ from flexarm_bringup.bag_tools import export_figures
 from flexarm_bringup.bag_writer import BagWriter
 from flexarm_bringup.experiment import write_results
 from flexarm_bringup.trials import MOVE_CSV_FIELDS, TRIAL_CSV_FIELDS, Trial, summarise
-from flexarm_control.dataset import DatasetWriter, Sample
-from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.dataset import DatasetWriter, Sample
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core import topics
 from flexarm_core.kinematics import ArmGeometry, forward, inverse
 from flexarm_core.params import load_config

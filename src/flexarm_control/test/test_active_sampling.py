@@ -5,9 +5,9 @@ from concurrent.futures import Future
 import numpy as np
 import pytest
 
-from flexarm_control.active_sampling import ActivePoses, ActiveSettings, choose
-from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.active_sampling import ActivePoses, ActiveSettings, choose
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict

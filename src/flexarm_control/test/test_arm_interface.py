@@ -7,7 +7,7 @@ import rclpy
 from rclpy.clock import ClockType
 from rosgraph_msgs.msg import Clock
 
-from flexarm_control.arm_interface import ArmInterface
+from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_core import topics
 
 pytestmark = pytest.mark.node

@@ -7,8 +7,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control import training
-from flexarm_control.predictors import (
+from flexarm_control.learning import training
+from flexarm_control.learning.predictors import (
     AutoPredictor,
     greybox,
     kinematic,

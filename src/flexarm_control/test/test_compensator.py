@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.compensator import CompensationError, Compensator, deflection_slope
+from flexarm_control.execution.compensator import CompensationError, Compensator, deflection_slope
 from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
+from flexarm_control.learning.dataset import DatasetWriter, Sample, load_dataset
 
 
 def sample(i: int) -> Sample:
@@ -65,7 +65,7 @@ def test_appending_to_an_existing_file(tmp_path: Path) -> None:
 
 WRITER = textwrap.dedent('''
     import sys, time
-    from flexarm_control.dataset import DatasetWriter, Sample
+    from flexarm_control.learning.dataset import DatasetWriter, Sample
 
     def half_then_hang(self, data):   # the kill lands in the middle of a record
         self._file.write(data[:len(data) // 2])

@@ -8,16 +8,16 @@ import numpy as np
 import pytest
 from fake_arm import FakeArm
 
-from flexarm_control.arm_motion import ArmMotion, MotionSettings
-from flexarm_control.at_payload import AtPayload
-from flexarm_control.compensator import Compensator
-from flexarm_control.drift_correction import Correction, fit_correction
-from flexarm_control.goal_execution import SUCCEEDED, GoalSpec, execute
-from flexarm_control.model_health import ELSEWHERE, HealthSettings, ModelHealth
-from flexarm_control.modes import Mode
-from flexarm_control.predictors import load_predictor, make_predictor
-from flexarm_control.refresh import refresh_poses, refresh_regions, refreshed
-from flexarm_control.sampling import sample_poses
+from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.execution.compensator import Compensator
+from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execute
+from flexarm_control.execution.modes import Mode
+from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.drift_correction import Correction, fit_correction
+from flexarm_control.learning.model_health import ELSEWHERE, HealthSettings, ModelHealth
+from flexarm_control.learning.predictors import load_predictor, make_predictor
+from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict

@@ -3,8 +3,8 @@ import math
 
 import pytest
 
-from flexarm_control.arm_motion import MotionSettings
-from flexarm_control.goal_bounds import (
+from flexarm_control.execution.arm_motion import MotionSettings
+from flexarm_control.execution.goal_bounds import (
     MAX_CORRECTIONS,
     TIME_MARGIN,
     GoalBounds,
@@ -13,7 +13,7 @@ from flexarm_control.goal_bounds import (
     move_budget,
     time_limit,
 )
-from flexarm_control.modes import Mode
+from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 

@@ -6,9 +6,9 @@ import numpy as np
 import pytest
 from fake_arm import FakeArm
 
-from flexarm_control.arm_motion import ArmMotion, MotionSettings
-from flexarm_control.compensator import Compensator
-from flexarm_control.goal_execution import (
+from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.execution.compensator import Compensator
+from flexarm_control.execution.goal_execution import (
     CANCELED,
     CONTROLLER_TIMEOUT,
     MEASUREMENT_FAILED,
@@ -21,7 +21,7 @@ from flexarm_control.goal_execution import (
     execute,
     sanity_bound,
 )
-from flexarm_control.modes import Mode
+from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.params import load_config
 from flexarm_sim.plant import Plant

@@ -8,10 +8,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.at_payload import AtPayload
-from flexarm_control.gravity_moments import ArmMasses
-from flexarm_control.predictors import greybox, kinematic, load_predictor, make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.gravity_moments import ArmMasses
+from flexarm_control.learning.predictors import greybox, kinematic, load_predictor, make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict

@@ -6,7 +6,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.predictors import kinematic, load_predictor, make_predictor
+from flexarm_control.learning.predictors import kinematic, load_predictor, make_predictor
 
 LOWER = np.array([-0.6, 0.3, -1.6, -1.0])
 UPPER = np.array([0.3, 0.8, 0.0, 1.0])

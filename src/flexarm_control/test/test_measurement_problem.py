@@ -1,5 +1,5 @@
 """Why a measurement failed, in the vision node's own words (no node started)."""
-from flexarm_control.arm_interface import measurement_problem
+from flexarm_control.ros.arm_interface import measurement_problem
 from flexarm_msgs.msg import TipPose
 
 

@@ -3,7 +3,7 @@ import json
 
 import pytest
 
-from flexarm_control.model_store import (
+from flexarm_control.learning.model_store import (
     CURRENT,
     DamagedRecord,
     arm_fingerprint,

@@ -1,7 +1,7 @@
 """One modes enum: its values are the action's constants; labels parse, others are refused."""
 import pytest
 
-from flexarm_control.modes import MODE_LABELS, Mode
+from flexarm_control.execution.modes import MODE_LABELS, Mode
 from flexarm_msgs.action import MoveToPose
 
 

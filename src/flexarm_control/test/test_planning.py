@@ -6,11 +6,11 @@ from types import SimpleNamespace
 import numpy as np
 import pytest
 
-from flexarm_control.at_payload import AtPayload
-from flexarm_control.compensator import Compensator
-from flexarm_control.planning import DataLimits, Planned, Refusal, plan_goal
-from flexarm_control.predictors import Predictor, make_predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.execution.compensator import Compensator
+from flexarm_control.execution.planning import DataLimits, Planned, Refusal, plan_goal
+from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.predictors import Predictor, make_predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config

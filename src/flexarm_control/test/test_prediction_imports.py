@@ -12,7 +12,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.predictors import KINDS, make_predictor
+from flexarm_control.learning.predictors import KINDS, make_predictor
 
 pytestmark = pytest.mark.duration(17)
 
@@ -21,9 +21,9 @@ import sys
 
 import numpy as np
 
-import flexarm_control.compensator_node
-import flexarm_control.learner_node
-from flexarm_control.predictors import load_predictor, make_predictor
+import flexarm_control.ros.compensator_node
+import flexarm_control.ros.learner_node
+from flexarm_control.learning.predictors import load_predictor, make_predictor
 
 assert not {'torch', 'sklearn'} & set(sys.modules), 'imported by the compensator node'
 assert 'scipy' not in sys.modules, 'imported by a control node before it fits or predicts'

@@ -8,7 +8,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pytest
 
-from flexarm_control.predictors import Predictor, base, load_predictor, make_predictor
+from flexarm_control.learning.predictors import Predictor, base, load_predictor, make_predictor
 
 if TYPE_CHECKING:
     from sklearn.gaussian_process.kernels import Kernel
@@ -75,7 +75,7 @@ def test_mlp_seed_changes_the_initialisation() -> None:
 def test_mlp_trains_on_the_gradient_of_the_network_it_predicts_with(activation: str) -> None:
     from scipy.optimize import approx_fprime
 
-    from flexarm_control.predictors import mlp
+    from flexarm_control.learning.predictors import mlp
 
     rng = np.random.default_rng(0)
     x, y, sizes = rng.normal(size=(20, 4)), rng.normal(size=(20, 3)), [4, 6, 5, 3]
@@ -109,7 +109,7 @@ def _scikit_learn_kernel(kernel: str, inputs: int) -> Kernel:
 def test_gp_is_scikit_learns(kernel: str) -> None:
     from sklearn.gaussian_process import GaussianProcessRegressor
 
-    from flexarm_control.predictors.gp import negative_log_likelihood
+    from flexarm_control.learning.predictors.gp import negative_log_likelihood
 
     joints = random_joints(30, seed=14)
     gp = make_predictor('gp', {'kernel': kernel, 'restarts': 1}).fit(joints, sag(joints))

@@ -2,7 +2,7 @@
 import numpy as np
 import pytest
 
-from flexarm_control.sampling import STRATEGIES, path_time, sample_poses, travel_order
+from flexarm_control.learning.sampling import STRATEGIES, path_time, sample_poses, travel_order
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict

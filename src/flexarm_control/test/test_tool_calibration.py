@@ -5,7 +5,7 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.tool_calibration import (
+from flexarm_control.execution.tool_calibration import (
     calibrate_against_reference,
     fit_reference,
     joint4_sweep,

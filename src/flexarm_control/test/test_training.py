@@ -9,10 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control import training
-from flexarm_control.dataset import Dataset, Sample
-from flexarm_control.predictors import load_predictor
-from flexarm_control.training import (
+from flexarm_control.learning import training
+from flexarm_control.learning.dataset import Dataset, Sample
+from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.learning.training import (
     MIN_SAMPLES,
     SAME_POSE,
     Metrics,

@@ -1,6 +1,6 @@
 """The camera's error in the tool frame and the site file that keeps it (pure): the vision node
 reports every pose through it, ``flexarm calibrate`` measures it against a reference
-(:mod:`flexarm_control.tool_calibration`) and writes the file atomically."""
+(:mod:`flexarm_control.execution.tool_calibration`) and writes the file atomically."""
 from __future__ import annotations
 
 import dataclasses

@@ -1,7 +1,7 @@
 """The simulated arm without its dynamics, for offline studies of the control policies (pure).
 
-An :class:`~flexarm_control.arm_motion.Arm` that arrives at once: a move applies the error
-sources as the simulator's dynamics would at its end (:mod:`flexarm_sim.errors`: the servos'
+An :class:`~flexarm_control.execution.arm_motion.Arm` that arrives at once: a move applies the
+error sources as the simulator's dynamics would at its end (:mod:`flexarm_sim.errors`: the servos'
 repeatability error of the move, the friction play taken up along it, the thermal strain at the
 simulated time) and advances the simulated time by the slowest joint's travel time at the
 Table 1 speeds plus ``settle`` seconds of settling (no vibration is simulated: the vision node

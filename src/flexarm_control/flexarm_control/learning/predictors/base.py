@@ -44,8 +44,8 @@ kernel hyperparameters per output; kinematic: its parameters; greybox: its kinem
 compliances, and the residual GP's arrays as ``residual.<name>``; auto: the chosen model's
 arrays; the physical kinds keep the geometry and masses they used in their metadata entry
 ``<kind>``). A refreshed model (:meth:`Predictor.corrected`) also has
-``corrections``, a list of :class:`~flexarm_control.drift_correction.Correction` dicts added to
-its prediction in order. ``version`` defaults to the UTC fit time, so it sorts in
+``corrections``, a list of :class:`~flexarm_control.learning.drift_correction.Correction` dicts
+added to its prediction in order. ``version`` defaults to the UTC fit time, so it sorts in
 training order; the learner may overwrite it before saving. Saving writes a temporary file in
 the target's directory, fsyncs it, renames it over the target (``os.replace``) and fsyncs the
 directory: a crash or a failed save leaves either the old file or the new one, never a mix.
@@ -68,7 +68,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.drift_correction import Correction
+from flexarm_control.learning.drift_correction import Correction
 from flexarm_core.atomic_file import atomic_write
 
 if TYPE_CHECKING:

@@ -14,7 +14,7 @@ samples and the compensator's goals meet each pose from the same side and the hy
 repeatable part of the deflection the model learns. ``approach`` must exceed the travel that
 takes up the friction band (2 x 30 % of the backlash: 0.84 mrad at joint 4; some 10 um of
 joint 2); all zero turns it off. It drives any :class:`Arm` — the nodes'
-:class:`~flexarm_control.arm_interface.ArmInterface` or a fake in unit tests — and turns what
+:class:`~flexarm_control.ros.arm_interface.ArmInterface` or a fake in unit tests — and turns what
 goes wrong into exceptions the policies handle: :class:`Canceled` (the arm is held where it
 is) and :class:`MoveFailed` (the joints did not arrive in time, or the controller fell
 silent: the arm is held and its state is unknown).

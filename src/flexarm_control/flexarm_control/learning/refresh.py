@@ -4,8 +4,8 @@
 where the model health saw its largest residuals (:meth:`ModelHealth.worst_joints`), the rest
 space-filling over the stale region grown by the coverage margin, so the correction is pinned
 down where goals missed and across the region. :func:`refreshed` fits the
-:class:`~flexarm_control.drift_correction.Correction` to the samples taken there and returns the
-corrected model under a new version.
+:class:`~flexarm_control.learning.drift_correction.Correction` to the samples taken there and
+returns the corrected model under a new version.
 """
 from __future__ import annotations
 
@@ -14,9 +14,9 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.drift_correction import fit_correction
-from flexarm_control.predictors import Predictor
-from flexarm_control.sampling import sample_poses
+from flexarm_control.learning.drift_correction import fit_correction
+from flexarm_control.learning.predictors import Predictor
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.regions import Region
 

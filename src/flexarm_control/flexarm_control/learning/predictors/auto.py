@@ -4,10 +4,10 @@ No single kind wins everywhere (`flexarm study`): the grey-box where the arm fol
 (on the simulated arm, every region and size), the GP where something the structure lacks
 dominates (paper region with friction, 40 samples: on the worst seed), kinematic calibration
 alone where the arm is stiff and only miscalibrated. So ``auto`` cross-validates every setting
-candidate of each of its ``kinds`` (:func:`flexarm_control.training.fit_robust`: held-out poses
-grouped, the trimmed RMS score) and keeps the single best one, fitted on all samples. It picks
-rather than averages: the mean of the grey-box and GP predictions missed the held-out truth by
-more than the choice in all six cases on the mean over seeds, five on the worst seed (regions
+candidate of each of its ``kinds`` (:func:`flexarm_control.learning.training.fit_robust`: held-out
+poses grouped, the trimmed RMS score) and keeps the single best one, fitted on all samples. It
+picks rather than averages: the mean of the grey-box and GP predictions missed the held-out truth
+by more than the choice in all six cases on the mean over seeds, five on the worst seed (regions
 A, B, paper × 20, 40 samples, 3 seeds, with friction, thermal strain and noise), and one model
 keeps the GP's position std meaningful. The MLP is not among the default kinds: it adds ~60 %
 to the training time (40 samples of region A, one thread: 1.4 s → 2.3 s) and never scored best
@@ -17,8 +17,8 @@ The model is an :class:`AutoPredictor` that predicts with the chosen one; the me
 ``auto`` entry says which (``chosen``, its ``settings``), the score of every kind (``scores``:
 trimmed RMS of held-out residuals over the output std, lower is better) and holds the chosen
 model's metadata (``model``); the model file holds the chosen model's arrays as its own.
-Through :func:`~flexarm_control.training.fit_robust` (the learner) the choice is made once,
-together with the outlier screening; :meth:`AutoPredictor.fit` on its own makes it without
+Through :func:`~flexarm_control.learning.training.fit_robust` (the learner) the choice is made
+once, together with the outlier screening; :meth:`AutoPredictor.fit` on its own makes it without
 screening.
 """
 from __future__ import annotations
@@ -28,7 +28,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.predictors.base import Predictor, restore
+from flexarm_control.learning.predictors.base import Predictor, restore
 
 FOLDS = 5     # of the cross-validation of AutoPredictor.fit (the learner's validation_folds)
 
@@ -42,7 +42,7 @@ class AutoPredictor(Predictor):
     physical: ClassVar[bool] = True
 
     def _check_settings(self) -> None:
-        from flexarm_control.predictors import KINDS
+        from flexarm_control.learning.predictors import KINDS
 
         kinds = self.settings['kinds']
         if not kinds or not set(kinds) <= set(KINDS) - {self.kind}:
@@ -52,7 +52,7 @@ class AutoPredictor(Predictor):
     def kind_settings(self, kind: str) -> dict[str, Any]:
         """The settings ``auto`` gives a kind of its choice (the others are chosen by
         cross-validation or take their defaults)."""
-        from flexarm_control.predictors import make_predictor
+        from flexarm_control.learning.predictors import make_predictor
 
         given = {'payload_input': self.settings['payload_input']}
         if 'seed' in make_predictor(kind).defaults:
@@ -82,7 +82,7 @@ class AutoPredictor(Predictor):
 
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
-        from flexarm_control.training import NO_SCREENING, fit_robust
+        from flexarm_control.learning.training import NO_SCREENING, fit_robust
 
         model, _ = fit_robust(self.kind, self.settings, joints, deflections, payload, FOLDS,
                               self.settings['seed'], screening=NO_SCREENING)
@@ -100,7 +100,7 @@ class AutoPredictor(Predictor):
         return self._chosen._state()
 
     def _restore(self, state: Mapping[str, np.ndarray]) -> None:
-        from flexarm_control.predictors import _class_of
+        from flexarm_control.learning.predictors import _class_of
 
         meta = self.metadata['auto']
         self._chosen = restore(_class_of(meta['chosen']), meta['model'], state)

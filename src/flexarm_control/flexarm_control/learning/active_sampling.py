@@ -1,13 +1,14 @@
 """Active choice of learning poses: each next pose where the model so far is least sure (pure).
 
-The ``active`` collection strategy (:data:`flexarm_control.sampling.STRATEGIES`). Candidates
-are ``pool`` reachable poses of the region grown by the coverage margin (scrambled Sobol,
-seeded; joints by the kinematics' θ2 rule, as :func:`~flexarm_control.sampling.sample_poses`).
-The first ``initial`` of them — space-filling — are visited in a short-travel order
-(:func:`~flexarm_control.sampling.travel_order`); from then on every pose is the candidate
-with the largest predictive standard deviation of the tip position
-(:meth:`~flexarm_control.predictors.base.Predictor.position_std`) of a Gaussian process
-(:mod:`flexarm_control.predictors.gp`, one cheap fit: RBF kernel, no restarts) on the
+The ``active`` collection strategy (:data:`flexarm_control.learning.sampling.STRATEGIES`).
+Candidates are ``pool`` reachable poses of the region grown by the coverage margin (scrambled
+Sobol, seeded; joints by the kinematics' θ2 rule, as
+:func:`~flexarm_control.learning.sampling.sample_poses`). The first ``initial`` of them —
+space-filling — are visited in a short-travel order
+(:func:`~flexarm_control.learning.sampling.travel_order`); from then on every pose is the
+candidate with the largest predictive standard deviation of the tip position
+(:meth:`~flexarm_control.learning.predictors.base.Predictor.position_std`) of a Gaussian process
+(:mod:`flexarm_control.learning.predictors.gp`, one cheap fit: RBF kernel, no restarts) on the
 samples stored so far.
 
 Pipelined so the arm does not wait for the fit: the pose after the one being visited is
@@ -37,8 +38,8 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.predictors import make_predictor
-from flexarm_control.sampling import sample_poses, travel_order, travel_times
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import sample_poses, travel_order, travel_times
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.regions import Region
 
@@ -91,8 +92,8 @@ DEFAULT_SETTINGS = ActiveSettings()
 class ActivePoses:
     """The joints (4,) of ``count`` learning poses, each chosen from the samples before it.
 
-    Iterate once, as :meth:`~flexarm_control.collection.Collector.collect` does: the next pose
-    is asked for after the sample of the one before was stored (or skipped), and
+    Iterate once, as :meth:`~flexarm_control.execution.collection.Collector.collect` does: the
+    next pose is asked for after the sample of the one before was stored (or skipped), and
     ``samples()`` gives every sample stored so far.
     """
 

@@ -5,12 +5,12 @@ goal runs, and when the model is not trusted.
 * PREDICTIVE: the compensated plan (:meth:`Compensator.predictive`), refused with
   ``OUTSIDE_LEARNED_DATA`` when the joints to command lie beyond the learned data — farther
   than ``max_distance`` typical sample spacings from the model's learning samples
-  (:meth:`~flexarm_control.predictors.Predictor.data_distance`, any kind), or where the model's
-  own standard deviation of the predicted tip position exceeds ``max_std``
-  (:meth:`~flexarm_control.predictors.Predictor.position_std`, the GP) — unless the goal allows
-  extrapolation, which runs it with a warning. Both are needed: a target 100 mm and 10° outside
-  region B lies only ~1.3 spacings from the region's samples (targets inside reached 2.4), yet
-  the GP misses it by 1 mm there, and its std says so (0.3 mm, against at most 0.25 mm inside).
+  (:meth:`~flexarm_control.learning.predictors.Predictor.data_distance`, any kind), or where the
+  model's own standard deviation of the predicted tip position exceeds ``max_std``
+  (:meth:`~flexarm_control.learning.predictors.Predictor.position_std`, the GP) — unless the goal
+  allows extrapolation, which runs it with a warning. Both are needed: a target 100 mm and 10°
+  outside region B lies only ~1.3 spacings from the region's samples (targets inside reached 2.4),
+  yet the GP misses it by 1 mm there, and its std says so (0.3 mm, against at most 0.25 mm inside).
   A plan the solver cannot find is refused as ``OUTSIDE_LEARNED_DATA`` when the target itself
   lies beyond the data (the likely cause), else ``UNREACHABLE``. The payload is learned data
   too: a model that neither takes it as an input nor carries it physically (a GP, MLP, RBF or
@@ -33,10 +33,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexarm_control.at_payload import AtPayload
-from flexarm_control.compensator import CompensationError, Compensator, Plan
-from flexarm_control.modes import Mode
-from flexarm_control.predictors import Predictor
+from flexarm_control.execution.compensator import CompensationError, Compensator, Plan
+from flexarm_control.execution.modes import Mode
+from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.predictors import Predictor
 from flexarm_core.kinematics import inverse
 
 # [kg] a payload this close to a trained one counts as that one: the tip sags at most 3.6 mm

@@ -15,13 +15,13 @@ from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
 
-from flexarm_control.predictors.auto import AutoPredictor
-from flexarm_control.predictors.base import FORMAT_VERSION, Predictor, read_model, restore
-from flexarm_control.predictors.gp import GpPredictor
-from flexarm_control.predictors.greybox import GreyboxPredictor
-from flexarm_control.predictors.kinematic import KinematicPredictor
-from flexarm_control.predictors.mlp import MlpPredictor
-from flexarm_control.predictors.rbf import RbfPredictor
+from flexarm_control.learning.predictors.auto import AutoPredictor
+from flexarm_control.learning.predictors.base import FORMAT_VERSION, Predictor, read_model, restore
+from flexarm_control.learning.predictors.gp import GpPredictor
+from flexarm_control.learning.predictors.greybox import GreyboxPredictor
+from flexarm_control.learning.predictors.kinematic import KinematicPredictor
+from flexarm_control.learning.predictors.mlp import MlpPredictor
+from flexarm_control.learning.predictors.rbf import RbfPredictor
 
 _CLASSES: dict[str, type[Predictor]] = {
     cls.kind: cls for cls in (MlpPredictor, RbfPredictor, GpPredictor, KinematicPredictor,

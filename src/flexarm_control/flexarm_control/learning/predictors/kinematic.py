@@ -17,7 +17,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.predictors.base import Predictor
+from flexarm_control.learning.predictors.base import Predictor
 
 ANGLE_LENGTH = 1.0     # [m] a φ residual of 1 rad weighs as much as 1 m of position
 PARAMETERS = ('joint1_zero', 'joint2_zero', 'joint3_zero', 'joint4_zero', 'link3', 'link4',

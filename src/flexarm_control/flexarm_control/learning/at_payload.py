@@ -1,20 +1,20 @@
 """A deflection model seen at the payload the arm carries now (pure).
 
-Planning (:mod:`flexarm_control.planning`) and the model health call ``predict``,
+Planning (:mod:`flexarm_control.execution.planning`) and the model health call ``predict``,
 ``data_distance`` and ``position_std`` with joints only. :class:`AtPayload` passes the current
 payload [kg] to a model that predicts at the payload it is given
-(:attr:`~flexarm_control.predictors.Predictor.carries_payload`: it takes the payload as an input,
-its ``payload_input`` setting, or carries it physically, the grey-box) and nothing to one that
-does not, which predicts at the payloads it was trained at (planning refuses it at another,
-:func:`~flexarm_control.planning.payload_beyond`). For a model with the input the payload
-counts in the distance from the learned data, so a payload far outside the trained ones is
-refused like any other extrapolation; one that carries it physically is not limited by it.
+(:attr:`~flexarm_control.learning.predictors.Predictor.carries_payload`: it takes the payload as
+an input, its ``payload_input`` setting, or carries it physically, the grey-box) and nothing to
+one that does not, which predicts at the payloads it was trained at (planning refuses it at
+another, :func:`~flexarm_control.execution.planning.payload_beyond`). For a model with the input
+the payload counts in the distance from the learned data, so a payload far outside the trained
+ones is refused like any other extrapolation; one that carries it physically is not limited by it.
 """
 from __future__ import annotations
 
 import numpy as np
 
-from flexarm_control.predictors import Predictor
+from flexarm_control.learning.predictors import Predictor
 
 
 class AtPayload:

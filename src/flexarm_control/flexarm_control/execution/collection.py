@@ -19,8 +19,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
-from flexarm_control.dataset import Sample
+from flexarm_control.execution.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
+from flexarm_control.learning.dataset import Sample
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.measurement import Measurement
 

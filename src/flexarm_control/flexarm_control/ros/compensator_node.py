@@ -5,12 +5,12 @@ of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip 
 the target from the measured error until within tolerance (beyond the paper). Which plan a
 goal runs — PREDICTIVE refused beyond the learned data (``OUTSIDE_LEARNED_DATA``, or run with
 a warning if the goal allows extrapolation), CLOSED_LOOP started from the rigid plan without a
-usable model — is :mod:`flexarm_control.planning`; how it runs (move, measure, correct until
-within tolerance) is :mod:`flexarm_control.goal_execution`, over
-:class:`~flexarm_control.arm_motion.ArmMotion` (config/motion.yaml); every result, feedback and
-``/compensator/outcomes`` message carries the plan's distance from the learned data and the
-model's std there. The algorithm lives in :mod:`flexarm_control.compensator`; this node
-validates goals, maps ROS to those calls and their outcomes to error codes,
+usable model — is :mod:`flexarm_control.execution.planning`; how it runs (move, measure, correct
+until within tolerance) is :mod:`flexarm_control.execution.goal_execution`, over
+:class:`~flexarm_control.execution.arm_motion.ArmMotion` (config/motion.yaml); every result,
+feedback and ``/compensator/outcomes`` message carries the plan's distance from the learned data
+and the model's std there. The algorithm lives in :mod:`flexarm_control.execution.compensator`;
+this node validates goals, maps ROS to those calls and their outcomes to error codes,
 reports feedback and results, and hot-reloads the predictor the learner announces on
 ``/learner/model`` and republishes the one it uses on the latched
 ``/compensator/active_model``. For rviz and Foxglove it publishes each goal's target on
@@ -22,29 +22,30 @@ one, and a roll back (``/learner/use_model``) is a new announcement with a new s
 Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
 arriving together can both pass that check: execution decides, and the one that finds the
 other executing is aborted (INVALID_GOAL, "busy") before anything moves. Every accepted goal
-is validated before anything moves, against the bounds of :mod:`flexarm_control.goal_bounds`
-too, and aborted with an error code and reason if invalid; an unexpected error aborts the
-goal with INVALID_GOAL and "internal error: ...", never with an empty result. Cancel holds the
-arm at its current joint positions (the result's ``joint_positions`` are those).
+is validated before anything moves, against the bounds of
+:mod:`flexarm_control.execution.goal_bounds` too, and aborted with an error code and reason if
+invalid; an unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never
+with an empty result. Cancel holds the arm at its current joint positions (the result's
+``joint_positions`` are those).
 
 No goal holds the arm for ever: the server ends a goal itself (aborted with CANCELED, "canceled
 by the server: <why>", the arm held) when it outlasts its time limit (the arm's time,
-:func:`~flexarm_control.goal_bounds.time_limit`) or when every client that may have sent it
-has left the graph (:mod:`flexarm_core.goal_owner`: the candidates are taken at acceptance,
+:func:`~flexarm_control.execution.goal_bounds.time_limit`) or when every client that may have sent
+it has left the graph (:mod:`flexarm_core.goal_owner`: the candidates are taken at acceptance,
 looked for every ``SENDER_CHECK`` s while it runs). A canceled goal's result names them
 ("goal sent by /node"), which is how ``flexarm cancel`` tells who sent the goal it cancelled;
 the ``goals`` diagnostics name them while it runs.
 
 Payload: the payload the arm carries comes on the latched ``/payload`` (std_msgs/Float64 [kg],
 the learner's ``payload`` parameter: ``flexarm payload KG``). A model that takes it as an input
-is run at it (:class:`~flexarm_control.at_payload.AtPayload`), and so is a model that carries
-it physically (the grey-box's gravity moments); either adds a warning beyond its trained range
-(:func:`~flexarm_control.model_store.payload_warning`). A model that does neither is refused at a
-payload it was not trained at unless the goal allows extrapolation (planning). Until a payload
-is known, a payload-carrying model is not used.
+is run at it (:class:`~flexarm_control.learning.at_payload.AtPayload`), and so is a model that
+carries it physically (the grey-box's gravity moments); either adds a warning beyond its trained
+range (:func:`~flexarm_control.learning.model_store.payload_warning`). A model that does neither
+is refused at a payload it was not trained at unless the goal allows extrapolation (planning).
+Until a payload is known, a payload-carrying model is not used.
 
-Model health (:mod:`flexarm_control.model_health`): every measured tip checks the model in use
-(measured − predicted deflection at the reported joints), per working region; the statistics
+Model health (:mod:`flexarm_control.learning.model_health`): every measured tip checks the model
+in use (measured − predicted deflection at the reported joints), per working region; the statistics
 are published latched on ``/compensator/model_health`` after each measurement; a region
 turning stale is logged, and every later result carries the warning until a new model comes.
 
@@ -57,7 +58,7 @@ and answered with the plan; nothing moves.
 
 A goal executes in a thread of its own (:class:`~flexarm_core.node_main.Offload`), which
 takes the arm's inputs itself, subscribed only while the goal runs
-(:class:`~flexarm_control.arm_interface.ArmInterface`); the node's single-threaded executor
+(:class:`~flexarm_control.ros.arm_interface.ArmInterface`); the node's single-threaded executor
 serves cancel requests, new goals and ``/clock`` meanwhile.
 
 Health on ``/diagnostics``: :func:`model_status`, :func:`model_health_status` and
@@ -81,12 +82,10 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
-from flexarm_control.arm_interface import ArmInterface
-from flexarm_control.arm_motion import ArmMotion, MotionSettings
-from flexarm_control.at_payload import AtPayload
-from flexarm_control.compensator import Compensator, Plan
-from flexarm_control.goal_bounds import GoalBounds, GoalWatch, goal_error, time_limit
-from flexarm_control.goal_execution import (
+from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.execution.compensator import Compensator, Plan
+from flexarm_control.execution.goal_bounds import GoalBounds, GoalWatch, goal_error, time_limit
+from flexarm_control.execution.goal_execution import (
     CANCELED,
     CONTROLLER_TIMEOUT,
     MEASUREMENT_FAILED,
@@ -97,12 +96,14 @@ from flexarm_control.goal_execution import (
     execute,
     sanity_bound,
 )
-from flexarm_control.model_health import HealthSettings, ModelHealth
-from flexarm_control.model_health import RegionHealth as RegionReport
-from flexarm_control.model_store import payload_warning
-from flexarm_control.modes import Mode
-from flexarm_control.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
-from flexarm_control.predictors import Predictor, load_predictor
+from flexarm_control.execution.modes import Mode
+from flexarm_control.execution.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
+from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.model_health import HealthSettings, ModelHealth
+from flexarm_control.learning.model_health import RegionHealth as RegionReport
+from flexarm_control.learning.model_store import payload_warning
+from flexarm_control.learning.predictors import Predictor, load_predictor
+from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers

@@ -15,7 +15,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.predictors.base import Predictor
+from flexarm_control.learning.predictors.base import Predictor
 
 # Kernels of RBFInterpolator with the least polynomial degree that keeps the fit well posed.
 KERNEL_MIN_DEGREE = {

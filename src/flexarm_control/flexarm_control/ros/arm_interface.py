@@ -1,7 +1,7 @@
 """The arm as the control nodes see it: joint commands out, joint states and tip poses in.
 
 Shared by the compensator and the learner, whose policies drive it as an
-:class:`~flexarm_control.arm_motion.Arm`. Commands go to ros2_control's
+:class:`~flexarm_control.execution.arm_motion.Arm`. Commands go to ros2_control's
 ``/forward_position_controller/commands`` (one value per joint, in ``JOINT_NAMES`` order), so a
 real controller drops in. A move or a measurement waits in the arm's own time, the stamps of
 its joint states (sim time from the simulator): with several arms on one ``/clock`` a busy

@@ -8,7 +8,7 @@ under the first working region whose box holds the measured pose (config/learner
 ``window`` observations (the median: one bad frame does not decide); the region turns *stale*
 once it has ``min_observations`` and the median exceeds ``stale_residual``. The compensator
 publishes the result, warns in goal results and logs; a refresh
-(:mod:`flexarm_control.drift_correction`) measures where the worst residuals were
+(:mod:`flexarm_control.learning.drift_correction`) measures where the worst residuals were
 (:meth:`ModelHealth.worst_joints`). A new model starts with a clean record.
 
 A healthy model's residual is its prediction error plus the measurement's noise: in the

@@ -1,5 +1,5 @@
 """Executing a planned ``/move_to_pose`` goal: move, measure, correct (pure core of the
-compensator node; the plan itself is :mod:`flexarm_control.planning`).
+compensator node; the plan itself is :mod:`flexarm_control.execution.planning`).
 
 * Every mode moves to the plan and then measures the tip, when the camera sees the plate.
 * RIGID and PREDICTIVE end after that one move. They check the measured error only when the
@@ -9,9 +9,9 @@ compensator node; the plan itself is :mod:`flexarm_control.planning`).
   what its model promised (its validated error) means the model does not fit the arm as it is
   now, and the goal ends ``tolerance_not_met`` saying so instead of succeeding.
 * CLOSED_LOOP corrects the commanded pose by the measured error
-  (:meth:`~flexarm_control.compensator.Compensator.correct`) until the measured error is within
-  the tolerance, with at most ``max_corrections`` corrective moves after the first. Each move
-  lands with the servos' own error, drawn anew, so a tolerance near their repeatability may be
+  (:meth:`~flexarm_control.execution.compensator.Compensator.correct`) until the measured error is
+  within the tolerance, with at most ``max_corrections`` corrective moves after the first. Each
+  move lands with the servos' own error, drawn anew, so a tolerance near their repeatability may be
   met at one move and missed at the next: a goal out of corrections ends at its best measured
   pose, not its last. The best is the smallest measured position error, the angle error
   breaking ties: an operator reads a miss in mm, and ranking by both would need a weighting of
@@ -30,9 +30,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexarm_control.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
-from flexarm_control.compensator import Compensator, Plan
-from flexarm_control.modes import Mode
+from flexarm_control.execution.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
+from flexarm_control.execution.compensator import Compensator, Plan
+from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import UnreachableError, pose_error
 
 # Execution.status values (the node maps them to MoveToPose result codes).

@@ -2,27 +2,28 @@
 (``/train``), seed section 2-1 steps 2-3.
 
 Collection moves the arm through the controller's command topic to space-filling poses of a
-region (:mod:`flexarm_control.sampling`), visited in a short-travel order — or, strategy
-``active``, to poses each chosen from the samples so far (:mod:`flexarm_control.active_sampling`;
-the choice runs in the training worker while the arm moves) — waits until the joints arrive
-and the tip is settled, averages valid ``/tip_pose`` frames and appends the
-sample to the dataset — on disk, fsync'ed — before the next move; the sample is also published
-on ``/learner/samples`` for bags. A failed measurement is retried, then the pose is skipped and
-counted, never stored. Cancel holds the arm and keeps every sample collected; a controller
-that falls silent ends the collection (FAILED, with the reason). That loop is the pure
-:mod:`flexarm_control.collection`, over :class:`~flexarm_control.arm_motion.ArmMotion`
-(config/motion.yaml); this node maps ROS to it.
+region (:mod:`flexarm_control.learning.sampling`), visited in a short-travel order — or, strategy
+``active``, to poses each chosen from the samples so far
+(:mod:`flexarm_control.learning.active_sampling`; the choice runs in the training worker while the
+arm moves) — waits until the joints arrive and the tip is settled, averages valid ``/tip_pose``
+frames and appends the sample to the dataset — on disk, fsync'ed — before the next move; the
+sample is also published on ``/learner/samples`` for bags. A failed measurement is retried, then
+the pose is skipped and counted, never stored. Cancel holds the arm and keeps every sample
+collected; a controller that falls silent ends the collection (FAILED, with the reason). That loop
+is the pure :mod:`flexarm_control.execution.collection`, over
+:class:`~flexarm_control.execution.arm_motion.ArmMotion` (config/motion.yaml); this node maps ROS
+to it.
 
 Collection poses cover the region grown by ``coverage_margin``, where compensated targets of
-the region's edge are commanded. Training (in a worker process, :mod:`flexarm_control.training`)
-chooses the model's settings by cross-validation, screens out outlier samples (listed in the
-response's metrics and logged), checks that the compensator can solve with the model, writes
-it atomically and announces it on the latched ``/learner/model``; on any failure the previous
-model stays active. The current model is also remembered in
-``<model_directory>/current.json`` and re-announced when the learner restarts
-(:mod:`flexarm_control.model_store`: a damaged record is reported, not announced, and never
-makes a new model overwrite an old one). ``/learner/use_model`` makes an earlier model current
-again (roll back), with the same checks. Every announcement carries the model's provenance
+the region's edge are commanded. Training (in a worker process,
+:mod:`flexarm_control.learning.training`) chooses the model's settings by cross-validation,
+screens out outlier samples (listed in the response's metrics and logged), checks that the
+compensator can solve with the model, writes it atomically and announces it on the latched
+``/learner/model``; on any failure the previous model stays active. The current model is also
+remembered in ``<model_directory>/current.json`` and re-announced when the learner restarts
+(:mod:`flexarm_control.learning.model_store`: a damaged record is reported, not announced, and
+never makes a new model overwrite an old one). ``/learner/use_model`` makes an earlier model
+current again (roll back), with the same checks. Every announcement carries the model's provenance
 (dataset, payloads, metrics) and a warning when it was trained at another payload or for
 another arm configuration than the learner's now.
 
@@ -33,12 +34,12 @@ the simulator (which follows it: the tool really was picked up). A dataset holdi
 more than one payload is trained with the payload as a model input (``payload_input``) unless
 the request's settings say otherwise.
 
-Refresh (``/learner/refresh``, :mod:`flexarm_control.refresh`): when the compensator's model
-health (``/compensator/model_health``) says the model no longer fits in a region, a few samples
-are taken where the largest residuals were and across the region, into the dataset
+Refresh (``/learner/refresh``, :mod:`flexarm_control.learning.refresh`): when the compensator's
+model health (``/compensator/model_health``) says the model no longer fits in a region, a few
+samples are taken where the largest residuals were and across the region, into the dataset
 ``<dataset>-refresh``; a low-dimensional correction fitted to them on top of the current model
-(:mod:`flexarm_control.drift_correction`) becomes the next model version, announced as usual.
-The refresh moves the arm: like a collection, only on request (`flexarm refresh`), never on
+(:mod:`flexarm_control.learning.drift_correction`) becomes the next model version, announced as
+usual. The refresh moves the arm: like a collection, only on request (`flexarm refresh`), never on
 its own — an arm in a vessel moves when its operator says so.
 
 Policy: one collection or refresh at a time; a goal arriving while another runs is rejected
@@ -47,7 +48,7 @@ while a collection runs is refused (it would slow the collection down; train on 
 dataset), as is one while a timed-out training job still occupies the worker. Every failure
 gives an error code or message; nothing escapes a callback. A collection or refresh runs in a
 thread of its own, which takes the arm's inputs itself, subscribed only while it runs
-(:class:`~flexarm_control.arm_interface.ArmInterface`), and training and model changes in
+(:class:`~flexarm_control.ros.arm_interface.ArmInterface`), and training and model changes in
 another, one at a time (:class:`~flexarm_core.node_main.Offload`); the node's
 single-threaded executor serves cancel requests, ``/clock`` and parameters meanwhile.
 
@@ -73,12 +74,11 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
-from flexarm_control.active_sampling import ActivePoses
-from flexarm_control.arm_interface import ArmInterface
-from flexarm_control.arm_motion import ArmMotion, MotionSettings
-from flexarm_control.collection import Collected, Collector
-from flexarm_control.dataset import DatasetWriter, Sample, load_dataset
-from flexarm_control.model_store import (
+from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.execution.collection import Collected, Collector
+from flexarm_control.learning.active_sampling import ActivePoses
+from flexarm_control.learning.dataset import DatasetWriter, Sample, load_dataset
+from flexarm_control.learning.model_store import (
     DamagedRecord,
     arm_fingerprint,
     find_model,
@@ -89,10 +89,11 @@ from flexarm_control.model_store import (
     unloadable_text,
     write_current,
 )
-from flexarm_control.predictors import KINDS, load_predictor, make_predictor
-from flexarm_control.refresh import refresh_poses, refresh_regions, refreshed
-from flexarm_control.sampling import STRATEGIES, sample_poses, travel_order
-from flexarm_control.training import Metrics, Screening, TrainingWorker, train
+from flexarm_control.learning.predictors import KINDS, load_predictor, make_predictor
+from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
+from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
+from flexarm_control.learning.training import Metrics, Screening, TrainingWorker, train
+from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import ERROR, OK, WARN, Status, status
@@ -149,8 +150,8 @@ def _warm_up() -> None:
     active-sampling code imported (else an active collection's first choices come late)."""
     from threadpoolctl import threadpool_limits
 
-    import flexarm_control.active_sampling  # noqa: F401
-    import flexarm_control.training  # noqa: F401
+    import flexarm_control.learning.active_sampling  # noqa: F401
+    import flexarm_control.learning.training  # noqa: F401
 
     threadpool_limits(1)
 

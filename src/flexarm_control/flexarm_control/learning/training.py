@@ -7,7 +7,7 @@ the model checked for solvability (pure core of the learner).
    ``cv_choices`` the caller did not fix (MLP weight decay, GP kernel, RBF smoothing), with
    the kind's cheaper ``cv_overrides`` (GP: 1 restart); the one with the lowest trimmed RMS
    held-out error (the worst 10 % of samples left out, so one bad sample cannot choose) wins.
-   Kind ``auto`` (:mod:`~flexarm_control.predictors.auto`) chooses among the candidates of
+   Kind ``auto`` (:mod:`~flexarm_control.learning.predictors.auto`) chooses among the candidates of
    every kind of its ``kinds`` at once; the model is an ``AutoPredictor`` of the chosen one.
 2. **Outlier screening**: a sample whose held-out residual is ``outlier_threshold`` robust
    standard deviations (1.4826 × median |residual|) off in some output, and more than
@@ -19,7 +19,7 @@ the model checked for solvability (pure core of the learner).
    of the sampled region and across the backlash step of joint4. The metrics list the excluded
    samples by their index in the dataset.
 3. **Solvability**: the model fitted on the kept samples must change its deflection slower
-   than the commanded pose, :func:`~flexarm_control.compensator.deflection_slope` ≤
+   than the commanded pose, :func:`~flexarm_control.execution.compensator.deflection_slope` ≤
    ``max_slope`` at every training pose (the true arm: ≤ 0.1); otherwise the next-best choice
    of step 1 is fitted, and if none passes, training fails with the reason.
 
@@ -44,9 +44,9 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.compensator import deflection_slope
-from flexarm_control.dataset import Dataset
-from flexarm_control.predictors import Predictor, make_predictor
+from flexarm_control.execution.compensator import deflection_slope
+from flexarm_control.learning.dataset import Dataset
+from flexarm_control.learning.predictors import Predictor, make_predictor
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.parent_death import signal_on_parent_death
 

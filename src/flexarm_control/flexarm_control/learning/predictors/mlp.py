@@ -18,7 +18,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.predictors.base import OUTPUTS, Predictor
+from flexarm_control.learning.predictors.base import OUTPUTS, Predictor
 
 
 def _expit(x: np.ndarray) -> np.ndarray:

@@ -9,8 +9,9 @@ drawn in the region grown by a coverage margin (:meth:`Region.grown`): the compe
 commands x* = x_d − Δ, up to ~25 mm and ~2° outside the box for a target on its edge, and a
 model must not extrapolate there. Targets for evaluation (:func:`random_targets`) are uniform
 in the box itself, the rigid-reachable ones kept. The ``active`` strategy chooses each pose
-from the samples taken so far (:mod:`flexarm_control.active_sampling`). :func:`travel_order`
-orders poses for a short campaign (a path through them in joint-space travel time).
+from the samples taken so far (:mod:`flexarm_control.learning.active_sampling`).
+:func:`travel_order` orders poses for a short campaign (a path through them in joint-space travel
+time).
 """
 from __future__ import annotations
 
@@ -93,8 +94,8 @@ def travel_order(joints: np.ndarray, start: np.ndarray, velocity: np.ndarray) ->
     (:func:`travel_times`). Greedy nearest neighbour, then improved by 2-opt (reversing a
     stretch) and or-opt (moving a stretch of 1-3 poses, either way round) until neither
     shortens it; never longer than the greedy path. The set is unchanged. Every move also
-    ends with the same short approach leg (:mod:`flexarm_control.arm_motion`), whatever the
-    order, so it does not enter the cost."""
+    ends with the same short approach leg (:mod:`flexarm_control.execution.arm_motion`), whatever
+    the order, so it does not enter the cost."""
     n = len(joints)
     if n < 2:
         return np.arange(n)

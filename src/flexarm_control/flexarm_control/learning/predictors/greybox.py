@@ -2,8 +2,8 @@
 compliances, identified from the samples, plus an optional learned residual.
 
 Each compliant element turns or bends by (its compliance) × (the gravity moment about it,
-:mod:`flexarm_control.gravity_moments`: Table 3 masses and the payload, on the rigid pose),
-propagated to the tip through the kinematic chain of :mod:`.kinematic` (with its kinematic
+:mod:`flexarm_control.learning.gravity_moments`: the nominal masses and the payload, on the rigid
+pose), propagated to the tip through the kinematic chain of :mod:`.kinematic` (with its kinematic
 errors): joint1 and the joint-2 guide turn everything about joint1 (moments M1, M2); the No.2
 arm bends — shifts joint3 sideways and turns it — by M2; joint3 turns and the third arm bends
 by M3; joint4 turns and the fourth arm bends by M4 (tip shift, tip angle).
@@ -55,10 +55,10 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.gravity_moments import ArmMasses
-from flexarm_control.predictors.base import Predictor, restore
-from flexarm_control.predictors.gp import KERNELS, GpPredictor
-from flexarm_control.predictors.kinematic import (
+from flexarm_control.learning.gravity_moments import ArmMasses
+from flexarm_control.learning.predictors.base import Predictor, restore
+from flexarm_control.learning.predictors.gp import KERNELS, GpPredictor
+from flexarm_control.learning.predictors.kinematic import (
     KINEMATIC,
     PARAMETERS,
     pose_change,

@@ -34,7 +34,7 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.predictors.base import OUTPUTS, Predictor
+from flexarm_control.learning.predictors.base import OUTPUTS, Predictor
 
 KERNELS = ('rbf', 'matern52', 'matern32', 'rbf+matern32')
 # Correlation families summed in each kernel; the second and later with an amplitude of their

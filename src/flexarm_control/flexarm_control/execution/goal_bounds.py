@@ -19,7 +19,7 @@ Bounds: a goal beyond them is refused with INVALID_GOAL before anything moves.
   test, and the simulator's config/sim.yaml is not the control side's to read. A tolerance
   under it is accepted: a CLOSED_LOOP goal then meets it at some moves and misses it at
   others, and one out of corrections ends at its best measured pose and says so
-  (:mod:`flexarm_control.goal_execution`). The ceilings, 100 mm and 10 deg, are 4-5 x the
+  (:mod:`flexarm_control.execution.goal_execution`). The ceilings, 100 mm and 10 deg, are 4-5 x the
   largest error of the rigid model (24 mm, 2.1 deg, Table 10): a tolerance beyond them checks
   nothing and is most likely a unit slip (mm given as m).
 * ``max_corrections`` at most :data:`MAX_CORRECTIONS` (10, twice the default 5). Each
@@ -52,8 +52,8 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.arm_motion import MotionSettings
-from flexarm_control.modes import Mode
+from flexarm_control.execution.arm_motion import MotionSettings
+from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 

@@ -55,7 +55,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
-from flexarm_control.modes import Mode
+from flexarm_control.execution.modes import Mode
 from flexarm_core import liveness, topics
 from flexarm_core.goal_owner import own_participant, participant, send_goal_writers, sender_of
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel

@@ -22,7 +22,8 @@ from rclpy.serialization import deserialize_message, serialize_message
 from websockets.sync.client import ClientConnection, connect
 
 from flexarm_bringup.bag_schema import message_definition
-from flexarm_bringup.cli import _foxglove_text, build_parser, main
+from flexarm_bringup.cli import build_parser, main
+from flexarm_bringup.cli.graph import _foxglove_text
 from flexarm_bringup.outcome_text import Exit
 from flexarm_core import topics
 from flexarm_core.params import config_path

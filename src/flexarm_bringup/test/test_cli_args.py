@@ -122,7 +122,7 @@ def test_quiet_and_json_show_no_progress(flag, domain_id, capsys):
 def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
     """rclpy's C++ layer turns an exception raised in a generated message module into a
     RuntimeError (the goal would not be cancelled): there the signal is sent again later."""
-    from flexarm_bringup.cli import _interrupt
+    from flexarm_bringup.cli.graph import _interrupt
 
     delivered = []
     previous = signal.signal(signal.SIGUSR1, lambda signum, frame: delivered.append(signum))
@@ -165,7 +165,8 @@ def test_model_list_marks_the_current_model_and_says_why_one_is_unusable(tmp_pat
 
 @pytest.mark.parametrize('command', ['up', 'demo', 'benchmark'])
 def test_ideal_switches_every_error_source_off_for_the_simulator(command):
-    from flexarm_bringup.cli import _world, build_parser
+    from flexarm_bringup.cli import build_parser
+    from flexarm_bringup.cli.common import _world
 
     parser = build_parser()
     assert _world(parser.parse_args([command])) == {}               # config/sim.yaml's world

@@ -12,6 +12,7 @@ from collections.abc import Iterator
 import pytest
 
 from flexarm_bringup import cli
+from flexarm_bringup.cli import arguments, common, motion
 from flexarm_bringup.outcome_text import (
     COLLECT_HINTS,
     EXIT_MEANINGS,
@@ -26,7 +27,9 @@ PARSER = cli.build_parser()
 SUBPARSERS: dict[str, argparse.ArgumentParser] = next(
     a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)).choices
 # modules whose messages reach the operator through `flexarm`
-SPEAKING = ['flexarm_bringup.cli', 'flexarm_bringup.outcome_text', 'flexarm_bringup.graph_status',
+CLI = ('arguments', 'common', 'experiments', 'graph', 'learning', 'motion', 'site')
+SPEAKING = ['flexarm_bringup.cli', *(f'flexarm_bringup.cli.{m}' for m in CLI),
+            'flexarm_bringup.outcome_text', 'flexarm_bringup.graph_status',
             'flexarm_control.ros.client', 'flexarm_control.learning.model_store',
             'flexarm_control.learning.model_health', 'flexarm_control.ros.compensator_node',
             'flexarm_control.ros.learner_node', 'flexarm_bridge.link_auth']
@@ -116,7 +119,7 @@ def test_help_names_the_learners_defaults_and_every_kind(capsys):
     from flexarm_control.learning.predictors import KINDS
 
     learner = load_config('learner.yaml', node_name='flexarm_learner')
-    assert all(re.search(rf'\b{kind}\b', cli.KIND_HELP) for kind in KINDS)
+    assert all(re.search(rf'\b{kind}\b', arguments.KIND_HELP) for kind in KINDS)
     for argv in (['train', '--help'], ['demo', '--help']):
         assert cli.main(argv) == 0
         out = ' '.join(capsys.readouterr().out.split())
@@ -140,7 +143,7 @@ def test_domain_id_says_whether_the_command_starts_a_graph_or_joins_one():
 
 
 def test_goal_feedback_is_progress_on_stderr(capsys):
-    cli._show_feedback(MoveToPose.Feedback(iteration=1, phase='moving'))
+    motion._show_feedback(MoveToPose.Feedback(iteration=1, phase='moving'))
     captured = capsys.readouterr()
     assert captured.err == '  [1] moving\n' and captured.out == ''
 
@@ -156,21 +159,21 @@ def _result(**fields) -> MoveToPose.Result:
 
 
 def test_a_rigid_move_is_said_uncompensated_not_reached():
-    text = cli._move_text(_result())
+    text = motion._move_text(_result())
     assert text.startswith('moved (uncompensated) in 1 move(s): measured x=1450.00 mm'), text
     assert 'error 23.000 mm, 0.1000 deg' in text and 'reached' not in text
-    assert cli._move_text(_result(measured=False)) == (
+    assert motion._move_text(_result(measured=False)) == (
         'moved (uncompensated) in 1 move(s), not measured')
 
 
 @pytest.mark.parametrize('fields', [
-    {'error_string': f'no trained model: {cli.RIGID_START}'},    # CLOSED_LOOP, no model
+    {'error_string': f'no trained model: {motion.RIGID_START}'},    # CLOSED_LOOP, no model
     {'iterations': 3},                                             # CLOSED_LOOP corrected
     {'model_version': '4', 'compensation_iterations': 3}])         # PREDICTIVE
 def test_a_compensated_move_is_reached(fields):
-    text = cli._move_text(_result(**fields))
+    text = motion._move_text(_result(**fields))
     assert text.startswith('reached in '), text
-    assert cli._move_text(_result(measured=False, **fields)).startswith('moved in ')
+    assert motion._move_text(_result(measured=False, **fields)).startswith('moved in ')
 
 
 def test_the_closed_loop_planners_note_is_what_tells_it_from_rigid():
@@ -182,15 +185,15 @@ def test_the_closed_loop_planners_note_is_what_tells_it_from_rigid():
     compensator = Compensator(ArmGeometry.from_dict(config['arm']), config['compensation'])
     target = [1.30, -0.20, math.radians(-61)]
     planned = plan_goal(compensator, 'closed_loop', target, None, DataLimits(3.0, 0.3e-3))
-    assert cli.RIGID_START in planned.note and not planned.uses_model
+    assert motion.RIGID_START in planned.note and not planned.uses_model
     assert not plan_goal(compensator, 'rigid', target, None, DataLimits(3.0, 0.3e-3)).note
 
 
 @pytest.mark.parametrize('std, says', [(0.0, None), (1e-4, ', model std 0.100 mm')])
 def test_the_model_std_is_said_only_where_the_model_gives_one(std, says):
-    moved = cli._move_text(_result(model_version='4', compensation_iterations=3,
+    moved = motion._move_text(_result(model_version='4', compensation_iterations=3,
                                    data_distance=0.8, prediction_std=std))
-    planned = cli._move_text(_result(model_version='4', iterations=0, measured=False,
+    planned = motion._move_text(_result(model_version='4', iterations=0, measured=False,
                                      data_distance=0.8, prediction_std=std))
     for text in (moved, planned):
         assert '0.80 sample spacings from the learned data' in text, text
@@ -203,7 +206,7 @@ def test_the_help_builds_where_config_is_not_beside_the_code(monkeypatch):
     """An install space (colcon) holds the code without config/: --help must still work."""
     def missing() -> None:
         raise FileNotFoundError('config/learner.yaml')
-    monkeypatch.setattr(cli, '_learner_config', missing)
+    monkeypatch.setattr(common, '_learner_config', missing)
     train = cli.build_parser()._subparsers._group_actions[0].choices['train']
     text = ' '.join(train.format_help().split())
     assert "(default: the learner's, its default_kind parameter)" in text

@@ -12,6 +12,7 @@ from pathlib import Path
 import pytest
 
 from flexarm_bringup import cli, supervisor
+from flexarm_bringup.cli import graph as graph_commands
 from flexarm_bringup.running_graphs import (
     AmbiguousGraph,
     NoSuchGraph,
@@ -164,7 +165,7 @@ def test_flexarm_down_stops_the_only_graph_and_ps_shows_none(dirs, holders, monk
                                                              capsys):
     lock_dir, runs_dir = dirs
     monkeypatch.setattr(supervisor, 'LOCK_DIR', lock_dir)
-    monkeypatch.setattr(cli, 'RUNS_DIR', runs_dir)
+    monkeypatch.setattr(graph_commands, 'RUNS_DIR', runs_dir)
     hold(holders, lock_dir, runs_dir, 7, 'arm1')
     hold(holders, lock_dir, runs_dir, 8)
     assert cli.main(['down']) == 2

@@ -1,0 +1,100 @@
+"""``flexarm``: the command line of the flexarm system.
+
+Humans type millimetres and degrees and read them back (every printed pose carries its units);
+everything below the CLI is SI, and so is the ``--json`` result. Every outcome is said in
+words: results on stdout, anything else (refused, failed, busy, timeout, interrupted) on
+stderr as ``flexarm COMMAND: …``; ``--json`` ends stdout with one line of JSON holding the
+result and its ``exit_code``. Arguments are checked before anything connects. Whatever takes
+more than a moment shows progress on stderr (bars, waiting lines, goal feedback) unless
+``--quiet`` or ``--json``. The graph must be running (``flexarm up``) for move/collect/train,
+in the same ROS_DOMAIN_ID. DDS stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST,
+and transports confined to shared memory and loopback: :mod:`flexarm_bringup.transport`) unless
+the environment sets another range or static peers, or ``flexarm up --discovery subnet`` widens
+it on purpose.
+
+Exit codes (:class:`flexarm_bringup.outcome_text.Exit`):
+
+    0    success
+    1    the server refused the goal or it failed (its result code by name, and a hint)
+    2    usage error: bad arguments, refused before connecting
+    3    no graph answered within --wait, a server was lost mid-goal, or the goal outlasted
+         --timeout (it was cancelled)
+    4    busy: another goal or collection runs; try again when it has ended (or end it with
+         flexarm cancel)
+    5    status: a node of the graph is down, or one reports an ERROR (e.g. a damaged
+         calibration file or model record: named, with the reason)
+    6    cancel: no goal was running, nothing was cancelled
+    130  interrupted (Ctrl-C or SIGTERM): a running goal was cancelled and the command says
+         where the arm stopped
+"""
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+from collections.abc import Sequence
+from typing import Any
+
+from flexarm_bringup import transport
+from flexarm_bringup.cli.arguments import SUBCOMMANDS, build_parser
+from flexarm_bringup.cli.common import Outcome
+from flexarm_bringup.cli.graph import _interrupt
+from flexarm_bringup.outcome_text import Exit
+
+
+def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:
+    """The command's result and exit code; any outcome but success said on stderr."""
+    fields: dict[str, Any] = {}
+    try:
+        result = SUBCOMMANDS[args.command][0](args)
+        return result, Exit.OK
+    except Outcome as exc:
+        message, code, fields = str(exc), exc.code, exc.fields
+    except TimeoutError as exc:
+        message, code = str(exc), Exit.NO_GRAPH
+    except KeyboardInterrupt:
+        message, code = 'interrupted', Exit.INTERRUPTED
+    except (ValueError, RuntimeError, OSError) as exc:
+        message, code = str(exc), Exit.FAILED
+    print(f'flexarm {args.command}: {message}', file=sys.stderr, flush=True)
+    return {'ok': False, 'error_string': message} | fields | {'outcome': message}, code
+
+
+def main(argv: Sequence[str] | None = None) -> int:
+    try:
+        args = build_parser().parse_args(argv)
+    except SystemExit as exc:        # --help (0), or a usage error argparse has printed (2)
+        return int(exc.code or 0)
+    os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
+    transport.apply(os.environ)    # before any participant: Fast DDS reads its profile once
+    # SIGTERM stops a command like Ctrl-C does: a running goal is cancelled and a graph it
+    # started is shut down (its nodes run in sessions of their own and do not get the signal).
+    # Both go through _interrupt, which keeps them out of rclpy's message conversions.
+    previous = {s: signal.signal(s, _interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
+    try:
+        result, code = _run(args)
+    finally:
+        for signum, handler in previous.items():
+            signal.signal(signum, handler)
+    if args.json:
+        print(json.dumps(result | {'exit_code': int(code)}))
+    return int(code)
+
+
+def run() -> None:
+    """The ``flexarm`` command: :func:`main`, then exit at once with its code.
+
+    Output is flushed, then the interpreter's teardown is skipped: after a server died with
+    SIGKILL, Fast DDS spends seconds at exit on the dead participant's shared memory, and the
+    user would wait that long for the prompt after the outcome was already said.
+    """
+    code = main()
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os._exit(code)
+
+
+if __name__ == '__main__':
+    run()

@@ -1,0 +1,4 @@
+"""``python -m flexarm_bringup.cli``: the ``flexarm`` command."""
+from flexarm_bringup.cli import run
+
+run()

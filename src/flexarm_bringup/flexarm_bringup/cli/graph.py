@@ -1,0 +1,264 @@
+"""``flexarm up``, ``ps``, ``down`` and ``status``: starting, listing, stopping and reading a
+graph."""
+from __future__ import annotations
+
+import argparse
+import os
+import re
+import signal
+import threading
+from types import FrameType
+from typing import Any
+
+from flexarm_bringup import transport
+from flexarm_bringup.cli.common import Outcome, _elapsed, _world, usage
+from flexarm_bringup.outcome_text import (
+    Exit,
+)
+from flexarm_core.paths import RUNS_DIR
+
+_GENERATED_MESSAGE = re.compile(r'[/\\](?:msg|srv|action)[/\\]_\w+\.py$')   # rosidl's Python
+
+
+_RESIGNAL = 0.005         # [s] until a signal that came during a message conversion is resent
+
+
+def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
+    """Start the graph (one process per node), wait until ready, supervise until stopped."""
+    import time
+
+    from flexarm_bringup.experiment import reserved_domain
+    from flexarm_bringup.graph_status import FirstReports, GraphWatch
+    from flexarm_bringup.supervisor import Graph
+    from flexarm_core import liveness
+
+    if args.link_key and not os.path.isfile(args.link_key):
+        raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
+    name = args.name or time.strftime('up-%Y%m%d-%H%M%S') + (
+        f'-{args.namespace.replace("/", "-")}' if args.namespace else '')
+    simulated = {'real_time_factor': args.rtf, **_world(args)}
+    link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
+    params: dict[str, dict[str, Any]] = {'flexarm_sim': simulated,
+                                         'flexarm_fake_controller': simulated | link,
+                                         'flexarm_bridge': link}
+    if args.record:
+        params['flexarm_recorder'] = {'bag_name': args.record,
+                                      'record_images': args.record_images}
+    if args.foxglove:
+        params['flexarm_foxglove'] = {'port': args.foxglove}
+    optional = (('flexarm_recorder',) if args.record else ()) + (
+        ('flexarm_foxglove',) if args.foxglove is not None else ())
+    discovery = args.discovery.upper()
+    # up's own participants (the readiness checks) share its nodes' range and transports
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
+    transport.apply(os.environ)
+    exposure = transport.warning(os.environ)
+    if exposure:
+        print(exposure, flush=True)
+    with reserved_domain(args.domain_id) as domain:
+        try:
+            graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
+                          optional=optional, discovery=discovery, namespace=args.namespace,
+                          only=args.only)
+        except ValueError as exc:
+            raise usage(str(exc)) from None
+        started, ready = time.monotonic(), None
+        print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain}; logs in '
+              f'{graph.run_dir}', flush=True)
+        if graph.remote:
+            print(_remote_text(graph.remote, discovery), flush=True)
+        reports = FirstReports(lambda: GraphWatch(domain, args.namespace),
+                               lambda line: print(line, flush=True))
+        hangup = _bind_lifetime(args.outlive_parent)
+        try:
+            graph.start()
+            graph.wait_ready(args.timeout)
+            ready = time.monotonic() - started
+            arm = f' --namespace {args.namespace}' if args.namespace else ''
+            print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
+                  f'flexarm move 1450 -150 -45{arm}. Ctrl-C stops '
+                  f'{"the nodes of this host" if graph.remote else "everything"}'
+                  f'{"" if args.outlive_parent else LIFETIME_TEXT}.', flush=True)
+            watch = reports.expect(graph.nodes, liveness.limit(REPORT_WAIT))
+            print(_starting_model(watch), flush=True)
+            if 'flexarm_vision' in graph.nodes:
+                print(_calibration(watch), flush=True)
+            if args.foxglove is not None:
+                print(_foxglove_text(args.foxglove), flush=True)
+            while True:     # what goes wrong: a death, an ERROR in a (re)started node's reports
+                reports.step(0.5)
+                restarted = [n for n in graph.check() if not graph.nodes[n].reported]
+                if restarted:
+                    reports.expect(restarted, liveness.limit(RESTART_REPORT_WAIT))
+        except KeyboardInterrupt:
+            pass
+        finally:
+            reports.close()
+            codes = graph.stop()
+            if hangup:
+                signal.signal(signal.SIGHUP, signal.SIG_DFL)
+            print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
+    return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
+
+
+LIFETIME_TEXT = ', and so does the end of the process that started this one (--outlive-parent)'
+
+
+# [s, wall; liveness-scaled] for the first /diagnostics report of a node of a ready graph, of a
+# restarted one (it imports, starts and is discovered first)
+REPORT_WAIT = 5.0
+
+
+RESTART_REPORT_WAIT = 20.0
+
+
+def _bind_lifetime(outlive_parent: bool) -> bool:
+    """Tie ``up`` (and so its graph) to what started it, unless ``outlive_parent``: the kernel
+    sends SIGTERM when the starting process (thread) ends, a harness killed at its time budget
+    included, and SIGTERM stops the graph as Ctrl-C does. Under init or a service manager that
+    changes nothing (the parent outlives the service). A hang-up (the terminal closed) stops it
+    too, unless ignored (``nohup``). Whether SIGHUP's handler was set (to undo at the end)."""
+    from flexarm_core.parent_death import signal_on_parent_death
+
+    signal_on_parent_death(0 if outlive_parent else signal.SIGTERM)
+    if signal.getsignal(signal.SIGHUP) != signal.SIG_DFL:
+        return False
+    signal.signal(signal.SIGHUP, _interrupt)   # the default ends the process without a stop
+    return True
+
+
+def _remote_text(remote: tuple[str, ...], discovery: str) -> str:
+    """What `up --only` expects from the other hosts, and whether DDS can reach them."""
+    text = f'the rest of the graph must run on other hosts: {", ".join(remote)}'
+    if not transport.exposed(os.environ | {transport.RANGE_ENV: discovery}):
+        text += ('; but DDS discovery stays on this machine: use --discovery subnet or set '
+                 'ROS_STATIC_PEERS to the other hosts')
+    return text
+
+
+def _foxglove_text(port: int) -> str:
+    """Where Foxglove connects (``port`` 0: config/foxglove.yaml's) and which layout."""
+    from flexarm_core.params import config_path, load_config
+
+    config = load_config('foxglove.yaml', node_name='flexarm_foxglove')
+    return (f'Foxglove: open a connection to ws://{config["host"]}:{port or config["port"]} '
+            f'(Foxglove WebSocket) and import the layout {config_path("foxglove_layout.json")}')
+
+
+def _starting_model(watch: Any, listen: float = 3.0) -> str:
+    """Which model the compensator of a just-started graph runs (it loads the learner's
+    current one within a moment of start-up), or why there is none."""
+    from flexarm_bringup.graph_status import model_summary, starting_model_text
+    from flexarm_core import liveness
+
+    def learner() -> Any:
+        return watch.statuses.get('flexarm_learner: model')
+
+    watch.spin(liveness.limit(listen), until=lambda: watch.active_model is not None
+               or starting_model_text(None, learner()) is not None)
+    return (starting_model_text(model_summary(watch.active_model), learner())
+            or 'model driving the arm: none yet (the compensator has loaded none so far)')
+
+
+def _calibration(watch: Any, listen: float = 3.0) -> str:
+    """Whether the camera of a just-started graph is calibrated (its vision node's first
+    report)."""
+    from flexarm_bringup.graph_status import CALIBRATION_STATUS, calibration_text
+    from flexarm_core import liveness
+
+    watch.spin(liveness.limit(listen), until=lambda: CALIBRATION_STATUS in watch.statuses)
+    return calibration_text(watch.statuses.get(CALIBRATION_STATUS))
+
+
+def _interrupt(signum: int, frame: FrameType | None) -> None:
+    """SIGINT/SIGTERM: raise KeyboardInterrupt, so that a running goal is cancelled.
+
+    Never while rclpy converts a ROS message (Python code of a generated message module
+    called from its C++ layer): there pybind11 would turn the exception into a RuntimeError
+    ('Unable to convert call argument') and the goal would run on. The signal is sent again
+    ``_RESIGNAL`` later instead (a conversion takes microseconds)."""
+    while frame is not None:
+        if _GENERATED_MESSAGE.search(frame.f_code.co_filename):
+            threading.Timer(_RESIGNAL, os.kill, (os.getpid(), signum)).start()
+            return
+        frame = frame.f_back
+    raise KeyboardInterrupt
+
+
+def cmd_ps(args: argparse.Namespace) -> dict[str, Any]:
+    """List the flexarm graphs running on this machine: domain, namespace, supervisor, robot."""
+    from flexarm_bringup import supervisor
+    from flexarm_bringup.running_graphs import graph_table, running_graphs
+
+    graphs = running_graphs(supervisor.LOCK_DIR, RUNS_DIR)
+    print(graph_table(graphs) if graphs else 'no flexarm graph runs on this machine')
+    return {'ok': True, 'graphs': [g.as_dict() for g in graphs]}
+
+
+def cmd_down(args: argparse.Namespace) -> dict[str, Any]:
+    """Stop a graph of this machine (as Ctrl-C in its shell) and wait until it has ended."""
+    from flexarm_bringup import supervisor
+    from flexarm_bringup.running_graphs import (
+        AmbiguousGraph,
+        NoSuchGraph,
+        running_graphs,
+        select,
+        stop,
+    )
+
+    try:
+        graph = select(running_graphs(supervisor.LOCK_DIR, RUNS_DIR), args.domain_id,
+                       args.namespace)
+    except NoSuchGraph as exc:
+        raise Outcome(str(exc), Exit.NO_GRAPH) from None
+    except AmbiguousGraph as exc:
+        raise usage(str(exc)) from None
+    what = f'the graph in ROS domain {graph.domain_id}' + (
+        f' with namespace {graph.namespace}' if graph.namespace else '')
+    with _elapsed(f'stopping {what} (supervisor pid {graph.supervisor_pid})', args):
+        ended = stop(graph, args.timeout)
+    fields = {'graph': graph.as_dict()}
+    if not ended:
+        raise Outcome(f'{what} is still stopping after {args.timeout:g} s (supervisor pid '
+                      f'{graph.supervisor_pid}); see flexarm ps', Exit.FAILED, **fields)
+    print(f'stopped {what} (supervisor pid {graph.supervisor_pid})')
+    return {'ok': True, **fields}
+
+
+def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
+    """What runs in the domain, which model drives the arm, and what is wrong (exit 5)."""
+    import rclpy
+
+    from flexarm_bringup.graph_status import (
+        graph_problems,
+        query,
+        status_text,
+        supervisor_record,
+    )
+    from flexarm_control.ros.client import init_client
+
+    client = init_client(args.domain_id, args.namespace)
+    try:
+        record = supervisor_record(RUNS_DIR, client.context.get_domain_id(), args.namespace)
+        with _elapsed('asking the graph', args):
+            status = query(client, args.namespace, record)
+    finally:
+        client.destroy_node()
+        rclpy.try_shutdown()
+    silent = status['controller'] if not status['joint_state_rate_hz'] else None
+    status['problems'] = graph_problems(status['errors'], record, silent_controller=silent)
+    print(status_text(status, record))
+    status['supervisor'] = record
+    if not any(status['nodes'].values()):
+        where = f'ROS_DOMAIN_ID={status["domain_id"]}'
+        if status['arms']:      # arms under other namespaces
+            arms = ', '.join(arm or '(no namespace)' for arm in status['arms'])
+            arm = f'under /{args.namespace}' if args.namespace else 'without namespace'
+            raise Outcome(f'no flexarm graph in {where} {arm}; the domain runs the arm(s) '
+                          f'{arms}: pass --namespace NS', Exit.NO_GRAPH, **status)
+        raise Outcome(f'no flexarm graph in {where}: start one with `flexarm up`, or pass '
+                      '--domain-id', Exit.NO_GRAPH, **status)
+    if status['problems']:
+        raise Outcome(f'the graph has {len(status["problems"])} problem(s): see PROBLEMS above',
+                      Exit.DEGRADED, **status)
+    return {'ok': True, **status}

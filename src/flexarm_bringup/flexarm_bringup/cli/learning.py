@@ -1,0 +1,232 @@
+"""``flexarm collect``, ``refresh``, ``payload``, ``train`` and ``model``: the learner's side."""
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+from typing import Any
+
+from flexarm_bringup.cli.common import (
+    Outcome,
+    _check_dataset,
+    _check_kind,
+    _check_region,
+    _check_strategy,
+    _elapsed,
+    _full,
+    _goal,
+    _learner_config,
+    _no_result,
+    _progress,
+    _session,
+    deg,
+    mm,
+    usage,
+)
+from flexarm_bringup.outcome_text import (
+    COLLECT_HINTS,
+    TRAIN_HINT,
+    Exit,
+    busy_text,
+    code_name,
+    failure_text,
+    human_units,
+    is_busy,
+)
+from flexarm_core import topics
+from flexarm_core.paths import MODELS_DIR
+
+
+def _collect_kept(result: Any) -> str:
+    return (f'{result.collected} collected, {result.skipped} skipped; {result.total} samples '
+            f'in {result.dataset_path}')
+
+
+def _collect_interrupted(result: Any) -> str:
+    from flexarm_msgs.action import CollectSamples
+
+    if result is None:
+        return f'{_no_result()}; the samples collected before are kept in the dataset'
+    if result.error_code != CollectSamples.Result.CANCELED:
+        return f'interrupted after the collection had ended: {_collect_kept(result)}'
+    return f'cancelled; the samples collected are kept: {_collect_kept(result)}'
+
+
+def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
+    """Collect N deflection samples with the learner."""
+    max_count = _learner_config()['max_count']
+    if args.count > max_count:
+        raise usage(f'count must be 1..{max_count} (max_count of config/learner.yaml), '
+                    f'got {args.count}')
+    _check_region(args.region)
+    _check_strategy(args.strategy)
+    _check_dataset(args.dataset)
+    from tqdm import tqdm
+
+    from flexarm_msgs.action import CollectSamples
+
+    with _session(args, learner=True) as client:
+        if args.payload is not None:
+            client.set_payload(args.payload)
+            print(f'payload declared: {args.payload:g} kg')
+        bar = tqdm(total=args.count, unit='sample', desc='collect', disable=not _progress(args))
+        try:
+            result = _goal(lambda: client.collect(
+                args.count, region=args.region, strategy=args.strategy, seed=args.seed,
+                dataset=args.dataset, timeout=args.timeout,
+                feedback=lambda fb: bar.update(fb.k - bar.n)),
+                _full(args, topics.COLLECT_SAMPLES), _collect_interrupted)
+        finally:
+            bar.close()
+    name = code_name(CollectSamples.Result, result.error_code)
+    out = {'ok': result.error_code == CollectSamples.Result.SUCCESSFUL,
+           'error_code': result.error_code, 'error_name': name,
+           'error_string': result.error_string, 'collected': result.collected,
+           'skipped': result.skipped, 'total': result.total,
+           'dataset_path': result.dataset_path}
+    if out['ok']:
+        print(_collect_kept(result) + (
+            f' ({human_units(result.error_string)})' if result.error_string else ''))
+        return out
+    if is_busy(result.error_string):
+        raise Outcome(busy_text(_full(args, topics.COLLECT_SAMPLES)), Exit.BUSY, **out)
+    moved = name != 'INVALID_GOAL'
+    raise Outcome(failure_text(name, result.error_string, COLLECT_HINTS, moved) + (
+        f'\n  dataset: {_collect_kept(result)}' if moved else ''), Exit.FAILED, **out)
+
+
+def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
+    """Mend a model the health check reports stale from a few new samples."""
+    if args.region:
+        _check_region(args.region)
+    from tqdm import tqdm
+
+    from flexarm_msgs.action import RefreshModel
+
+    with _session(args, learner=True) as client:
+        bar = tqdm(unit='sample', desc='refresh', disable=not _progress(args))
+
+        def show(fb: Any) -> None:
+            bar.total = fb.n
+            bar.update(fb.k - bar.n)
+
+        try:
+            result = _goal(lambda: client.refresh(args.count, args.region, args.timeout, show,
+                                                  args.force),
+                           _full(args, topics.REFRESH_MODEL),
+                           lambda r: 'interrupted; the model is unchanged unless the refresh '
+                                     'had ended')
+        finally:
+            bar.close()
+    name = code_name(RefreshModel.Result, result.error_code)
+    out = {'ok': result.error_code == RefreshModel.Result.SUCCESSFUL,
+           'error_code': result.error_code, 'error_name': name,
+           'error_string': result.error_string, 'collected': result.collected,
+           'dataset_path': result.dataset_path, 'model_version': result.model.version,
+           'residual_before': result.residual_before, 'residual_after': result.residual_after}
+    if not out['ok']:
+        if is_busy(result.error_string):
+            raise Outcome(busy_text(_full(args, topics.REFRESH_MODEL)), Exit.BUSY, **out)
+        raise Outcome(f'{name}: {human_units(result.error_string)}', Exit.FAILED, **out)
+    print(f'model v{result.model.version} announced: the previous one corrected from '
+          f'{result.collected} new samples (in {result.dataset_path}); their median residual '
+          f'{mm(result.residual_before):.3f} mm before, {mm(result.residual_after):.3f} mm '
+          'after')
+    return out
+
+
+def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
+    """Show the payload the arm carries, or declare a new one [kg] (a tool picked up)."""
+    with _session(args, learner=True) as client:
+        if args.kg is not None:
+            client.set_payload(args.kg)
+        kg = float(client.node_parameter('flexarm_learner', 'payload'))
+    print(f'payload: {kg:g} kg' + (' (declared now)' if args.kg is not None else ''))
+    return {'ok': True, 'payload_kg': kg}
+
+
+def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
+    """Train a deflection predictor on a dataset; prints the validation metrics."""
+    _check_kind(args.kind)
+    _check_dataset(args.dataset)
+    what = f'training {args.kind or "the default kind"} on dataset {args.dataset or "default"}'
+    with _session(args, learner=True) as client:
+        try:
+            with _elapsed(what, args):
+                response = client.train(args.kind, args.settings, dataset=args.dataset,
+                                        timeout=args.timeout)
+        except KeyboardInterrupt:
+            raise Outcome('interrupted; the learner finishes this training anyway (training '
+                          'cannot be cancelled) and announces its model if it succeeds',
+                          Exit.INTERRUPTED) from None
+    m = response.metrics
+    out = {'ok': response.success, 'message': response.message,
+           'model_version': response.model_version, 'model_path': response.model_path,
+           'metrics': {k: getattr(m, k) for k in (
+               'validation', 'samples', 'max_error_x', 'max_error_y', 'max_error_phi',
+               'mean_error_x', 'mean_error_y', 'mean_error_phi', 'selected_settings',
+               'max_slope')} | {'excluded_samples': list(m.excluded_samples)}}
+    if not response.success:
+        if is_busy(response.message):
+            raise Outcome(response.message, Exit.BUSY, **out)
+        raise Outcome(f'{human_units(response.message)}\n  what to do: {TRAIN_HINT}',
+                      Exit.FAILED, **out)
+    print(f'model v{response.model_version} at {response.model_path} '
+          f'(chosen by validation: {m.selected_settings})\n'
+          f'{m.validation}, {m.samples} samples: max |error| x {mm(m.max_error_x):.3f} mm, '
+          f'y {mm(m.max_error_y):.3f} mm, phi {deg(m.max_error_phi):.4f} deg; mean '
+          f'{mm(m.mean_error_x):.3f} mm, {mm(m.mean_error_y):.3f} mm, '
+          f'{deg(m.mean_error_phi):.4f} deg')
+    if len(m.excluded_samples):
+        print(f'excluded as outliers: {len(m.excluded_samples)} sample(s), dataset '
+              f'indices {list(m.excluded_samples)}')
+    if response.message:
+        print(human_units(response.message))
+    return out
+
+
+def cmd_model(args: argparse.Namespace) -> dict[str, Any]:
+    """List the trained models (list) or make an earlier one current again (use VERSION)."""
+    return _model_list(args) if args.action == 'list' else _model_use(args)
+
+
+def _model_list(args: argparse.Namespace) -> dict[str, Any]:
+    from flexarm_bringup.graph_status import file_summary, model_line
+    from flexarm_control.learning.model_store import list_models
+    from flexarm_control.learning.predictors.base import read_model
+
+    directory = Path(args.models) if args.models else MODELS_DIR / args.namespace
+    entries = list_models(directory, lambda path: read_model(path)[0])
+    if not entries:
+        print(f'no models in {directory}: collect samples and `flexarm train`')
+    rows = []
+    for entry in entries:
+        mark = '*' if entry.current else ' '
+        if entry.metadata is None:
+            print(f'{mark} v{entry.version}: unusable: {human_units(entry.problem)}')
+            rows.append({'version': str(entry.version), 'current': entry.current,
+                         'path': str(entry.path), 'problem': entry.problem})
+            continue
+        summary = file_summary(str(entry.version), entry.path, entry.metadata)
+        print(mark + ' ' + model_line(entry.path.name, summary))
+        rows.append(summary | {'current': entry.current})
+    if entries:
+        print("* = current (announced by the learner; `flexarm status` shows what the "
+              "compensator runs)")
+    return {'ok': True, 'models': rows}
+
+
+def _model_use(args: argparse.Namespace) -> dict[str, Any]:
+    from flexarm_bringup.graph_status import model_line, model_summary
+
+    if not args.version.isdecimal():
+        raise usage('model use needs a version number (see flexarm model list), not '
+                    f'{args.version!r}')
+    with _session(args, learner=True) as client:
+        response = client.use_model(args.version, timeout=args.wait)
+        if not response.success:
+            raise Outcome(response.message, Exit.FAILED)
+        with _elapsed(f'waiting for the compensator to load v{args.version}', args):
+            client.wait_for_model(response.model.version, timeout=args.wait)
+    summary = model_summary(response.model)
+    print(model_line('model driving the arm now', summary))
+    return {'ok': True, 'model': summary}

@@ -20,18 +20,29 @@ NODES = [n for group in (*GRAPH['robots'].values(), GRAPH['nodes'], GRAPH['optio
          for n in group]
 
 
-def declared_defaults(module: str) -> dict[str, Any]:
-    """``declare(self, 'name', <literal default>, ...)`` calls of a node module: name: default."""
+def declarations(module: str) -> dict[str, tuple[Any, Any]]:
+    """``declare(self, 'name', <default>, ..., bounds=...)`` calls of a node module: name:
+    (default, bounds), each None where the code computes it at run time."""
     path = Path(importlib.util.find_spec(module).origin)
-    found: dict[str, Any] = {}
+    found: dict[str, tuple[Any, Any]] = {}
     for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
         if (isinstance(node, ast.Call) and getattr(node.func, 'id', '') == 'declare'
                 and len(node.args) >= 3 and isinstance(node.args[1], ast.Constant)):
-            try:
-                found[node.args[1].value] = ast.literal_eval(node.args[2])
-            except ValueError:      # a default computed at run time: nothing to compare
-                continue
+            bounds = next((k.value for k in node.keywords if k.arg == 'bounds'), None)
+            found[node.args[1].value] = (_literal(node.args[2]), _literal(bounds))
     return found
+
+
+def _literal(node: ast.AST | None) -> Any:
+    try:
+        return None if node is None else ast.literal_eval(node)
+    except ValueError:
+        return None
+
+
+def declared_defaults(module: str) -> dict[str, Any]:
+    return {name: default for name, (default, _) in declarations(module).items()
+            if default is not None}
 
 
 def shipped(node: dict[str, Any]) -> dict[str, Any]:
@@ -61,3 +72,15 @@ def test_the_check_sees_the_nodes_declarations() -> None:
     learner = next(n for n in NODES if n['name'] == 'flexarm_learner')
     assert declared_defaults(learner['module'])['default_kind'] == shipped(learner)[
         'default_kind'] == 'auto'
+
+
+@pytest.mark.parametrize('node', NODES, ids=lambda n: n['name'])
+def test_defaults_and_shipped_values_lie_within_the_declared_bounds(node: dict[str, Any]
+                                                                    ) -> None:
+    files = shipped(node)
+    for name, (default, bounds) in declarations(node['module']).items():
+        if bounds is None:
+            continue
+        low, high = bounds
+        for value in (default, files.get(name, default)):
+            assert value is None or low <= value <= high, (node['name'], name, value, bounds)

@@ -58,17 +58,18 @@ class FoxgloveNode(Node):
         host = declare(self, 'host', '127.0.0.1', 'address the WebSocket server listens on',
                        read_only=True)
         port = declare(self, 'port', 8765, 'TCP port of the WebSocket server (0: any free)',
-                       read_only=True)
+                       read_only=True, bounds=(0, 65535))
         wanted = declare(self, 'topics', ['*'],
                          'topics to serve: names or fnmatch patterns ("*": all)')
         images = declare(self, 'images', False, f'also serve {topics.CAMERA_IMAGE}')
         discovery_period = declare(self, 'discovery_period', 0.25,
                                    'period of looking for new topics and for channels clients '
-                                   'subscribed to or left [s]')
+                                   'subscribed to or left [s]', bounds=(0.01, 60.0))
         queue_depth = declare(self, 'queue_depth', 10,
-                              'subscription history depth (keep last) of a topic')
+                              'subscription history depth (keep last) of a topic',
+                              bounds=(1, 100000))
         image_queue_depth = declare(self, 'image_queue_depth', 2,
-                                    f'the same for {topics.CAMERA_IMAGE}')
+                                    f'the same for {topics.CAMERA_IMAGE}', bounds=(1, 1000))
         self._sdk_context = foxglove.Context()
         try:
             self.server = foxglove.start_server(name=SERVER_NAME, host=host, port=port,

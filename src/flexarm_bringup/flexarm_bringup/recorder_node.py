@@ -105,13 +105,16 @@ class RecorderNode(Node):
         record_images = declare(self, 'record_images', False,
                                 f'also record {topics.CAMERA_IMAGE}')
         discovery_period = declare(self, 'discovery_period', 0.5,
-                                   'period of looking for publishers of wanted topics [s]')
+                                   'period of looking for publishers of wanted topics [s]',
+                                   bounds=(0.01, 60.0))
         flush_period = declare(self, 'flush_period', 1.0,
-                               'period of writing the chunk in progress to disk [s]')
+                               'period of writing the chunk in progress to disk [s]',
+                               bounds=(0.01, 3600.0))
         queue_depth = declare(self, 'queue_depth', 1000,
-                              'subscription history depth (keep last) of a topic')
+                              'subscription history depth (keep last) of a topic',
+                              bounds=(1, 1000000))
         image_queue_depth = declare(self, 'image_queue_depth', 30,
-                                    f'the same for {topics.CAMERA_IMAGE}')
+                                    f'the same for {topics.CAMERA_IMAGE}', bounds=(1, 10000))
         chunk_size = declare(self, 'chunk_size', DEFAULT_CHUNK_SIZE,
                              'MCAP chunk size [bytes]')
         self.writer = BagWriter(Path(directory) / (name or default_bag_name()),

@@ -69,9 +69,12 @@ class SceneNode(Node):
         if unknown:
             raise ValueError(f'regions_shown names unknown regions {unknown}')
         self._regions = [regions[name] for name in shown]
-        self._scale = declare(self, 'arrow_scale', 10.0, 'deflection arrows drawn × this')
-        self._count = declare(self, 'field_points', 7, 'field grid points per region side')
-        self._max_samples = declare(self, 'max_samples', 2000, 'samples drawn (the last ones)')
+        self._scale = declare(self, 'arrow_scale', 10.0, 'deflection arrows drawn × this',
+                              bounds=(0.0, 10000.0))
+        self._count = declare(self, 'field_points', 7, 'field grid points per region side',
+                              bounds=(2, 100))
+        self._max_samples = declare(self, 'max_samples', 2000, 'samples drawn (the last ones)',
+                                    bounds=(0, 1000000))
         self._samples: list[tuple[float, float, float]] = []
         self._model: ModelInfo | None = None
         self._payload = 0.0

@@ -1,7 +1,8 @@
 """Declaring parameters in the node shells (rclpy side of :mod:`flexarm_core.params`).
 
-Scalar node settings are declared one by one with a default and a description. Physical
-parameter trees (``arm.*``, ``plant.*``, ``camera.*`` ...) come from the ``config/*.yaml``
+Scalar node settings are declared one by one with a default, a description and, for a number
+with a meaningful range, its bounds (the descriptor's range: rclpy refuses a value outside).
+Physical parameter trees (``arm.*``, ``plant.*``, ``camera.*`` ...) come from the ``config/*.yaml``
 files: the shipped file is the tree's schema (which names exist), the params files the node
 was given supply the values. Every name is declared with a description pointing at its file,
 read-only unless the node handles its changes, and handed to the core as a nested dict; a name
@@ -14,16 +15,28 @@ from collections.abc import Collection
 from pathlib import Path
 from typing import Any
 
-from rcl_interfaces.msg import ParameterDescriptor
+from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
 from flexarm_core.params import config_path, flatten, load_node_params, unflatten
 
 
 def declare(node: Node, name: str, default: Any, description: str,
-            read_only: bool = False) -> Any:
-    """Declare one parameter with a descriptor and return its value."""
+            read_only: bool = False, bounds: tuple[float, float] | None = None) -> Any:
+    """Declare one parameter with a descriptor and return its value. ``bounds`` (low, high):
+    the range rclpy holds it to, given or set at run time (a value outside is refused with
+    the range, before the node uses it); integer for an integer default."""
     descriptor = ParameterDescriptor(description=description, read_only=read_only)
+    if bounds is not None:
+        low, high = bounds
+        if isinstance(default, bool) or not isinstance(default, (int, float)):
+            raise TypeError(f'{name}: bounds need a numeric default, got {default!r}')
+        if isinstance(default, int):
+            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high),
+                                                     step=1)]
+        else:
+            descriptor.floating_point_range = [FloatingPointRange(
+                from_value=float(low), to_value=float(high), step=0.0)]
     return node.declare_parameter(name, default, descriptor).value
 
 

@@ -4,8 +4,10 @@ from __future__ import annotations
 import pytest
 import rclpy
 from rclpy.context import Context
+from rclpy.exceptions import InvalidParameterValueException
+from rclpy.parameter import Parameter
 
-from flexarm_core.node_params import declare_tree
+from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.params import config_path, flatten, load_config, unflatten
 
 
@@ -45,3 +47,17 @@ def test_flatten_inverts_unflatten():
     tree = load_config('sim.yaml')['plant']
     assert unflatten(flatten(tree)) == tree
     assert flatten({'a': {'b': [1, 2], 'c': {'d': 'x'}}}) == {'a.b': [1, 2], 'a.c.d': 'x'}
+
+
+@pytest.mark.parametrize('context', [['-p', 'rate:=5000.0']], indirect=True)
+def test_a_value_outside_the_bounds_is_refused_given_or_set(context):
+    node = rclpy.create_node('flexarm_test', context=context)
+    try:
+        with pytest.raises(InvalidParameterValueException):
+            declare(node, 'rate', 25.0, '[Hz]', bounds=(0.1, 1000.0))
+        assert declare(node, 'count', 8, 'samples', bounds=(1, 100)) == 8
+        refused = node.set_parameters([Parameter('count', value=0)])[0]
+        assert not refused.successful and node.get_parameter('count').value == 8
+        assert node.set_parameters([Parameter('count', value=100)])[0].successful
+    finally:
+        node.destroy_node()

@@ -128,13 +128,15 @@ class SimNode(Node):
     def __init__(self, node_name: str = 'flexarm_sim') -> None:
         super().__init__(node_name)
         self._rtf = declare(self, 'real_time_factor', 1.0,
-                            'simulated seconds per wall-clock second')
+                            'simulated seconds per wall-clock second', bounds=(0.01, 100.0))
         self._js_rate = declare(self, 'joint_state_rate', 100.0,
-                                '[Hz, sim time] /joint_states and ground-truth rate')
+                                '[Hz, sim time] /joint_states and ground-truth rate',
+                                bounds=(1.0, 10000.0))
         clock_rate = declare(self, 'clock_rate', 25.0,
                              '[Hz, wall time] /clock publications and wake-ups (at most one '
-                             'per tick)')
-        camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate')
+                             'per tick)', bounds=(0.1, 1000.0))
+        camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate',
+                              bounds=(0.1, 100.0))
         clock_source = declare(self, 'clock_source', OWN,
                                'own: publish /clock; follow: step to the /clock of another '
                                "arm's simulator in the domain")

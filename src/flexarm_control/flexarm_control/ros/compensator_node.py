@@ -197,9 +197,9 @@ class CompensatorNode(Node):
         self._compensator = Compensator(self._geometry, declare_tree(
             self, 'compensation', 'config/compensator.yaml'))
         self._pos_tol = declare(self, 'position_tolerance', 0.05e-3,
-                                '[m] default closed-loop position tolerance')
+                                '[m] default closed-loop position tolerance', bounds=(0.0, 0.01))
         self._ang_tol = declare(self, 'angle_tolerance', math.radians(0.005),
-                                '[rad] default closed-loop angle tolerance')
+                                '[rad] default closed-loop angle tolerance', bounds=(0.0, 0.1))
         self._max_corrections = declare(
             self, 'max_corrections', 5, 'default CLOSED_LOOP corrective moves after the first')
         motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
@@ -211,14 +211,17 @@ class CompensatorNode(Node):
             raise ValueError(f'default goal settings out of bounds: {reason}')
         self._limits = DataLimits(
             declare(self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than '
-                    'this from the learning samples [typical sample spacings]'),
+                    'this from the learning samples [typical sample spacings]',
+                    bounds=(0.0, 1000.0)),
             declare(self, 'max_prediction_std', 0.3e-3, "[m] PREDICTIVE refuses joints where "
-                    "the model's std of the predicted tip position exceeds this"))
+                    "the model's std of the predicted tip position exceeds this",
+                    bounds=(0.0, 0.1)))
         self._sanity_factor = declare(
             self, 'sanity_factor', 5.0, "PREDICTIVE without a tolerance fails beyond this many "
             "times the model's validated max error (or sanity_floor, if larger)")
         self._sanity_floor = declare(self, 'sanity_floor', 1.0e-3,
-                                     '[m] the smallest sanity bound of a PREDICTIVE goal')
+                                     '[m] the smallest sanity bound of a PREDICTIVE goal',
+                                     bounds=(0.0, 0.1))
         model_path = declare(self, 'model_path', '',
                              'predictor loaded at start ("" = wait for /learner/model)')
         self._health = ModelHealth(

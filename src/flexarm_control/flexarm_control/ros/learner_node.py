@@ -215,25 +215,29 @@ class LearnerNode(Node):
                                             'models directory (relative: to the repository)'))
         self._default_dataset = declare(self, 'default_dataset', 'default', 'dataset name')
         self._payload = declare(self, 'payload', 0.0, '[kg] payload carried by the arm now '
-                                '(published on /payload)')
+                                '(published on /payload)', bounds=(0.0, 100.0))
         self._refresh_samples = declare(self, 'refresh_samples', 8,
-                                        'samples a refresh takes when its goal gives no count')
+                                        'samples a refresh takes when its goal gives no count',
+                                        bounds=(1, 1000))
         self._default_region = declare(self, 'default_region', 'AB', 'region preset')
         self._default_strategy = declare(self, 'default_strategy', 'sobol',
                                          f'one of {", ".join(STRATEGIES)}')
-        self._max_count = declare(self, 'max_count', 2000, 'largest count accepted')
+        self._max_count = declare(self, 'max_count', 2000, 'largest count accepted',
+                                  bounds=(1, 100000))
         retries = declare(self, 'measurement_retries', 2,
-                          'extra measurement attempts before a pose is skipped')
+                          'extra measurement attempts before a pose is skipped', bounds=(0, 100))
         motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
         self._coverage = np.array(declare(
             self, 'coverage_margin', [0.03, 0.03, 0.0436],
             '[m, m, rad] learning poses cover the region grown by this on every side'))
         self._default_kind = declare(self, 'default_kind', 'auto', f'one of {", ".join(KINDS)}')
-        self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds')
+        self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds',
+                              bounds=(2, 50))
         self._screening = Screening.from_dict(
             declare_tree(self, 'training', 'config/learner.yaml'))
         self._train_timeout = declare(self, 'training_timeout', 600.0,
-                                      '[s, wall] longest a training request may take')
+                                      '[s, wall] longest a training request may take',
+                                      bounds=(1.0, 86400.0))
         self._trainer = TrainingWorker(_warm_up)
         self._chooser = ThreadPoolExecutor(1)   # waits on the worker for active poses
         if self._default_region not in self._regions:

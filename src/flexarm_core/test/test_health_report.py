@@ -6,9 +6,13 @@ import threading
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
 
+from flexarm_control.execution.compensator_status import (
+    goals_status,
+    model_health_status,
+    model_status,
+)
+from flexarm_control.learning.learner_status import learner_statuses
 from flexarm_control.learning.model_health import RegionHealth
-from flexarm_control.ros.compensator_node import goals_status, model_health_status, model_status
-from flexarm_control.ros.learner_node import learner_statuses
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher, diagnostic_array
 from flexarm_core.health_report import (

@@ -124,7 +124,7 @@ def _check_region(region: str) -> None:
 
 def _check_dataset(name: str) -> None:
     if name:
-        from flexarm_control.ros.learner_node import dataset_name_error
+        from flexarm_control.learning.dataset import dataset_name_error
 
         reason = dataset_name_error(name)
         if reason is not None:

@@ -239,3 +239,10 @@ def load_dataset(path: str | Path) -> Dataset:
         else:
             samples.append(sample)
     return Dataset(samples, skipped, path)
+
+
+def dataset_name_error(name: str) -> str | None:
+    """Why ``name`` cannot name a dataset in the data directory (e.g. '../x'), or None."""
+    if name and not name.replace('-', '').replace('_', '').isalnum():
+        return f'dataset name "{name}" must be letters, digits, - and _'
+    return None

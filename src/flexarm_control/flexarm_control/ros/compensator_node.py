@@ -84,6 +84,11 @@ from std_msgs.msg import Float64
 
 from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.compensator import Compensator, Plan
+from flexarm_control.execution.compensator_status import (
+    goals_status,
+    model_health_status,
+    model_status,
+)
 from flexarm_control.execution.goal_bounds import GoalBounds, GoalWatch, goal_error, time_limit
 from flexarm_control.execution.goal_execution import (
     CANCELED,
@@ -100,21 +105,21 @@ from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.model_health import HealthSettings, ModelHealth
-from flexarm_control.learning.model_health import RegionHealth as RegionReport
 from flexarm_control.learning.model_store import payload_warning
 from flexarm_control.learning.predictors import Predictor, load_predictor
 from flexarm_control.ros.arm_interface import ArmInterface
+from flexarm_control.ros.messages import planar
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
-from flexarm_core.health_report import ERROR, OK, WARN, Status, status
+from flexarm_core.health_report import Status
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, forward, pose_error
 from flexarm_core.node_main import Offload, finish_goal, run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.regions import regions_from_dict
 from flexarm_core.scene_msgs import pose_stamped
 from flexarm_msgs.action import MoveToPose
-from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, RegionHealth
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
 
 GOAL_THREADS = 2   # the goal executing and one that lost the race past the busy check
@@ -131,62 +136,6 @@ OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
 
 def _nanoseconds(stamp: TimeMsg) -> int:
     return stamp.sec * 1_000_000_000 + stamp.nanosec
-
-
-def planar(pose: np.ndarray) -> PlanarPose:
-    return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
-
-
-def model_status(node: str, info: ModelInfo | None, load_error: str,
-                 payload: float | None) -> Status:
-    """``<node>: model`` in use: ERROR when an announced model could not be loaded and none
-    is in use (PREDICTIVE refuses every goal); WARN when one could not be loaded but the
-    previous one stays in use, or the model in use carries a warning (other payload or arm);
-    OK otherwise, also without any model (RIGID and CLOSED_LOOP need none)."""
-    values = {'version': info.version if info else '', 'kind': info.kind if info else '',
-              'dataset': info.dataset if info else '', 'warning': info.warning if info else '',
-              'payload [kg]': 'unknown' if payload is None else payload,
-              'load error': load_error}
-    if info is None:
-        if load_error:
-            return status(node, 'model', ERROR, load_error, values)
-        return status(node, 'model', OK, 'no model announced yet (RIGID and CLOSED_LOOP only)',
-                      values)
-    text = f'model {info.version} ({info.kind})'
-    problem = '; '.join(filter(None, [load_error, info.warning]))
-    if problem:
-        return status(node, 'model', WARN, f'{text}: {problem}', values)
-    return status(node, 'model', OK, f'{text} in use', values)
-
-
-def model_health_status(node: str, version: str, report: list[RegionReport],
-                        stale_residual: float, summary: str) -> Status:
-    """``<node>: model health``, the residuals of the model in use per working region: WARN
-    when it is stale in a region (refresh it or train anew), else OK."""
-    values: dict[str, str | int | float] = {'model': version,
-                                            'stale residual [mm]': stale_residual * 1e3}
-    for r in report:
-        values[f'{r.name} measurements'] = r.observations
-        values[f'{r.name} residual median [mm]'] = round(r.median_position * 1e3, 4)
-        values[f'{r.name} residual max [mm]'] = round(r.max_position * 1e3, 4)
-        values[f'{r.name} stale'] = r.stale
-    if summary:
-        return status(node, 'model health', WARN, summary, values)
-    if not version:
-        return status(node, 'model health', OK, 'no model in use', values)
-    seen = sum(r.observations for r in report)
-    return status(node, 'model health', OK, f'model {version} fits ({seen} recent '
-                  'measurements)' if seen else f'model {version}: not measured yet', values)
-
-
-def goals_status(node: str, counts: dict[str, int], executing: str) -> Status:
-    """``<node>: goals``: run, succeeded, failed and canceled since start, and the goal in
-    progress. Always OK: a goal that fails tells its client why in its result."""
-    run = sum(counts.values())
-    values = {'goals run': run, **{f'goals {k}': v for k, v in counts.items()},
-              'executing': executing}
-    return status(node, 'goals', OK, f'executing {executing}' if executing else
-                  f'idle, {run} goals run ({counts.get("succeeded", 0)} succeeded)', values)
 
 
 class CompensatorNode(Node):

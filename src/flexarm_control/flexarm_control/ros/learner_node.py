@@ -77,14 +77,19 @@ from std_msgs.msg import Float64
 from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.collection import Collected, Collector
 from flexarm_control.learning.active_sampling import ActivePoses
-from flexarm_control.learning.dataset import DatasetWriter, Sample, load_dataset
+from flexarm_control.learning.dataset import (
+    DatasetWriter,
+    Sample,
+    dataset_name_error,
+    load_dataset,
+)
+from flexarm_control.learning.learner_status import learner_statuses
 from flexarm_control.learning.model_store import (
     DamagedRecord,
     arm_fingerprint,
     find_model,
     fit_warning,
     next_version,
-    provenance,
     read_current,
     unloadable_text,
     write_current,
@@ -92,11 +97,12 @@ from flexarm_control.learning.model_store import (
 from flexarm_control.learning.predictors import KINDS, load_predictor, make_predictor
 from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
-from flexarm_control.learning.training import Metrics, Screening, TrainingWorker, train
+from flexarm_control.learning.training import Screening, TrainingWorker
+from flexarm_control.learning.training_job import train_and_save, warm_up
 from flexarm_control.ros.arm_interface import ArmInterface
+from flexarm_control.ros.messages import planar
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
-from flexarm_core.health_report import ERROR, OK, WARN, Status, status
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.node_main import Offload, finish_goal, run
 from flexarm_core.node_params import declare, declare_tree
@@ -107,7 +113,6 @@ from flexarm_msgs.msg import (
     DeflectionSample,
     ModelHealth,
     ModelInfo,
-    PlanarPose,
     PredictionMetrics,
 )
 from flexarm_msgs.srv import Train, UseModel
@@ -117,88 +122,6 @@ CHOICE_TIMEOUT = 60.0    # [s, wall] for the choice of an active learning pose
 Goal = CollectSamples.Goal
 Result = CollectSamples.Result
 Feedback = CollectSamples.Feedback
-
-
-def planar(pose: np.ndarray) -> PlanarPose:
-    return PlanarPose(x=float(pose[0]), y=float(pose[1]), phi=float(pose[2]))
-
-
-def train_and_save(kind: str, settings: dict, dataset_path: str, folds: int,
-                   model_path: str, geometry: ArmGeometry, screening: Screening,
-                   arm: str) -> tuple[Metrics, str, list[int]]:
-    """Training job, run in the learner's worker process: fit (with the payload as an input
-    when the samples hold several and ``settings`` do not say), record the provenance (dataset
-    name, payloads, ``arm`` fingerprint), save atomically.
-
-    A worker process of its own keeps training at full speed while the node serves
-    1000+ callbacks a second at 10x real time (in-process it ran 3-4x slower on the GIL).
-    """
-    dataset = load_dataset(dataset_path)
-    if 'payload_input' not in settings and len({s.payload for s in dataset.samples}) > 1:
-        settings = {**settings, 'payload_input': True}
-    predictor, metrics = train(kind, settings, dataset, folds=folds, geometry=geometry,
-                               screening=screening)
-    predictor.metadata['provenance'] = provenance(
-        Path(dataset_path).stem, [s.payload for s in dataset.samples], arm)
-    Path(model_path).parent.mkdir(parents=True, exist_ok=True)
-    predictor.save(model_path)
-    return metrics, dataset.hash, dataset.skipped_lines
-
-
-def _warm_up() -> None:
-    """Worker start: one compute thread (the graph needs the other core), the training and
-    active-sampling code imported (else an active collection's first choices come late)."""
-    from threadpoolctl import threadpool_limits
-
-    import flexarm_control.learning.active_sampling  # noqa: F401
-    import flexarm_control.learning.training  # noqa: F401
-
-    threadpool_limits(1)
-
-
-def dataset_name_error(name: str) -> str | None:
-    """Why ``name`` cannot name a dataset in the data directory (e.g. '../x'), or None."""
-    if name and not name.replace('-', '').replace('_', '').isalnum():
-        return f'dataset name "{name}" must be letters, digits, - and _'
-    return None
-
-
-def learner_statuses(node: str, progress: str, training: bool,
-                     dataset: tuple[str, int] | None, trained: tuple[bool, str] | None,
-                     announced: ModelInfo | None, announce_error: str) -> list[Status]:
-    """The learner's health:
-
-    * ``<node>: activity``, always OK: idle, the collection's or refresh's ``progress``
-      ("collecting k of n ...") and/or training; the dataset last collected into and its size.
-    * ``<node>: training``: the last training's outcome; WARN when it failed (no new model,
-      the previous one stays active), OK otherwise (also before any training).
-    * ``<node>: model``: the model last announced on /learner/model; ERROR when the current
-      model record could not be announced (damaged, unloadable: the compensator has none),
-      WARN when the model was made for another payload or arm (its warning), else OK.
-    """
-    doing = '; '.join(filter(None, [progress, 'training' if training else ''])) or 'idle'
-    activity = status(node, 'activity', OK, doing, {
-        'activity': doing, 'dataset': dataset[0] if dataset else '',
-        'dataset samples': dataset[1] if dataset else 0})
-    if trained is None:
-        training_status = status(node, 'training', OK, 'no training since start')
-    else:
-        succeeded, text = trained
-        training_status = status(node, 'training', OK if succeeded else WARN, text,
-                                 {'succeeded': succeeded})
-    values = {'version': announced.version if announced else '',
-              'kind': announced.kind if announced else '',
-              'dataset': announced.dataset if announced else '',
-              'warning': announced.warning if announced else ''}
-    if announce_error:
-        model = status(node, 'model', ERROR, f'no model announced: {announce_error}', values)
-    elif announced is None:
-        model = status(node, 'model', OK, 'no model yet: collect samples and train', values)
-    else:
-        model = status(node, 'model', WARN if announced.warning else OK,
-                       f'model v{announced.version} ({announced.kind}) announced'
-                       + (f': {announced.warning}' if announced.warning else ''), values)
-    return [activity, training_status, model]
 
 
 class LearnerNode(Node):
@@ -238,7 +161,7 @@ class LearnerNode(Node):
         self._train_timeout = declare(self, 'training_timeout', 600.0,
                                       '[s, wall] longest a training request may take',
                                       bounds=(1.0, 86400.0))
-        self._trainer = TrainingWorker(_warm_up)
+        self._trainer = TrainingWorker(warm_up)
         self._chooser = ThreadPoolExecutor(1)   # waits on the worker for active poses
         if self._default_region not in self._regions:
             raise ValueError(f'default_region {self._default_region} is not in regions')

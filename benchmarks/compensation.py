@@ -29,7 +29,7 @@ from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, inverse
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config
-from flexarm_core.regions import regions_from_dict
+from flexarm_core.regions import configured_regions
 from flexarm_sim.plant import Plant
 
 
@@ -63,7 +63,7 @@ def main() -> None:
     plant = Plant.from_dict(config['plant'], geometry)
     compensator = Compensator(geometry, config['compensation'])
     learner = load_config('learner.yaml', node_name='flexarm_learner')
-    regions = regions_from_dict(learner['regions'])
+    regions = configured_regions()
     kind = args.kind or learner['default_kind']
     models = {}
     for name in sorted({t.region for t in targets}):

@@ -52,7 +52,7 @@ from flexarm_control.learning.refresh import refresh_poses, refreshed
 from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
 from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import forward, pose_error
-from flexarm_core.regions import regions_from_dict
+from flexarm_core.regions import configured_regions
 
 SCENARIOS = ('payload', 'thermal', 'bent_link', 'none')
 TARGET_SEED = 7100
@@ -103,7 +103,7 @@ def run(job: tuple[str, str, int, int, int, int, int, str]) -> dict[str, Any]:
     c = config()
     rig = Rig(c, set(SOURCES) - {'payload'}, 0.0, seed=100 * seed + region_index)
     learner = c['learner']
-    regions = regions_from_dict(learner['regions'])
+    regions = configured_regions()
     coverage = np.asarray(learner['coverage_margin'])
     rig.correction = reference_calibration(rig, regions[region_name])['correction']
     motion = CalibratedMotion(rig)

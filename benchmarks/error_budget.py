@@ -72,7 +72,7 @@ from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.measurement import Measurement
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config
-from flexarm_core.regions import regions_from_dict
+from flexarm_core.regions import configured_regions
 from flexarm_core.tool_correction import ToolCorrection
 from flexarm_sim.errors import ArmErrors
 from flexarm_sim.plant import Plant
@@ -136,7 +136,7 @@ def run(job: tuple[str, tuple[str, ...], str, int, int, int, int, float, str, st
     c = config()
     rig = Rig(c, set(on), payload, seed=100 * seed + region_index)
     learner = c['learner']
-    regions = regions_from_dict(learner['regions'])
+    regions = configured_regions()
     calibration = None
     if calibrate:
         calibration = CALIBRATIONS[calibrate](rig, regions[region_name])

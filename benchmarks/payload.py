@@ -32,7 +32,7 @@ from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.sampling import sample_poses, travel_order
 from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import forward
-from flexarm_core.regions import regions_from_dict
+from flexarm_core.regions import configured_regions
 
 PAYLOADS = (0.0, 2.5, 5.0)      # [kg] asked
 
@@ -43,7 +43,7 @@ def run(job: tuple[str, int, int, int, int, str, tuple[float, ...]]) -> dict[str
     c = config()
     rig = Rig(c, set(SOURCES) - {'payload'}, 0.0, seed=100 * seed + region_index)
     learner = c['learner']
-    regions = regions_from_dict(learner['regions'])
+    regions = configured_regions()
     rig.correction = reference_calibration(rig, regions[region_name])['correction']
     collector = Collector(CalibratedMotion(rig), rig.geometry, learner['measurement_retries'],
                           clock=lambda: rig.arm.time)

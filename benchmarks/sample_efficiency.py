@@ -53,7 +53,7 @@ from flexarm_control.learning.dataset import Sample
 from flexarm_control.learning.sampling import path_time, sample_poses, travel_order
 from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import forward, wrap_angle
-from flexarm_core.regions import regions_from_dict
+from flexarm_core.regions import configured_regions
 
 COUNTS = (8, 10, 12, 15, 20, 25, 30, 40)
 STRATEGIES = ('sobol', 'active')
@@ -82,7 +82,7 @@ def campaign(job: tuple[str, str, int, int, tuple[int, ...], tuple[str, ...], in
     started = time.perf_counter()
     c = config()
     learner = c['learner']
-    regions = regions_from_dict(learner['regions'])
+    regions = configured_regions()
     rig = Rig(c, set(REALISTIC), 0.0, seed=100 * seed + region_index)
     rig.correction = reference_calibration(rig, regions[region_name])['correction']
     motion = CalibratedMotion(rig)

@@ -47,7 +47,7 @@ from flexarm_core.atomic_file import atomic_write
 from flexarm_core.kinematics import ArmGeometry, wrap_angle
 from flexarm_core.paper import TABLE_9, TABLE_10
 from flexarm_core.params import load_config
-from flexarm_core.regions import Region, regions_from_dict
+from flexarm_core.regions import Region, configured_regions
 from flexarm_msgs.action import MoveToPose
 
 if TYPE_CHECKING:
@@ -460,7 +460,7 @@ def export_figures(path: str | Path, out_dir: str | Path, namespace: str = '',
              topics.SAMPLES: samples}[names[topic]].append(msg)
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
     learner = load_config('learner.yaml', node_name='flexarm_learner')
-    regions = regions_from_dict(learner['regions'])
+    regions = configured_regions()
     margin = np.asarray(learner['coverage_margin'], dtype=float)
     rows = trial_rows(outcomes, truths, file.stem)
     reached = [(i, o) for i, (o, row) in enumerate(zip(outcomes, rows)) if row['kind'] == GOAL]

@@ -43,7 +43,7 @@ from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.paper import TABLE_9, TABLE_10
 from flexarm_core.params import load_config
 from flexarm_core.paths import BAGS_DIR, RESULTS_DIR, RUNS_DIR
-from flexarm_core.regions import Region, regions_from_dict
+from flexarm_core.regions import Region, configured_regions
 
 
 @dataclass
@@ -91,8 +91,7 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
     out_dir = RESULTS_DIR / settings.name
     config = load_config('arm.yaml')
     geometry = ArmGeometry.from_dict(config['arm'])
-    regions = regions_from_dict(load_config('learner.yaml', node_name='flexarm_learner')[
-        'regions'])
+    regions = configured_regions()
     parameters = {
         'flexarm_sim': {'real_time_factor': settings.real_time_factor, **settings.world},
         'flexarm_learner': {'data_directory': str(run_dir / 'data'),

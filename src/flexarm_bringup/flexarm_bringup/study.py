@@ -42,7 +42,7 @@ from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.paper import TABLE_7, TABLE_8
 from flexarm_core.params import load_config
 from flexarm_core.paths import RESULTS_DIR
-from flexarm_core.regions import regions_from_dict
+from flexarm_core.regions import configured_regions
 
 FULL_SAMPLES = (10, 20, 30, 40, 50, 80, 120, 160)
 QUICK_SAMPLES = (20, 40)
@@ -97,7 +97,7 @@ class World:
         vision = load_config('vision.yaml', node_name='flexarm_vision')['vision']
         self.estimator = TipPoseEstimator.from_dict({**config, 'vision': vision})
         learner = load_config('learner.yaml', node_name='flexarm_learner')
-        self.regions = regions_from_dict(learner['regions'])
+        self.regions = configured_regions()
         self.coverage = np.asarray(learner['coverage_margin'], dtype=float)
 
     def measured(self, region: str, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

@@ -1,6 +1,7 @@
 """The working regions of config/learner.yaml: boxes in task space (x, y, φ) where the arm
 learns and is evaluated (pure). Shared: the learner samples them, the compensator's model health
-is kept per region, the scene shows them."""
+is kept per region, the scene shows them. The nodes get them through their params files; every
+other reader takes them from :func:`configured_regions`, so they are defined in one place."""
 from __future__ import annotations
 
 import math
@@ -9,6 +10,8 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from flexarm_core.params import load_config
 
 
 @dataclass(frozen=True)
@@ -39,3 +42,8 @@ class Region:
 
 def regions_from_dict(d: Mapping[str, Any]) -> dict[str, Region]:
     return {name: Region.from_dict(name, spec) for name, spec in d.items()}
+
+
+def configured_regions() -> dict[str, Region]:
+    """The regions config/learner.yaml gives the learner (and the compensator and the scene)."""
+    return regions_from_dict(load_config('learner.yaml', node_name='flexarm_learner')['regions'])

@@ -10,7 +10,7 @@ it runs out, or, for a goal, returns at once as a :class:`GoalRun` to poll and c
 script's own loop (``move_async``, ``collect_async``; the blocking ones wait on it):
 
     run = client.move_async(1.45, -0.15, math.radians(-45), mode='rigid')
-    while not run.done():
+    while not run.done():          # spins the client up to 0.1 s
         print(run.feedback())
     result = run.result()      # or run.cancel()
 
@@ -187,9 +187,12 @@ class GoalRun:
         self._watch: ServerWatch | None = None
         client._running = self
 
-    def done(self) -> bool:
-        """Whether the goal has ended; spins the client once without waiting."""
-        self._client.spin_once(0.0)
+    def done(self, spin: float = 0.1) -> bool:
+        """Whether the goal has ended; spins the client for up to ``spin`` seconds meanwhile
+        (as nav2_simple_commander's ``isTaskComplete``: every callback that comes in that time
+        is served, feedback included), less when the goal's next step completes."""
+        self._client._executor.spin_until_future_complete(
+            self._result if self._result is not None else self._sent, timeout_sec=spin)
         if self._handle is None:
             if not self._sent.done():
                 return False

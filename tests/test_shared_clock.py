@@ -11,40 +11,24 @@ from __future__ import annotations
 
 import json
 import math
-import os
-from pathlib import Path
 
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
+from run_record import record_supervisor
 
 from flexarm_bringup.cli import main
 from flexarm_bringup.launcher import stop_all
 from flexarm_bringup.outcome_text import Exit
-from flexarm_bringup.supervisor import RECORD
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
-from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.action import MoveToPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(25)]
 SIM = {'real_time_factor': 10.0, 'error_sources': {'enabled': False}}
 ARM1, ARM2 = '/arm1/flexarm_sim', '/arm2/flexarm_sim'
 B6 = (1.30, -0.20, math.radians(-61))     # Table 10
-
-
-def record_supervisor(domain_id: int, namespace: str, nodes: list) -> Path:
-    """The run record `flexarm up` writes for the arm (this process as its supervisor), so
-    that `flexarm status` knows the arm's nodes at once instead of waiting out discovery."""
-    run = RUNS_DIR / f'{namespace}-{domain_id}'
-    run.mkdir(parents=True, exist_ok=True)
-    (run / RECORD).write_text(json.dumps({
-        'supervisor_pid': os.getpid(), 'domain_id': domain_id, 'robot': 'sim',
-        'namespace': namespace, 'remote': [],
-        'nodes': {n.spec.name: {'pid': n.process.pid, 'restarts': 0, 'exit_code': None}
-                  for n in nodes}}))
-    return run / RECORD
 
 
 def test_the_clock_outlives_its_owner_and_a_restarted_owner_continues_from_it(

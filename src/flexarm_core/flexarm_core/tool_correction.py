@@ -4,7 +4,6 @@ reports every pose through it, ``flexarm calibrate`` measures it against a refer
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -13,7 +12,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_core.atomic_file import atomic_write
+from flexarm_core.calibration_record import read_record, write_record
 from flexarm_core.kinematics import wrap_angle
 from flexarm_core.measurement import Measurement
 
@@ -58,19 +57,10 @@ class ToolCorrection:
 def read_calibration(path: str | Path) -> dict[str, Any] | None:
     """The calibration record at ``path`` (:func:`write_calibration`), None if there is none;
     ValueError naming the file if it is damaged."""
-    path = Path(path)
-    if not path.exists():
-        return None
-    try:
-        record = json.loads(path.read_text(encoding='utf-8'))
-        record['correction'] = ToolCorrection.from_list(record['tool_correction'])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f'tool calibration {path} is damaged ({exc}); run flexarm calibrate '
-                         'again') from exc
-    return record
+    return read_record(path, 'tool_correction', ToolCorrection.from_list,
+                       'tool calibration', 'flexarm calibrate')
 
 
 def write_calibration(path: str | Path, correction: ToolCorrection, **details: Any) -> None:
     """Store ``correction`` with ``details`` (how it was found) at ``path``, atomically."""
-    record = {'tool_correction': correction.as_list(), **details}
-    atomic_write(path, lambda f: f.write(json.dumps(record, indent=1).encode() + b'\n'))
+    write_record(path, 'tool_correction', correction.as_list(), **details)

@@ -22,7 +22,6 @@ camera_info): a factor on fx and fy, and what k1 and k2 gain.
 from __future__ import annotations
 
 import dataclasses
-import json
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass
@@ -32,7 +31,7 @@ from typing import Any
 import cv2
 import numpy as np
 
-from flexarm_core.atomic_file import atomic_write
+from flexarm_core.calibration_record import read_record, write_record
 from flexarm_vision.camera_model import CameraModel, Intrinsics
 
 MIN_VIEWS = 3             # views of the plate at distinct tool angles a calibration needs
@@ -156,20 +155,11 @@ def _reprojection_rms(objects: list[np.ndarray], images: list[np.ndarray], i: In
 def read_camera_calibration(path: str | Path) -> dict[str, Any] | None:
     """The camera calibration record at ``path`` (:func:`write_camera_calibration`), None if
     there is none; ValueError naming the file if it is damaged."""
-    path = Path(path)
-    if not path.exists():
-        return None
-    try:
-        record = json.loads(path.read_text(encoding='utf-8'))
-        record['correction'] = CameraCorrection.from_list(record['camera_correction'])
-    except (ValueError, KeyError, TypeError) as exc:
-        raise ValueError(f'camera calibration {path} is damaged ({exc}); run flexarm '
-                         'calibrate --camera again') from exc
-    return record
+    return read_record(path, 'camera_correction', CameraCorrection.from_list,
+                       'camera calibration', 'flexarm calibrate --camera')
 
 
 def write_camera_calibration(path: str | Path, correction: CameraCorrection,
                              **details: Any) -> None:
     """Store ``correction`` with ``details`` (how it was found) at ``path``, atomically."""
-    record = {'camera_correction': correction.as_list(), **details}
-    atomic_write(path, lambda f: f.write(json.dumps(record, indent=1).encode() + b'\n'))
+    write_record(path, 'camera_correction', correction.as_list(), **details)

@@ -8,7 +8,7 @@ import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 
 from flexarm_bringup.cli import Exit, main
-from flexarm_bringup.graph_status import CALIBRATION_STATUS
+from flexarm_bringup.graph_status import calibration_status_name
 from flexarm_core import topics
 from flexarm_msgs.msg import TipPose
 
@@ -42,7 +42,7 @@ def calibration_said(ros_node, wait_for, starting: str) -> str:
     said: list[str] = []
     subscription = ros_node.create_subscription(
         DiagnosticArray, topics.DIAGNOSTICS, lambda msg: said.extend(
-            s.message for s in msg.status if s.name == CALIBRATION_STATUS), 10)
+            s.message for s in msg.status if s.name == calibration_status_name()), 10)
     wait_for(lambda: any(m.startswith(starting) for m in said), 30.0,
              f'a tool calibration status "{starting}…" (heard: {said[-1:]})')
     subscription.callback = lambda msg: None    # kept until the test ends (conftest's ros_node)

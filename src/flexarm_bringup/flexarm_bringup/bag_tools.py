@@ -22,6 +22,9 @@ has no dry-run flag: a goal that succeeded without a move can only be one), and 
 serve the camera's calibration. Both stay in the CSV but out of the goal figures. Untitled
 goals are named as :func:`flexarm_bringup.trials.trial_name` names trials, after the paper
 target at their pose if any.
+
+One module of ~600 lines: reading a bag and the trial rows and batches made from it share the
+same decoded records, and splitting them would pass those between modules for no reader's gain.
 """
 from __future__ import annotations
 
@@ -40,6 +43,7 @@ from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.outcome_text import code_names
 from flexarm_bringup.trials import trial_name, trial_target
 from flexarm_core import topics
@@ -459,8 +463,8 @@ def export_figures(path: str | Path, out_dir: str | Path, namespace: str = '',
             {topics.OUTCOMES: outcomes, topics.TIP_POSE_TRUTH: truths,
              topics.SAMPLES: samples}[names[topic]].append(msg)
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
-    learner = load_config('learner.yaml', node_name='flexarm_learner')
-    regions = configured_regions()
+    learner = load_config('learner.yaml', node_name=node_name('learner'))
+    regions = configured_regions(node_name('learner'))
     margin = np.asarray(learner['coverage_margin'], dtype=float)
     rows = trial_rows(outcomes, truths, file.stem)
     reached = [(i, o) for i, (o, row) in enumerate(zip(outcomes, rows)) if row['kind'] == GOAL]

@@ -33,6 +33,7 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import CameraInfo, Image
 
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.trials import trial_name
 from flexarm_control.execution.tool_calibration import (
     ReferenceCalibration,
@@ -53,7 +54,6 @@ from flexarm_vision.camera_model import Intrinsics
 from flexarm_vision.image_encoding import image_to_array
 from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
 
-VISION_NODE = 'flexarm_vision'
 LATCHED = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
 
 
@@ -62,7 +62,8 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
                    ) -> tuple[ToolCorrection, ReferenceCalibration, dict[str, Any]]:
     """Calibrate (module docstring); the new correction, what was found and the details
     stored with it at ``path``."""
-    current = ToolCorrection.from_list(client.node_parameter(VISION_NODE, 'tool_correction'))
+    vision = node_name('vision')
+    current = ToolCorrection.from_list(client.node_parameter(vision, 'tool_correction'))
     targets = [t.pose for t in TABLE_10]
     say(f'calibrating the camera against {reference_topic}: the arm moves RIGID (uncompensated) '
         f'to the {len(targets)} Table 10 poses')
@@ -93,7 +94,7 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
     details = {'reference': reference_topic, 'poses': found.poses,
                'spread': list(found.spread), 'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
     write_calibration(path, correction, **details)
-    client.set_node_parameter(VISION_NODE, 'tool_correction', correction.as_list())
+    client.set_node_parameter(vision, 'tool_correction', correction.as_list())
     return correction, found, details
 
 
@@ -117,12 +118,12 @@ def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
                                      qos=qos_profile_sensor_data, what='images')[0]
         images.append((image, target.pose[2]))
     # what the vision node measures through: the camera's camera_info and its correction
-    current = CameraCorrection.from_list(client.node_parameter(VISION_NODE,
-                                                               'camera_correction'))
-    info = client.messages_from(f'{VISION_NODE}/camera_info', CameraInfo, 1, timeout,
+    vision = node_name('vision')
+    current = CameraCorrection.from_list(client.node_parameter(vision, 'camera_correction'))
+    info = client.messages_from(f'{vision}/camera_info', CameraInfo, 1, timeout,
                                 qos=LATCHED, what='camera_info messages')[0]
     estimator = TipPoseEstimator.from_dict({
-        **load_config('camera.yaml'), **load_config('vision.yaml', node_name=VISION_NODE)})
+        **load_config('camera.yaml'), **load_config('vision.yaml', node_name=vision)})
     estimator = estimator.with_camera(estimator.camera.with_intrinsics(
         Intrinsics.from_k_d(info.width, info.height, list(info.k), list(info.d))))
     views, angles = [], []
@@ -146,5 +147,5 @@ def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
                'determined': found.determined, 'not_determined': found.not_determined,
                'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
     write_camera_calibration(path, correction, **details)
-    client.set_node_parameter(VISION_NODE, 'camera_correction', correction.as_list())
+    client.set_node_parameter(vision, 'camera_correction', correction.as_list())
     return correction, found, details

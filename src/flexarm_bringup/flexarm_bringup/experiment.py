@@ -26,6 +26,7 @@ import numpy as np
 from flexarm_bringup.bag_tools import ACCURACY_CODES
 from flexarm_bringup.calibration import calibrate_tool
 from flexarm_bringup.domains import reserved
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.supervisor import Graph
 from flexarm_bringup.trials import (
     MOVE_CSV_FIELDS,
@@ -91,17 +92,18 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
     out_dir = RESULTS_DIR / settings.name
     config = load_config('arm.yaml')
     geometry = ArmGeometry.from_dict(config['arm'])
-    regions = configured_regions()
+    regions = configured_regions(node_name('learner'))
     parameters = {
-        'flexarm_sim': {'real_time_factor': settings.real_time_factor, **settings.world},
-        'flexarm_learner': {'data_directory': str(run_dir / 'data'),
-                            'model_directory': str(run_dir / 'models')},
-        'flexarm_recorder': {'bag_name': settings.name},
+        node_name('simulator'): {'real_time_factor': settings.real_time_factor,
+                                 **settings.world},
+        node_name('learner'): {'data_directory': str(run_dir / 'data'),
+                               'model_directory': str(run_dir / 'models')},
+        node_name('recorder'): {'bag_name': settings.name},
         # the run's own tool calibration (below), never the site's calibration/ file
-        'flexarm_vision': {'tool_calibration_file': str(run_dir / 'tool_camera.json'),
-                           'camera_calibration_file': str(run_dir / 'camera.json')},
+        node_name('vision'): {'tool_calibration_file': str(run_dir / 'tool_camera.json'),
+                              'camera_calibration_file': str(run_dir / 'camera.json')},
         **settings.extra_parameters}
-    optional = ('flexarm_recorder',) if settings.record else ()
+    optional = (node_name('recorder'),) if settings.record else ()
     region_names = ['A', 'B'] + (['paper'] if settings.table9 else [])
     trials: list[Trial] = []
     learning: dict[str, dict] = {}
@@ -204,7 +206,8 @@ def _client(domain_id: int):
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
-    client = FlexarmClient('flexarm_experiment', context=context)
+    client = FlexarmClient('flexarm_experiment', context=context,
+                           learner_node=node_name('learner'))
     try:
         yield client
     finally:

@@ -14,9 +14,8 @@ ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (or ROS_STATIC_PEERS), and the supervisor r
 machine's, which names its own part and the remote one (a node that died on another host is
 seen only as missing).
 
-:class:`FirstReports` is the same view for ``flexarm up``: it says each ERROR of its nodes'
-first reports (at start and after a restart: a node reads its files when it starts) and which
-model the graph starts with.
+:mod:`flexarm_bringup.status_text` makes the lines; :mod:`flexarm_bringup.graph_watch` is the
+same view for ``flexarm up``.
 """
 from __future__ import annotations
 
@@ -25,8 +24,7 @@ import json
 import math
 import os
 import time
-from collections.abc import Callable, Iterable, Mapping
-from dataclasses import dataclass, field
+from collections.abc import Callable, Mapping
 from datetime import UTC, datetime
 from pathlib import Path
 from typing import Any
@@ -38,15 +36,15 @@ from rcl_interfaces.srv import GetParameters
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup.launcher import load_graph, load_optional
+from flexarm_bringup.launcher import all_nodes, controllers, load_graph, node_name
+from flexarm_bringup.status_text import Heard, calibration_text, clock_text, real_time_factor
 from flexarm_bringup.supervisor import RECORD
 from flexarm_control.learning.predictors.base import read_model
 from flexarm_core import liveness, topics
 from flexarm_core.health_report import ERROR, LEVEL_NAMES
 from flexarm_msgs.msg import ModelHealth, ModelInfo
 
-CONTROLLERS = {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}
-NOT_DIAGNOSED = frozenset({'flexarm_foxglove'})   # publishes nothing on /diagnostics
+NOT_DIAGNOSED = frozenset({'foxglove'})   # roles of the nodes that publish no /diagnostics
 DIAGNOSTICS_WAIT = 3.0   # [s, wall; liveness-scaled] for every running node's first report
 LATCHED = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 
@@ -54,17 +52,13 @@ LATCHED = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 @functools.cache
 def graph_node_names() -> list[str]:
     """Every node name config/graph.yaml knows, controller entries first."""
-    names = [s.name for robot in ('sim', 'bridge') for s in load_graph(robot)]
-    return list(dict.fromkeys(names + list(load_optional())))
+    return [spec.name for spec in all_nodes()]
 
 
-@dataclass(frozen=True)
-class Heard:
-    """A status of ``/diagnostics`` as last heard."""
-
-    level: int
-    message: str
-    values: Mapping[str, str] = field(default_factory=dict)
+@functools.cache
+def diagnosed(names: frozenset[str]) -> frozenset[str]:
+    """Those of ``names`` that report on ``/diagnostics``."""
+    return names - {node_name(role) for role in NOT_DIAGNOSED}
 
 
 def arm_status_name(name: str, namespace: str) -> str | None:
@@ -258,10 +252,11 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
     found = _discover(client, ns, remote if record is not None else None)
     running = here | {name for space, name in found if space == ns}
     nodes = {name: name in running for name in graph_node_names()}
-    controller = next((kind for name, kind in CONTROLLERS.items() if nodes.get(name)), None)
-    wanted = {key: (node, name) for key, (node, name) in PARAMETERS.items() if nodes[node]}
+    controller = next((kind for name, kind in controllers().items() if nodes.get(name)), None)
+    wanted = {key: (node_name(role), name) for key, (role, name) in PARAMETERS.items()
+              if nodes[node_name(role)]}
     with ParameterReads(client, wanted) as parameters:
-        reporting = (running & set(graph_node_names())) - NOT_DIAGNOSED
+        reporting = diagnosed(frozenset(running & set(graph_node_names())))
         since = time.monotonic()
         reports_end = since + liveness.limit(DIAGNOSTICS_WAIT)
 
@@ -280,10 +275,10 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
         'domain_id': client.context.get_domain_id(),
         'nodes': nodes,
         'controller': controller,
-        'arms': sorted({space for space, name in found if name in CONTROLLERS}),
+        'arms': sorted({space for space, name in found if name in controllers()}),
         'joint_state_rate_hz': joint_state_rate(stamps),
-        'real_time_factor': real_time_factor(statuses.get(SIM_CONTROLLER_STATUS)),
-        'clock': clock_text(statuses.get(SIM_CONTROLLER_STATUS)),
+        'real_time_factor': real_time_factor(statuses.get(sim_controller_status_name())),
+        'clock': clock_text(statuses.get(sim_controller_status_name())),
         'learner_model': model_summary(got.get('learner')),
         'active_model': model_summary(client.active_model),
         'model_health': health_summary(got.get('health')),
@@ -291,7 +286,7 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
                    if h.level == ERROR},
         'payload_kg': {'learner': values.get('learner_payload'),
                        'simulated': values.get('simulated_payload')},
-        'camera_calibration': calibration_text(statuses.get(CALIBRATION_STATUS)),
+        'camera_calibration': calibration_text(statuses.get(calibration_status_name())),
         'bag': values.get('bag'),
     }
     for subscription in subscriptions:
@@ -299,10 +294,10 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
     return status
 
 
-# What status reads of the nodes' parameters: key: (node, parameter)
-PARAMETERS = {'learner_payload': ('flexarm_learner', 'payload'),
-              'simulated_payload': ('flexarm_sim', 'plant.payload'),
-              'bag': ('flexarm_recorder', 'bag_name')}
+# What status reads of the nodes' parameters: key: (node's role, parameter)
+PARAMETERS = {'learner_payload': ('learner', 'payload'),
+              'simulated_payload': ('simulator', 'plant.payload'),
+              'bag': ('recorder', 'bag_name')}
 PARAMETER_WAIT = 4.0      # [s, wall; liveness-scaled] for a node's parameter service to answer
 # [s] an unanswered parameter request is sent again after this: a server may not have
 # discovered this fresh client's reply channel yet and answers into the void; a get is
@@ -310,7 +305,11 @@ PARAMETER_WAIT = 4.0      # [s, wall; liveness-scaled] for a node's parameter se
 PARAMETER_RESEND = 0.25
 JOINT_STATES_SPAN = 0.25  # [s] of joint states that give their rate (6 bursts at 25 Hz)
 JOINT_STATES_WAIT = 1.0   # [s, wall; liveness-scaled] without one: NO joint states
-SIM_CONTROLLER_STATUS = 'flexarm_sim: controller'
+
+
+def sim_controller_status_name() -> str:
+    """Name of the simulator's ``controller`` status on ``/diagnostics``."""
+    return f'{node_name("simulator")}: controller'
 
 
 class ParameterReads:
@@ -398,39 +397,14 @@ def _latched_in(statuses: Mapping[str, Heard], got: Mapping[str, Any], active: A
         report = statuses.get(f'{node}: model')
         return report is not None and bool(report.values.get('version'))
 
-    return ((not has_model('flexarm_learner') or 'learner' in got)
-            and (not has_model('flexarm_compensator')
+    return ((not has_model(node_name('learner')) or 'learner' in got)
+            and (not has_model(node_name('compensator'))
                  or (active is not None and 'health' in got)))
 
 
-def real_time_factor(report: Heard | None) -> dict[str, float] | None:
-    """The simulator's achieved and set real-time factors from its ``controller`` report
-    (None: no simulator, or not heard)."""
-    try:
-        return {'achieved': float(report.values['real-time factor']),
-                'set': float(report.values['real-time factor set'])}
-    except (AttributeError, KeyError, ValueError):
-        return None
-
-
-def clock_text(report: Heard | None) -> str | None:
-    """The simulator's part in the domain's ``/clock`` and its time, from its ``controller``
-    report (None: no simulator, or not heard)."""
-    if report is None or 'clock' not in report.values:
-        return None
-    return (f'the simulator {report.values["clock"]}, at sim time '
-            f'{report.values.get("sim time [s]", "?")} s')
-
-
-CALIBRATION_STATUS = 'flexarm_vision: tool calibration'
-
-
-def calibration_text(heard: Heard | None) -> str:
-    """Whether the arm's camera is calibrated, from the vision node's report: when, against
-    what; or NOT calibrated; or why the file is unusable (its ERROR)."""
-    if heard is None:
-        return 'camera calibration: not heard (no vision node)'
-    return f'camera calibration: {"PROBLEM: " if heard.level == ERROR else ""}{heard.message}'
+def calibration_status_name() -> str:
+    """Name of the vision node's ``tool calibration`` status on ``/diagnostics``."""
+    return f'{node_name("vision")}: tool calibration'
 
 
 def health_summary(msg: ModelHealth | None) -> dict[str, Any] | None:
@@ -445,23 +419,6 @@ def health_summary(msg: ModelHealth | None) -> dict[str, Any] | None:
                          'stale': r.stale} for r in msg.regions]}
 
 
-def _health_line(health: dict[str, Any] | None, compensator: bool, model: bool) -> str:
-    """The model health line; without a health message, why (``compensator``: the node runs,
-    ``model``: it runs a model, whose health it publishes)."""
-    if health is None:
-        return ('model health: none (no model in use)' if compensator and not model else
-                'model health: not heard' if compensator else
-                'model health: none (no compensator)')
-    if not health['regions']:
-        return 'model health: no measured goal yet'
-    regions = ', '.join(f'{r["name"]} {r["median_position_residual"] * 1e3:.3f} mm '
-                        f'({r["observations"]} measurements{", STALE" if r["stale"] else ""})'
-                        for r in health['regions'])
-    line = (f'model health (median residual; stale above '
-            f'{health["stale_residual"] * 1e3:.3f} mm): {regions}')
-    return line + (f'\n  WARNING: {health["summary"]}' if health['stale'] else '')
-
-
 def _discover(client: Any, namespace: str, expected: set[str] | None, settle: float = 1.0,
               empty: float = 3.0, longest: float = 6.0) -> set[tuple[str, str]]:
     """(namespace, name) of the domain's nodes once discovery has settled.
@@ -473,7 +430,7 @@ def _discover(client: Any, namespace: str, expected: set[str] | None, settle: fl
     seen for ``empty`` seconds; at most ``longest`` (a graph with a node down). Each limit
     liveness-scaled."""
     ours = set(graph_node_names())
-    graphs = {name: {s.name for s in load_graph(robot)} for name, robot in CONTROLLERS.items()}
+    graphs = {name: {s.name for s in load_graph(robot)} for name, robot in controllers().items()}
     settle, empty, longest = map(liveness.limit, (settle, empty, longest))
     start = time.monotonic()
     complete_since = None
@@ -497,187 +454,3 @@ def _discover(client: Any, namespace: str, expected: set[str] | None, settle: fl
             return found
 
 
-def model_line(label: str, model: dict[str, Any] | None) -> str:
-    if model is None:
-        return f'{label}: none'
-    age = '' if model['age_s'] is None else f', trained {_duration(model["age_s"])} ago'
-    err = model['max_error']
-    payloads = ', '.join(f'{p:g}' for p in model['payloads']) or '?'
-    line = (f'{label}: v{model["version"]} {model["kind"]}, dataset '
-            f'{model["dataset"] or "?"}, {model["samples"]} samples at {payloads} kg{age}; '
-            f'{model["validation"] or "validation"} max |error| {err[0] * 1e3:.3f} mm, '
-            f'{err[1] * 1e3:.3f} mm, {math.degrees(err[2]):.4f} deg')
-    refresh = model.get('refresh')
-    if refresh:
-        line += (f'\n  refresh of v{refresh["of"]}: {refresh["samples"]} samples '
-                 f'({refresh["dataset"] or "?"}), median residual '
-                 f'{refresh["residual_before"] * 1e3:.3f} mm before, '
-                 f'{refresh["residual_after"] * 1e3:.3f} mm after')
-    return line + (f'\n  WARNING: {model["warning"]}' if model['warning'] else '')
-
-
-def _duration(seconds: float) -> str:
-    for unit, size in (('d', 86400), ('h', 3600), ('min', 60)):
-        if seconds >= size:
-            return f'{seconds / size:.1f} {unit}'
-    return f'{seconds:.0f} s'
-
-
-def other_arms_text(arms: Iterable[str]) -> str:
-    """Where the arms of the domain are, for a status that found none in its namespace
-    ('' if there are none)."""
-    arms = sorted(arms)
-    if not arms:
-        return ''
-    names = ', '.join(arm or '(no namespace)' for arm in arms)
-    return (f'none in this namespace; the domain runs {len(arms)} arm(s) elsewhere: {names} '
-            '(pass --namespace NS)')
-
-
-def status_text(status: dict[str, Any], record: dict[str, Any] | None) -> str:
-    """``flexarm status`` for humans."""
-    lines = [f'ROS_DOMAIN_ID={status["domain_id"]}']
-    if record is None:
-        lines.append('supervisor: none found (not started by `flexarm up` on this machine)')
-    else:
-        lines.append(f'supervisor: pid {record["supervisor_pid"]}, robot {record["robot"]}, '
-                     f'logs in {record["run_dir"]}')
-        if record.get('remote'):
-            lines.append(f'part of the graph: {", ".join(record["nodes"])} here; '
-                         f'{", ".join(record["remote"])} on other hosts')
-    restarts = {} if record is None else {n: v['restarts'] for n, v in record['nodes'].items()}
-    up = [n + (f' (restarted {restarts[n]}x)' if restarts.get(n) else '')
-          for n, alive in status['nodes'].items() if alive]
-    lines.append('nodes up: ' + (', '.join(up) or other_arms_text(status.get('arms', []))
-                                 or 'none: no flexarm graph in this domain (start one with '
-                                 '`flexarm up`)'))
-    if status['controller'] is None:
-        lines.append('controller: none')
-    else:
-        rate = status['joint_state_rate_hz']
-        link = f'joint states at {rate:.0f} Hz' if rate else 'NO joint states for 1 s'
-        factor = status.get('real_time_factor')
-        if factor:
-            link += f', x{factor["achieved"]:.2f} real time (set x{factor["set"]:g})'
-        lines.append(f'controller: {status["controller"]}, {link}')
-        if status.get('clock'):
-            lines.append(f'clock: {status["clock"]}')
-    lines.append(model_line('model driving the arm (compensator)', status['active_model']))
-    learner, active = status['learner_model'], status['active_model']
-    if learner is not None and (active is None or learner['version'] != active['version']):
-        lines.append(model_line('model announced by the learner (NOT in use)', learner))
-    lines.append(_health_line(status.get('model_health'),
-                              bool(status['nodes'].get('flexarm_compensator')),
-                              status['active_model'] is not None))
-    payload = status['payload_kg']
-    known = [f'{what} {value:g} kg' for what, value in payload.items() if value is not None]
-    lines.append('payload: ' + (', '.join(known) or 'unknown'))
-    if 'camera_calibration' in status:
-        lines.append(status['camera_calibration'])
-    lines.append(f'recording: bags/{status["bag"]}' if status['bag'] else 'recording: no')
-    problems = status.get('problems') or []
-    lines.append('PROBLEMS:' + ''.join(f'\n  {p}' for p in problems) if problems
-                 else 'problems: none')
-    return '\n'.join(lines)
-
-
-class GraphWatch:
-    """The arm's ``/diagnostics`` statuses and the compensator's active model, heard by a
-    node of its own (one context; spun by the caller, so signals stay Python's)."""
-
-    def __init__(self, domain_id: int, namespace: str = '') -> None:
-        import rclpy
-        from rclpy.context import Context
-        from rclpy.executors import SingleThreadedExecutor
-        from rclpy.signals import SignalHandlerOptions
-
-        self._context = Context()
-        rclpy.init(context=self._context, domain_id=domain_id,
-                   signal_handler_options=SignalHandlerOptions.NO)
-        ns = namespace.strip('/')
-        self._node = rclpy.create_node('flexarm_up_watch', context=self._context,
-                                       namespace=f'/{ns}' if ns else '')
-        self.statuses: dict[str, Heard] = {}
-        self.active_model: ModelInfo | None = None
-        self._node.create_subscription(DiagnosticArray, topics.DIAGNOSTICS,
-                                       lambda m: self.statuses.update(heard(m, ns)), 10)
-        self._node.create_subscription(ModelInfo, topics.ACTIVE_MODEL,
-                                       lambda m: setattr(self, 'active_model', m), LATCHED)
-        self._executor = SingleThreadedExecutor(context=self._context)
-        self._executor.add_node(self._node)
-
-    def spin(self, seconds: float, until: Callable[[], bool] = lambda: False) -> None:
-        """Take what comes for ``seconds``, or until ``until()`` holds."""
-        end = time.monotonic() + seconds
-        while not until() and time.monotonic() < end:
-            self._executor.spin_once(timeout_sec=min(0.1, max(0.0, end - time.monotonic())))
-
-    def forget(self, nodes: Iterable[str]) -> None:
-        """Drop what ``nodes`` said so far (restarted: what they say now counts)."""
-        for name in [n for n in self.statuses if n.split(': ', 1)[0] in set(nodes)]:
-            del self.statuses[name]
-
-    def close(self) -> None:
-        import rclpy
-
-        self._executor.shutdown()
-        self._node.destroy_node()
-        rclpy.try_shutdown(context=self._context)
-
-
-class FirstReports:
-    """``flexarm up``'s ear on ``/diagnostics``: open while nodes' first reports are due (after
-    the graph is ready, after a node's restart), each ERROR said as it comes (:class:`ErrorLog`).
-
-    A node reads its files (tool calibration, model record) when it starts, so its first
-    reports say what is damaged; a participant held for ``up``'s whole life would instead leave
-    its shared memory behind whenever ``up`` is killed with SIGKILL.
-    """
-
-    def __init__(self, listen: Callable[[], GraphWatch], say: Callable[[str], None]) -> None:
-        self._listen, self._say = listen, say
-        self.watch: GraphWatch | None = None
-        self._due: dict[str, float] = {}       # node: until when its first report is awaited
-        self._errors = ErrorLog()
-
-    def expect(self, nodes: Iterable[str], within: float) -> GraphWatch:
-        """Listen until each of ``nodes`` has reported, for ``within`` seconds at most."""
-        nodes = [n for n in nodes if n not in NOT_DIAGNOSED]
-        if self.watch is None:
-            self.watch = self._listen()
-        self.watch.forget(nodes)
-        self._due.update(dict.fromkeys(nodes, time.monotonic() + within))
-        return self.watch
-
-    def step(self, seconds: float) -> None:
-        """Listen (or wait) ``seconds``; say what is new; stop listening once nothing is due."""
-        if self.watch is None:
-            time.sleep(seconds)
-            return
-        self.watch.spin(seconds)
-        for line in self._errors.update(self.watch.statuses):
-            self._say(line)
-        heard_from, now = reporting_nodes(self.watch.statuses), time.monotonic()
-        self._due = {n: t for n, t in self._due.items() if n not in heard_from and t > now}
-        if not self._due:
-            self.close()
-
-    def close(self) -> None:
-        if self.watch is not None:
-            self.watch.close()
-            self.watch = None
-
-
-def starting_model_text(active: dict[str, Any] | None, learner: Heard | None) -> str | None:
-    """``flexarm up``'s line on the model the graph starts with: the compensator's ``active``
-    model; without one, the learner's ``model`` status (an ERROR says why there is none, e.g.
-    a damaged model record); None while it is too early to tell (the learner announced a model
-    the compensator has not loaded yet, or has not reported)."""
-    if active is not None:
-        return model_line('model driving the arm', active)
-    if learner is None or (learner.level != ERROR and learner.values.get('version')):
-        return None
-    if learner.level == ERROR:
-        return 'model driving the arm: none: the learner could not announce one (PROBLEM below)'
-    return ('model driving the arm: none yet (PREDICTIVE goals are refused until `flexarm '
-            'train`; CLOSED_LOOP starts from the rigid plan)')

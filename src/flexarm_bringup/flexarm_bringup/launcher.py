@@ -37,33 +37,60 @@ class NodeSpec:
 
     name: str
     module: str
+    role: str = ''
     params_files: tuple[str, ...] = ()
     parameters: Mapping[str, Any] = field(default_factory=dict)
     restart: bool = False
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> NodeSpec:
-        return cls(name=d['name'], module=d['module'],
+        return cls(name=d['name'], module=d['module'], role=d.get('role', d['name']),
                    params_files=tuple(d.get('params_files', ())),
                    parameters=dict(d.get('parameters') or {}),
                    restart=bool(d.get('restart', False)))
 
 
+def _graph_file(path: Path | None) -> dict[str, Any]:
+    with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
+        return yaml.safe_load(f)
+
+
 def load_graph(robot: str = 'sim', path: Path | None = None) -> list[NodeSpec]:
     """Node specs of the graph for a robot entry (``sim``, ``bridge``) of graph.yaml."""
-    with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
-        graph = yaml.safe_load(f)
+    graph = _graph_file(path)
     robots = graph['robots']
     if robot not in robots:
         raise ValueError(f'unknown robot {robot!r}; graph.yaml defines {sorted(robots)}')
-    return [NodeSpec.from_dict(d) for d in [*robots[robot], *graph['nodes']]]
+    return [NodeSpec.from_dict(d) for d in [*(robots[robot] or ()), *graph['nodes']]]
 
 
 def load_optional(path: Path | None = None) -> dict[str, NodeSpec]:
     """Nodes of graph.yaml started only on request (e.g. the recorder), by name."""
-    with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
-        graph = yaml.safe_load(f)
-    return {d['name']: NodeSpec.from_dict(d) for d in graph.get('optional') or ()}
+    return {d['name']: NodeSpec.from_dict(d) for d in _graph_file(path).get('optional') or ()}
+
+
+def all_nodes(path: Path | None = None) -> list[NodeSpec]:
+    """Every node graph.yaml describes, robot entries first, each once."""
+    graph = _graph_file(path)
+    entries = [*(d for nodes in graph['robots'].values() for d in nodes or ()),
+               *graph['nodes'], *(graph.get('optional') or ())]
+    return list({d['name']: NodeSpec.from_dict(d) for d in entries}.values())
+
+
+def node_name(role: str, path: Path | None = None) -> str:
+    """Name graph.yaml gives the node of ``role`` (``learner``: ``flexarm_learner``), so that
+    the tools address the nodes a renamed graph runs."""
+    names = {spec.role: spec.name for spec in all_nodes(path)}
+    if role not in names:
+        raise ValueError(f'graph.yaml has no node of role {role!r}; roles: {sorted(names)}')
+    return names[role]
+
+
+def controllers(path: Path | None = None) -> dict[str, str]:
+    """Node name: robot entry, for the first node of each entry of graph.yaml (the arm's
+    controller: where it runs, that robot entry is up)."""
+    return {nodes[0]['name']: robot for robot, nodes in _graph_file(path)['robots'].items()
+            if nodes}
 
 
 def select_nodes(names: Sequence[str], only: Iterable[str]) -> list[str]:

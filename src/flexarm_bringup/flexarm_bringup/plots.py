@@ -41,6 +41,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
+from flexarm_bringup.launcher import node_name
 from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_control.learning.deflection_field import deflection_field
 from flexarm_control.learning.predictors import load_predictor
@@ -342,7 +343,7 @@ def paper_figure(goals: Sequence[Mapping[str, Any]], tolerance: tuple[float, flo
 def closed_loop_tolerance() -> tuple[float, float]:
     """The compensator's default CLOSED_LOOP tolerance (position [m], angle [rad]) from its
     config/compensator.yaml."""
-    config = load_config('compensator.yaml', node_name='flexarm_compensator')
+    config = load_config('compensator.yaml', node_name=node_name('compensator'))
     return float(config['position_tolerance']), float(config['angle_tolerance'])
 
 

@@ -34,6 +34,7 @@ from typing import Any
 
 import numpy as np
 
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.plots import write_csv
 from flexarm_control.learning.predictors import KINDS, AutoPredictor, make_predictor
 from flexarm_control.learning.sampling import sample_poses
@@ -94,10 +95,10 @@ class World:
         self.geometry = ArmGeometry.from_dict(config['arm'])
         self.plant = configured_plant(self.geometry)
         self.camera = CameraRenderer.from_dict(config)
-        vision = load_config('vision.yaml', node_name='flexarm_vision')['vision']
+        vision = load_config('vision.yaml', node_name=node_name('vision'))['vision']
         self.estimator = TipPoseEstimator.from_dict({**config, 'vision': vision})
-        learner = load_config('learner.yaml', node_name='flexarm_learner')
-        self.regions = configured_regions()
+        learner = load_config('learner.yaml', node_name=node_name('learner'))
+        self.regions = configured_regions(node_name('learner'))
         self.coverage = np.asarray(learner['coverage_margin'], dtype=float)
 
     def measured(self, region: str, count: int, seed: int) -> tuple[np.ndarray, np.ndarray]:

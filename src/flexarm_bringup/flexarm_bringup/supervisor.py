@@ -48,8 +48,10 @@ from typing import Any
 
 from flexarm_bringup.launcher import (
     NodeProcess,
+    all_nodes,
     load_graph,
     load_optional,
+    node_name,
     ros_env,
     select_nodes,
     stop_all,
@@ -64,11 +66,9 @@ DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 CLOCK_WAIT = 5.0       # [s] more for a namespaced arm to find another arm's /clock
 RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
 LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock per graph
-# Per-arm folders (node, parameter) and the config file that names them.
-ARM_FOLDERS = (('flexarm_learner', 'data_directory'), ('flexarm_learner', 'model_directory'),
-               ('flexarm_vision', 'tool_calibration_file'),
-               ('flexarm_vision', 'camera_calibration_file'))
-CONFIG_FILES = {'flexarm_learner': 'learner.yaml', 'flexarm_vision': 'vision.yaml'}
+# Per-arm folders: (node's role, parameter).
+ARM_FOLDERS = (('learner', 'data_directory'), ('learner', 'model_directory'),
+               ('vision', 'tool_calibration_file'), ('vision', 'camera_calibration_file'))
 # What "ready" means: (kind, name) pairs that must be discovered in the graph.
 READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
@@ -139,7 +139,7 @@ class Graph:
         for during the name check and, for an arm in a namespace (one of several), up to
         ``CLOCK_WAIT`` more (Fast DDS may announce a publisher only seconds after its node).
         Reported either way: who owns the domain's clock."""
-        sim = self.nodes.get('flexarm_sim')
+        sim = self.nodes.get(node_name('simulator'))
         if sim is None:
             return
         chosen = sim.parameters.get('clock_source')
@@ -153,9 +153,9 @@ class Graph:
             chosen = sim.parameters['clock_source'] = 'follow'
         owners = sorted(full_name(p.node_namespace, p.node_name)
                         for p in probe.get_publishers_info_by_topic(topics.CLOCK))
-        self._report(f'clock: flexarm_sim owns the /clock of ROS domain {self.domain_id}'
+        self._report(f'clock: {sim.spec.name} owns the /clock of ROS domain {self.domain_id}'
                      if chosen == 'own' else
-                     f'clock: flexarm_sim follows the /clock of ROS domain {self.domain_id}'
+                     f'clock: {sim.spec.name} follows the /clock of ROS domain {self.domain_id}'
                      + (f' ({", ".join(owners)})' if owners else ''))
 
     def _close_probe(self) -> None:
@@ -290,8 +290,10 @@ def arm_folders(parameters: Mapping[str, Mapping[str, Any]], namespace: str
     result = {name: dict(values) for name, values in parameters.items()}
     if not namespace:
         return result
-    for node, name in ARM_FOLDERS:
-        configured = load_config(CONFIG_FILES[node], node_name=node)[name]
+    specs = {spec.role: spec for spec in all_nodes()}
+    for role, name in ARM_FOLDERS:
+        node = specs[role].name
+        configured = load_config(*specs[role].params_files, node_name=node)[name]
         value = Path(str(result.get(node, {}).get(name, configured)))
         result.setdefault(node, {})[name] = str(
             value.parent / namespace / value.name if value.suffix else value / namespace)

@@ -5,18 +5,20 @@ from pathlib import Path
 
 from flexarm_bringup.graph_status import (
     ErrorLog,
-    FirstReports,
-    Heard,
     arm_status_name,
-    calibration_text,
-    clock_text,
     file_summary,
     graph_node_names,
     graph_problems,
+    supervisor_record,
+)
+from flexarm_bringup.graph_watch import FirstReports
+from flexarm_bringup.status_text import (
+    Heard,
+    calibration_text,
+    clock_text,
     model_line,
     starting_model_text,
     status_text,
-    supervisor_record,
 )
 from flexarm_core.health_report import ERROR, OK, WARN
 

@@ -9,7 +9,16 @@ import time
 import pytest
 import yaml
 
-from flexarm_bringup.launcher import NodeSpec, load_graph, node_command, ros_env, write_overrides
+from flexarm_bringup.launcher import (
+    NodeSpec,
+    all_nodes,
+    controllers,
+    load_graph,
+    node_command,
+    node_name,
+    ros_env,
+    write_overrides,
+)
 from flexarm_core.params import config_path
 
 
@@ -68,6 +77,34 @@ def test_graph_has_one_controller_and_the_control_nodes() -> None:
     assert {'flexarm_vision', 'flexarm_learner', 'flexarm_compensator'} <= set(names)
     with pytest.raises(ValueError, match='unknown robot'):
         load_graph('nonexistent')
+
+
+def test_the_tools_address_nodes_by_the_names_graph_yaml_gives_their_roles(tmp_path) -> None:
+    specs = all_nodes()
+    assert len({s.role for s in specs}) == len(specs)          # a role names one node
+    assert node_name('learner') == 'flexarm_learner'
+    assert controllers() == {'flexarm_sim': 'sim', 'flexarm_bridge': 'bridge'}
+    with pytest.raises(ValueError, match="no node of role 'planner'.*'learner'"):
+        node_name('planner')
+    graph = yaml.safe_load(config_path('graph.yaml').read_text(encoding='utf-8'))
+    learner = next(n for n in graph['nodes'] if n['role'] == 'learner')
+    learner['name'] = 'arm_learner'
+    graph['robots']['sim'][0]['name'] = 'arm_sim'
+    renamed = tmp_path / 'graph.yaml'
+    renamed.write_text(yaml.safe_dump(graph), encoding='utf-8')
+    assert node_name('learner', renamed) == 'arm_learner'
+    assert controllers(renamed)['arm_sim'] == 'sim'
+
+
+def test_each_node_specific_params_section_names_a_node_of_the_graph() -> None:
+    """A node renamed in graph.yaml but not in its params files would start on code
+    defaults: every ``/**/<name>`` section of a node's files is the name of a node."""
+    names = {s.name for s in all_nodes()}
+    for spec in all_nodes():
+        for file in spec.params_files:
+            sections = yaml.safe_load(config_path(file).read_text(encoding='utf-8'))
+            own = {key.removeprefix('/**/') for key in sections if key != '/**'}
+            assert own <= names, (file, own - names)
 
 
 def _supervisor(tmp_path, body: str) -> subprocess.Popen:

@@ -4,8 +4,8 @@ import contextlib
 
 import pytest
 
-from flexarm_bringup.graph_status import status_text
 from flexarm_bringup.launcher import select_nodes
+from flexarm_bringup.status_text import status_text
 from flexarm_bringup.supervisor import READY_ACTIONS, READY_SERVICES, READY_TOPICS, Graph
 from flexarm_core import topics
 

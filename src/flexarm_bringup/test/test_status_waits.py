@@ -6,14 +6,12 @@ from __future__ import annotations
 import pytest
 
 from flexarm_bringup.graph_status import (
-    Heard,
     _latched_in,
     graph_node_names,
     joint_state_rate,
-    real_time_factor,
     record_nodes,
-    status_text,
 )
+from flexarm_bringup.status_text import Heard, real_time_factor, status_text
 from flexarm_core.health_report import OK
 
 RECORD = {'supervisor_pid': 1, 'robot': 'sim', 'run_dir': 'runs/x', 'remote': ['flexarm_learner'],

@@ -44,6 +44,7 @@ def regions_from_dict(d: Mapping[str, Any]) -> dict[str, Region]:
     return {name: Region.from_dict(name, spec) for name, spec in d.items()}
 
 
-def configured_regions() -> dict[str, Region]:
-    """The regions config/learner.yaml gives the learner (and the compensator and the scene)."""
-    return regions_from_dict(load_config('learner.yaml', node_name='flexarm_learner')['regions'])
+def configured_regions(learner: str = 'flexarm_learner') -> dict[str, Region]:
+    """The regions config/learner.yaml gives the learner (and the compensator and the scene),
+    the node named ``learner`` in the graph."""
+    return regions_from_dict(load_config('learner.yaml', node_name=learner)['regions'])

@@ -101,9 +101,10 @@ def _steps(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, 
 
 
 def _learner_config() -> dict[str, Any]:
+    from flexarm_bringup.launcher import node_name
     from flexarm_core.params import load_config
 
-    return load_config('learner.yaml', node_name='flexarm_learner')
+    return load_config('learner.yaml', node_name=node_name('learner'))
 
 
 def _learner_default(key: str) -> str:
@@ -165,9 +166,10 @@ def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
     when the block ends."""
     import rclpy
 
+    from flexarm_bringup.launcher import node_name
     from flexarm_control.ros.client import init_client
 
-    client = init_client(args.domain_id, args.namespace)
+    client = init_client(args.domain_id, args.namespace, node_name('learner'))
     try:
         domain = client.context.get_domain_id()
         try:

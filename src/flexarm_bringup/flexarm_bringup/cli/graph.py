@@ -12,6 +12,7 @@ from typing import Any
 
 from flexarm_bringup import transport
 from flexarm_bringup.cli.common import Outcome, _elapsed, _world, usage
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.outcome_text import (
     Exit,
 )
@@ -28,7 +29,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     import time
 
     from flexarm_bringup.experiment import reserved_domain
-    from flexarm_bringup.graph_status import FirstReports, GraphWatch
+    from flexarm_bringup.graph_watch import FirstReports, GraphWatch
     from flexarm_bringup.supervisor import Graph
     from flexarm_core import liveness
 
@@ -38,16 +39,16 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
         f'-{args.namespace.replace("/", "-")}' if args.namespace else '')
     simulated = {'real_time_factor': args.rtf, **_world(args)}
     link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
-    params: dict[str, dict[str, Any]] = {'flexarm_sim': simulated,
-                                         'flexarm_fake_controller': simulated | link,
-                                         'flexarm_bridge': link}
+    params: dict[str, dict[str, Any]] = {node_name('simulator'): simulated,
+                                         node_name('fake_controller'): simulated | link,
+                                         node_name('bridge'): link}
     if args.record:
-        params['flexarm_recorder'] = {'bag_name': args.record,
-                                      'record_images': args.record_images}
+        params[node_name('recorder')] = {'bag_name': args.record,
+                                         'record_images': args.record_images}
     if args.foxglove:
-        params['flexarm_foxglove'] = {'port': args.foxglove}
-    optional = (('flexarm_recorder',) if args.record else ()) + (
-        ('flexarm_foxglove',) if args.foxglove is not None else ())
+        params[node_name('foxglove')] = {'port': args.foxglove}
+    optional = ((node_name('recorder'),) if args.record else ()) + (
+        (node_name('foxglove'),) if args.foxglove is not None else ())
     discovery = args.discovery.upper()
     # up's own participants (the readiness checks) share its nodes' range and transports
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
@@ -81,7 +82,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
                   f'{"" if args.outlive_parent else LIFETIME_TEXT}.', flush=True)
             watch = reports.expect(graph.nodes, liveness.limit(REPORT_WAIT))
             print(_starting_model(watch), flush=True)
-            if 'flexarm_vision' in graph.nodes:
+            if node_name('vision') in graph.nodes:
                 print(_calibration(watch), flush=True)
             if args.foxglove is not None:
                 print(_foxglove_text(args.foxglove), flush=True)
@@ -140,7 +141,7 @@ def _foxglove_text(port: int) -> str:
     """Where Foxglove connects (``port`` 0: config/foxglove.yaml's) and which layout."""
     from flexarm_core.params import config_path, load_config
 
-    config = load_config('foxglove.yaml', node_name='flexarm_foxglove')
+    config = load_config('foxglove.yaml', node_name=node_name('foxglove'))
     return (f'Foxglove: open a connection to ws://{config["host"]}:{port or config["port"]} '
             f'(Foxglove WebSocket) and import the layout {config_path("foxglove_layout.json")}')
 
@@ -148,7 +149,8 @@ def _foxglove_text(port: int) -> str:
 def _starting_model(watch: Any, listen: float = 3.0) -> str:
     """Which model the compensator of a just-started graph runs (it loads the learner's
     current one within a moment of start-up), or why there is none."""
-    from flexarm_bringup.graph_status import model_summary, starting_model_text
+    from flexarm_bringup.graph_status import model_summary
+    from flexarm_bringup.status_text import starting_model_text
     from flexarm_core import liveness
 
     def learner() -> Any:
@@ -163,11 +165,12 @@ def _starting_model(watch: Any, listen: float = 3.0) -> str:
 def _calibration(watch: Any, listen: float = 3.0) -> str:
     """Whether the camera of a just-started graph is calibrated (its vision node's first
     report)."""
-    from flexarm_bringup.graph_status import CALIBRATION_STATUS, calibration_text
+    from flexarm_bringup.graph_status import calibration_status_name
+    from flexarm_bringup.status_text import calibration_text
     from flexarm_core import liveness
 
-    watch.spin(liveness.limit(listen), until=lambda: CALIBRATION_STATUS in watch.statuses)
-    return calibration_text(watch.statuses.get(CALIBRATION_STATUS))
+    watch.spin(liveness.limit(listen), until=lambda: calibration_status_name() in watch.statuses)
+    return calibration_text(watch.statuses.get(calibration_status_name()))
 
 
 def _interrupt(signum: int, frame: FrameType | None) -> None:
@@ -232,12 +235,12 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_bringup.graph_status import (
         graph_problems,
         query,
-        status_text,
         supervisor_record,
     )
+    from flexarm_bringup.status_text import status_text
     from flexarm_control.ros.client import init_client
 
-    client = init_client(args.domain_id, args.namespace)
+    client = init_client(args.domain_id, args.namespace, node_name('learner'))
     try:
         record = supervisor_record(RUNS_DIR, client.context.get_domain_id(), args.namespace)
         with _elapsed('asking the graph', args):

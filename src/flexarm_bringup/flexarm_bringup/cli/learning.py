@@ -22,6 +22,7 @@ from flexarm_bringup.cli.common import (
     mm,
     usage,
 )
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.outcome_text import (
     COLLECT_HINTS,
     TRAIN_HINT,
@@ -139,7 +140,7 @@ def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
     with _session(args, learner=True) as client:
         if args.kg is not None:
             client.set_payload(args.kg)
-        kg = float(client.node_parameter('flexarm_learner', 'payload'))
+        kg = float(client.node_parameter(node_name('learner'), 'payload'))
     print(f'payload: {kg:g} kg' + (' (declared now)' if args.kg is not None else ''))
     return {'ok': True, 'payload_kg': kg}
 
@@ -190,7 +191,8 @@ def cmd_model(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _model_list(args: argparse.Namespace) -> dict[str, Any]:
-    from flexarm_bringup.graph_status import file_summary, model_line
+    from flexarm_bringup.graph_status import file_summary
+    from flexarm_bringup.status_text import model_line
     from flexarm_control.learning.model_store import list_models
     from flexarm_control.learning.predictors.base import read_model
 
@@ -216,7 +218,8 @@ def _model_list(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _model_use(args: argparse.Namespace) -> dict[str, Any]:
-    from flexarm_bringup.graph_status import model_line, model_summary
+    from flexarm_bringup.graph_status import model_summary
+    from flexarm_bringup.status_text import model_line
 
     if not args.version.isdecimal():
         raise usage('model use needs a version number (see flexarm model list), not '

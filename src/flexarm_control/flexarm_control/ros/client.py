@@ -28,6 +28,10 @@ KeyboardInterrupt) with the cancelled goal's result, e.g. where the arm stopped.
 (``flexarm cancel``).
 :func:`init_client` leaves SIGINT to Python: rclpy's own handler would shut the context down
 before the cancel could be sent.
+
+One module of ~570 lines: :class:`FlexarmClient` is the whole scriptable API, and the goal
+handle and server watch exist only for it.
+
 Units are SI (m, rad); converting from mm/deg is the caller's (the CLI's) business.
 """
 from __future__ import annotations
@@ -270,10 +274,12 @@ class GoalRun:
 class FlexarmClient(Node):
     """Client of the compensator and the learner (of the arm in ``namespace``, '' for a graph
     without one: ``flexarm up --namespace``): each goal blocking, or running as a
-    :class:`GoalRun` (``move_async``, ``collect_async``)."""
+    :class:`GoalRun` (``move_async``, ``collect_async``). ``learner_node``: the learner's node
+    name, whose parameters (the payload) the client sets (config/graph.yaml names it)."""
 
     def __init__(self, node_name: str = 'flexarm_client', context: Context | None = None,
-                 namespace: str = '') -> None:
+                 namespace: str = '', learner_node: str = 'flexarm_learner') -> None:
+        self._learner_node = learner_node
         super().__init__(node_name, context=context,
                          namespace=f'/{namespace.strip("/")}' if namespace.strip('/') else '')
         # The Train client first: see _wait_responsive for why the order matters.
@@ -370,7 +376,7 @@ class FlexarmClient(Node):
     def set_payload(self, kg: float, timeout: float = 10.0) -> None:
         """Declare the payload [kg] the arm carries now (the learner's ``payload``, published
         on /payload for the compensator and the simulator)."""
-        self.set_node_parameter('flexarm_learner', 'payload', float(kg), timeout)
+        self.set_node_parameter(self._learner_node, 'payload', float(kg), timeout)
 
     def train(self, kind: str = '', settings: Mapping[str, Any] | None = None,
               dataset: str = '', timeout: float = 120.0) -> Train.Response:
@@ -481,7 +487,7 @@ class FlexarmClient(Node):
         :meth:`wait_until_ready` (``learner=False`` is enough: the learner's servers are
         waited for when discovery knows the learner)."""
         deadline = time.monotonic() + timeout
-        learner = ('flexarm_learner', self.get_namespace()) in \
+        learner = (self._learner_node, self.get_namespace()) in \
             self.get_node_names_and_namespaces()
         canceled = []
         for client in (self._move, self._collect, self._refresh):
@@ -556,8 +562,9 @@ class FlexarmClient(Node):
         return future.result()
 
 
-def init_client(domain_id: int | None = None, namespace: str = '') -> FlexarmClient:
+def init_client(domain_id: int | None = None, namespace: str = '',
+                learner_node: str = 'flexarm_learner') -> FlexarmClient:
     """Initialise rclpy (default context, SIGINT left to Python) and create a client node (of
     the arm in ``namespace``)."""
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.SignalHandlerOptions.NO)
-    return FlexarmClient(namespace=namespace)
+    return FlexarmClient(namespace=namespace, learner_node=learner_node)

@@ -53,6 +53,9 @@ another, one at a time (:class:`~flexarm_core.node_main.Offload`); the node's
 single-threaded executor serves cancel requests, ``/clock`` and parameters meanwhile.
 
 Health on ``/diagnostics``: :func:`learner_statuses` (activity, training, model).
+
+One module of ~570 lines: the node maps three actions, two services and the payload to the
+pure loops and the training worker; each callback is short, and they share the node's state.
 """
 from __future__ import annotations
 

@@ -8,7 +8,7 @@ import pytest
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 from flexarm_sim import dynamics
-from flexarm_sim.dynamics import ArmDynamics, NaturalFrequency
+from flexarm_sim.dynamics import ArmDynamics
 from flexarm_sim.plant import Plant
 
 
@@ -24,27 +24,6 @@ def make(config, payload=0.0, initial=START) -> ArmDynamics:
     geometry = ArmGeometry.from_dict(config['arm'])
     plant = Plant.from_dict({**config['plant'], 'payload': payload}, geometry)
     return ArmDynamics(plant, geometry, config['dynamics'], np.array(initial))
-
-
-def test_natural_frequency_reproduces_table_6(config):
-    table = NaturalFrequency.from_dict(config['dynamics']['natural_frequency'])
-    for payload, ext, hz in [(0.2, 0.16, 12.41), (0.2, 0.4, 11.85), (0.2, 0.8, 9.93),
-                             (5.0, 0.16, 3.86), (5.0, 0.4, 3.77), (5.0, 0.8, 3.60)]:
-        assert table(payload, ext) == pytest.approx(hz, rel=1e-9)
-    assert table(5.0, 0.8) < table(2.0, 0.8) < table(0.2, 0.8) < table(0.0, 0.8)
-    assert table(8.0, 0.8) == table(5.0, 0.8)          # held above the largest payload
-
-
-@pytest.mark.parametrize('change', [
-    {'payloads': [5.0, 0.2], 'hz': [3.86, 3.77, 3.60, 12.41, 11.85, 9.93]},   # reversed
-    {'extensions': [0.8, 0.4, 0.16]},
-    {'extensions': [0.16, 0.16, 0.8]},
-    {'payloads': [-0.2, 5.0]},
-    {'extensions': [], 'hz': []},
-])
-def test_natural_frequency_table_must_be_ordered(config, change):
-    with pytest.raises(ValueError, match='strictly increasing'):
-        NaturalFrequency.from_dict({**config['dynamics']['natural_frequency'], **change})
 
 
 @pytest.mark.parametrize('initial, reason', [

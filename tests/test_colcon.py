@@ -1,8 +1,9 @@
 """src/ is a ROS 2 workspace too (README "Building with colcon"): colcon finds every package
 (flexarm_msgs as ament_cmake, the others as ament_python), ``colcon build`` builds the Python
 packages into a temporary workspace, installs each node executable under ``lib/<package>/``
-(where ``ros2 run`` looks), registers each package in the ament index with its package.xml, and
-the install space imports as ``install/setup.sh`` sets it up.
+(where ``ros2 run`` looks), registers each package in the ament index with its package.xml,
+copies config/ to flexarm_core's share directory, and the install space imports as
+``install/setup.sh`` sets it up, finding config/ there (no FLEXARM_HOME, no clone around it).
 
 colcon runs once for the module, from the venv, with the venv's bin first on PATH and nothing of
 an outer ROS environment. flexarm_msgs is left out of the build (``--packages-ignore``): its
@@ -22,6 +23,7 @@ import pytest
 
 pytestmark = [pytest.mark.colcon, pytest.mark.timeout(300), pytest.mark.duration(15)]
 SRC = Path(__file__).resolve().parents[1] / 'src'
+CONFIG = SRC.parent / 'config'
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / 'package.xml').exists())
 MSGS = 'flexarm_msgs'                     # built by scripts/setup.sh (module docstring)
 PYTHON_PACKAGES = [p for p in PACKAGES if p != MSGS]
@@ -40,8 +42,9 @@ def expected_executables(package: str) -> set[str]:
 
 
 def workspace_env(root: Path) -> dict[str, str]:
-    """This environment less any outer ROS/colcon setup, with the venv's bin first on PATH."""
-    env = {k: v for k, v in os.environ.items() if k not in OUTER_ROS}
+    """This environment less any outer ROS/colcon setup and FLEXARM_HOME (the install finds
+    config/ itself), with the venv's bin first on PATH."""
+    env = {k: v for k, v in os.environ.items() if k not in (*OUTER_ROS, 'FLEXARM_HOME')}
     env['PATH'] = f'{Path(sys.executable).parent}{os.pathsep}{env["PATH"]}'
     env['COLCON_HOME'] = str(root / 'colcon_home')    # no user defaults (e.g. symlink-install)
     return env
@@ -99,7 +102,9 @@ def test_the_install_space_imports_and_runs_as_its_setup_script_sets_it_up(works
             'from rclpy.serialization import serialize_message\n'
             'assert serialize_message(flexarm_msgs.msg.PlanarPose(x=1.5))\n'
             'for m in (flexarm_msgs, flexarm_control, flexarm_bringup):\n'
-            '    print(m.__file__)\n')
+            '    print(m.__file__)\n'
+            'from flexarm_core.paths import CONFIG_DIR\n'
+            'print(CONFIG_DIR)\n')
     flexarm = install / 'flexarm_bringup/lib/flexarm_bringup/flexarm'
     run = subprocess.run(
         ['sh', '-c', f'. "{install}/setup.sh" && python -c "$0" && "{flexarm}" --help', code],
@@ -109,4 +114,14 @@ def test_the_install_space_imports_and_runs_as_its_setup_script_sets_it_up(works
     underlay = Path(sys.prefix) / site / MSGS / '__init__.py'      # the venv: scripts/setup.sh
     assert lines[:3] == [str(underlay)] + [str(install / p / site / p / '__init__.py')
                                            for p in ('flexarm_control', 'flexarm_bringup')]
-    assert lines[3].startswith('usage: flexarm')
+    assert lines[3] == str(install / 'flexarm_core/share/flexarm_core/config')
+    assert lines[4].startswith('usage: flexarm')
+
+
+def test_config_is_installed_as_copies_of_every_file(workspace):
+    def files(root: Path) -> dict[Path, bytes]:
+        return {p.relative_to(root): p.read_bytes() for p in root.rglob('*') if p.is_file()}
+
+    share = workspace / 'install/flexarm_core/share/flexarm_core/config'
+    assert not [p for p in share.rglob('*') if p.is_symlink()]
+    assert files(share) == files(CONFIG)

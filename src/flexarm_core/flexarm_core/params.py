@@ -15,7 +15,7 @@ from flexarm_core.paths import CONFIG_DIR
 
 
 def config_path(name: str) -> Path:
-    """Path of ``config/<name>`` in the source tree (editable install)."""
+    """``config/<name>``: the clone's, else the installed one (see flexarm_core.paths)."""
     return CONFIG_DIR / name
 
 

@@ -1,6 +1,8 @@
 """Node-level: the graph is visible in the ROS tools — the robot model on /robot_description,
 the frames on /tf and /tf_static following /joint_states with the rigid model, the scene
-markers, and every node's health on /diagnostics."""
+markers, and every node's health on /diagnostics; its bag is in one time, the sim's, and
+/tip_pose (arm_plane) and /scene/measured_tip (base_link) are the same point through /tf."""
+import signal
 import threading
 import xml.etree.ElementTree as ET
 
@@ -12,10 +14,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
+from flexarm_bringup.bag_tools import read_decoded
+from flexarm_bringup.stamp_order import backwards_steps, header_stamps
 from flexarm_core import topics
+from flexarm_core.frames import PLANE_FRAME
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
+from flexarm_msgs.msg import DeflectionSample, PlanarPose
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.node
@@ -57,8 +63,9 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
     ros_node.create_subscription(JointState, topics.JOINT_STATES, keep('joints'), 100)
     ros_node.create_subscription(DiagnosticArray, '/diagnostics', keep('diagnostics'), 50)
     ros_node.create_subscription(MarkerArray, topics.SCENE_MARKERS, keep('markers'), latched)
+    started = {}
     for name in NODES:
-        launch(name, **{'flexarm_sim': {'real_time_factor': 5.0},
+        started[name] = launch(name, **{'flexarm_sim': {'real_time_factor': 5.0},
                         'flexarm_learner': {'data_directory': str(tmp_path / 'data'),
                                             'model_directory': str(tmp_path / 'models')},
                         'flexarm_recorder': {'bag_directory': str(tmp_path / 'bags'),
@@ -67,7 +74,7 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
 
     description = wait_for(lambda: got['description'], 60.0, '/robot_description')[0]
     robot = ET.fromstring(description.data)
-    limits = {j.get('name'): j.find('limit') for j in robot.iter('joint')
+    limits = {j.get('name'): j.find('limit') for j in robot.findall('joint')
               if j.get('type') != 'fixed'}
     assert list(limits) == list(JOINT_NAMES)
     for i, name in enumerate(JOINT_NAMES):
@@ -109,3 +116,63 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
         return names if names >= set(NODES) else set()
 
     wait_for(reporting, 30.0, f'/diagnostics from each of {", ".join(NODES)}')
+
+    # A learning sample, stamped in sim time as the learner does: the scene shows it at then.
+    samples = ros_node.create_publisher(DeflectionSample, topics.SAMPLES, 10)
+    stamp = got['joints'][-1].header.stamp
+
+    def sample_shown():
+        samples.publish(DeflectionSample(stamp=stamp, measured_pose=PlanarPose(x=1.4, y=-0.3)))
+        with lock:
+            return any(m.ns == 'samples' for m in got['markers'][-1].markers)
+
+    wait_for(sample_shown, 30.0, 'the sample on /scene/markers')
+
+    def timed() -> set[str]:
+        """The nodes whose /diagnostics have been stamped with a time (not 0)."""
+        with lock:
+            return {s.name.split(':')[0] for a in got['diagnostics']
+                    if a.header.stamp.sec or a.header.stamp.nanosec for s in a.status}
+
+    wait_for(lambda: timed() >= set(NODES), 30.0, 'each node\'s /diagnostics stamped')
+    recorder = started['flexarm_recorder']
+    recorder.signal(signal.SIGINT)
+    recorder.process.wait(timeout=30.0)
+    check_bag(tmp_path / 'bags' / 'visible')
+
+
+def check_bag(bag) -> None:
+    """One time in the bag: every stream's header stamps in order and none beyond the sim's
+    /clock (no wall time), the markers stamped; the measured tip is one point in both frames."""
+    messages = [(topic, msg) for topic, msg, _ in read_decoded(bag)]
+    clock = max(c.clock.sec + 1e-9 * c.clock.nanosec for t, c in messages if t == '/clock')
+    stamps = [s for topic, msg in messages for s in header_stamps(topic, msg)]
+    assert {k: n for k, n in backwards_steps(stamps).items() if n} == {}
+    late = {stream for stream, ns in stamps if ns * 1e-9 > clock + 1.0}
+    assert not late, f'stamped beyond the last /clock ({clock:.1f} s): {sorted(late)}'
+    last_markers = [m for t, m in messages if t == '/scene/markers'][-1].markers
+    assert all(m.header.stamp.sec or m.header.stamp.nanosec for m in last_markers)
+    reported = {s.name.split(':')[0] for t, m in messages if t == '/diagnostics'
+                and (m.header.stamp.sec or m.header.stamp.nanosec) for s in m.status}
+    assert set(NODES) <= reported, 'a node never stamped its diagnostics with a time'
+
+    static = {t.child_frame_id: as_transform(t) for topic, m in messages
+              if topic == '/tf_static' for t in m.transforms}
+    tips = {(m.header.stamp.sec, m.header.stamp.nanosec): m for t, m in messages
+            if t == '/tip_pose' and m.valid}
+    assert tips and {m.header.frame_id for m in tips.values()} == {PLANE_FRAME}
+    shown = [m for t, m in messages if t == '/scene/measured_tip'
+             and (m.header.stamp.sec, m.header.stamp.nanosec) in tips]
+    assert shown
+    for pose in shown:
+        tip = tips[(pose.header.stamp.sec, pose.header.stamp.nanosec)]
+        in_plane = Transform(PLANE_FRAME, 'tip', (tip.pose.x, tip.pose.y, 0.0),
+                             (0.0, 0.0, np.sin(tip.pose.phi / 2), np.cos(tip.pose.phi / 2)))
+        translation, rotation = compose([static[PLANE_FRAME], in_plane])
+        assert pose.header.frame_id == static[PLANE_FRAME].parent == 'base_link'
+        p, q = pose.pose.position, pose.pose.orientation
+        np.testing.assert_allclose(translation, [p.x, p.y, p.z], atol=1e-9)
+        shown_rotation = compose([Transform('base_link', 'tip', (0, 0, 0),
+                                            (q.x, q.y, q.z, q.w))])[1]
+        np.testing.assert_allclose(rotation.apply([1.0, 0.0, 0.0]),     # the tool axis
+                                   shown_rotation.apply([1.0, 0.0, 0.0]), atol=1e-9)

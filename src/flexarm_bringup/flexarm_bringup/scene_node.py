@@ -9,13 +9,18 @@ the deflection the model in use predicts there, × ``arrow_scale``, from the rig
 (``/compensator/active_model``), run at the payload on ``/payload``; without one, no arrows.
 The array is republished at most once a second (wall clock) when something changed.
 
+Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second). Every marker of
+an array, and ``/diagnostics``, carries the time of the newest data shown (the last sample's
+stamp, the model's; :mod:`flexarm_core.stamps`), in the graph's time, sim or wall. An array
+with no data yet (the regions only, from config) is stamped 0: ROS's "no time yet", which rviz
+and Foxglove draw with the newest transform.
+
 Health on ``/diagnostics`` (``flexarm_scene: markers``): WARN when the model in use could not
 be loaded for the field, else OK, with the samples and arrows drawn.
 """
 from __future__ import annotations
 
 import numpy as np
-from builtin_interfaces.msg import Time
 from geometry_msgs.msg import Point, Vector3
 from rclpy.clock import Clock, ClockType
 from rclpy.node import Node
@@ -31,6 +36,7 @@ from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.regions import regions_from_dict
+from flexarm_core.stamps import DataTime
 from flexarm_description.chain import BASE_FRAME
 from flexarm_description.scene import (
     deflection_arrows,
@@ -49,9 +55,9 @@ def _point(p: np.ndarray) -> Point:
     return Point(x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
 
-def _marker(ns: str, marker_id: int, kind: int, colour: ColorRGBA, scale: Vector3,
-            points: list[Point] | None = None) -> Marker:
-    marker = Marker(header=Header(stamp=Time(), frame_id=BASE_FRAME), ns=ns, id=marker_id,
+def _marker(header: Header, ns: str, marker_id: int, kind: int, colour: ColorRGBA,
+            scale: Vector3, points: list[Point] | None = None) -> Marker:
+    marker = Marker(header=header, ns=ns, id=marker_id,
                     type=kind, action=Marker.ADD, color=colour, scale=scale,
                     points=points or [])
     marker.pose.orientation.w = 1.0
@@ -81,21 +87,24 @@ class SceneNode(Node):
         self._arrows: list[tuple[np.ndarray, np.ndarray]] = []
         self._changed = True
         self._field_problem = ''
+        self._time = DataTime()
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._pub = self.create_publisher(MarkerArray, topics.SCENE_MARKERS, latched)
         self.create_subscription(DeflectionSample, topics.SAMPLES, self._on_sample, 100)
         self.create_subscription(ModelInfo, topics.ACTIVE_MODEL, self._on_model, latched)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self.create_timer(1.0, self._publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        DiagnosticsPublisher(self, self._statuses)
+        DiagnosticsPublisher(self, self._statuses, stamp=self._time.stamp)
 
     def _on_sample(self, msg: DeflectionSample) -> None:
         pose = msg.measured_pose
+        self._time.saw(msg.stamp)
         self._samples = (self._samples + [(pose.x, pose.y, pose.phi)])[-self._max_samples:]
         self._changed = True
 
     def _on_model(self, msg: ModelInfo) -> None:
         self._model = msg
+        self._time.saw(msg.stamp)
         self._update_field()
 
     def _on_payload(self, msg: Float64) -> None:
@@ -135,22 +144,22 @@ class SceneNode(Node):
         if not self._changed:
             return
         self._changed = False
-        clear = Marker(header=Header(frame_id=BASE_FRAME), action=Marker.DELETEALL)
-        markers = [clear]
+        header = Header(stamp=self._time.stamp(), frame_id=BASE_FRAME)
+        markers = [Marker(header=header, action=Marker.DELETEALL)]
         for i, region in enumerate(self._regions):
-            markers.append(_marker('regions', i, Marker.LINE_STRIP, REGION_COLOUR,
+            markers.append(_marker(header, 'regions', i, Marker.LINE_STRIP, REGION_COLOUR,
                                    Vector3(x=0.004), [_point(p) for p in region_outline(region)]))
             where, text = region_label(region)
-            label = _marker('region_labels', i, Marker.TEXT_VIEW_FACING, REGION_COLOUR,
+            label = _marker(header, 'region_labels', i, Marker.TEXT_VIEW_FACING, REGION_COLOUR,
                             Vector3(z=0.04))
             label.pose.position, label.text = _point(where), text
             markers.append(label)
         if self._samples:
-            markers.append(_marker('samples', 0, Marker.SPHERE_LIST, SAMPLE_COLOUR,
+            markers.append(_marker(header, 'samples', 0, Marker.SPHERE_LIST, SAMPLE_COLOUR,
                                    Vector3(x=0.012, y=0.012, z=0.012),
                                    [_point(p) for p in sample_points(np.array(self._samples))]))
         for i, (start, end) in enumerate(self._arrows):
-            markers.append(_marker('deflection', i, Marker.ARROW, ARROW_COLOUR,
+            markers.append(_marker(header, 'deflection', i, Marker.ARROW, ARROW_COLOUR,
                                    Vector3(x=0.004, y=0.01, z=0.015),
                                    [_point(start), _point(end)]))
         self._pub.publish(MarkerArray(markers=markers))

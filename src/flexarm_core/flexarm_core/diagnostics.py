@@ -6,7 +6,8 @@ simulator's faster clock (the timer is on the steady clock), so rqt_robot_monito
 Foxglove's diagnostics panel see the graph's health at a steady rate, and at once to a
 subscriber that has just matched (``flexarm status`` answers without waiting up to a period
 for each node). Stamps come from the
-node's clock (sim time under ``use_sim_time``) unless the node gives its own. ``/diagnostics``
+node's clock (sim time under ``use_sim_time``) unless the node gives its own: a node that skips
+``/clock`` gives the time of its data (:class:`flexarm_core.stamps.DataTime`). ``/diagnostics``
 is global: a node in a namespace (one arm of several) names its statuses
 ``<namespace>/<node>: <concern>``.
 """

@@ -11,6 +11,9 @@ Chain (Table 1; ``d`` the lateral offset of the No.2 arm, joint2 the No.2 arm le
       -tip_camera_joint(fixed, camera offset)-> tip_camera_link
       -tip_camera_optical_joint(fixed)-> tip_camera_optical_frame
 
+``arm_plane`` (:mod:`flexarm_core.frames`), the frame of the planar messages, is fixed to
+``base_link``: :func:`plane_transform`.
+
 ``tip_link`` is the tool (camera reference point) of the rigid model: ``base_link -> tip_link``
 equals :func:`flexarm_core.kinematics.forward` at the joint positions. The camera looks at
 the hole plate, which lies behind the arm's plane (+y): ``tip_camera_link`` is tool-aligned,
@@ -30,7 +33,7 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
-from flexarm_core import plane
+from flexarm_core import frames, plane
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry
 
 if TYPE_CHECKING:
@@ -38,7 +41,7 @@ if TYPE_CHECKING:
 
 Quaternion = tuple[float, float, float, float]    # (x, y, z, w)
 
-BASE_FRAME = 'base_link'
+BASE_FRAME = frames.BASE_FRAME
 TIP_FRAME = 'tip_link'
 CAMERA_FRAME = 'tip_camera_link'
 CAMERA_OPTICAL_FRAME = 'tip_camera_optical_frame'
@@ -118,6 +121,11 @@ def moving_transforms(joints: Sequence[Joint], positions: dict[str, float]) -> l
 def fixed_transforms(joints: Sequence[Joint]) -> list[Transform]:
     """Transforms of the fixed joints (``/tf_static``)."""
     return [joint_transform(j) for j in joints if j.kind == 'fixed']
+
+
+def plane_transform() -> Transform:
+    """``base_link`` -> ``arm_plane``, the frame of the planar messages (``/tf_static``)."""
+    return Transform(BASE_FRAME, frames.PLANE_FRAME, (0.0, 0.0, 0.0), plane.PLANE_IN_BASE)
 
 
 def planar_transform(parent: str, child: str, pose: Sequence[float]) -> Transform:

@@ -1,13 +1,16 @@
 """``flexarm_state_publisher``: the arm in rviz and Foxglove (a small robot_state_publisher).
 
 Publishes the URDF (:mod:`.urdf_model`, from config/arm.yaml) latched on
-``/robot_description``; the fixed frames (tool, tip camera and its optical frame) latched on
-``/tf_static``; on ``/tf`` the four moving joints from ``/joint_states`` with the rigid model
-(:mod:`.chain`), and the frames ``tip_measured`` (``/tip_pose``, valid measurements only) and,
-in simulation, ``tip_true`` (``/sim/tip_pose_truth``) in ``base_link``. So ``tip_link`` is
-where the rigid model puts the tool, ``tip_measured`` where the camera sees it, and the gap
-between them is the deflection. The two tips are also published as
-``geometry_msgs/PoseStamped`` on ``/scene/measured_tip`` and ``/scene/true_tip``.
+``/robot_description``, with the ``<ros2_control>`` system on ``hardware_plugin`` that a
+controller_manager reads from it (config/controllers.yaml configures its controllers); the
+fixed frames (tool, tip camera and its optical frame) and ``arm_plane``, the frame of the
+planar messages (:mod:`flexarm_core.frames`), latched on ``/tf_static``; on ``/tf`` the
+four moving joints from ``/joint_states`` with the rigid model (:mod:`.chain`), and the frames
+``tip_measured`` (``/tip_pose``, valid measurements only) and, in simulation, ``tip_true``
+(``/sim/tip_pose_truth``) in ``base_link``. So ``tip_link`` is where the rigid model puts the
+tool, ``tip_measured`` where the camera sees it, and the gap between them is the deflection.
+The two tips are also published as ``geometry_msgs/PoseStamped`` on ``/scene/measured_tip`` and
+``/scene/true_tip``.
 
 Each stream is published at most ``publish_frequency`` times a second of wall-clock time (the
 simulator publishes joint states at 100 Hz of sim time, 1000 a second at 10x real time), with
@@ -20,6 +23,12 @@ is watched — ``/joint_states`` while ``/tf`` has a subscriber, ``/tip_pose`` w
 has one. Decision: watching the arm (rviz, Foxglove, a recorder) asks for the measured tip too,
 so the vision node and the camera run while someone watches; an unwatched graph measures only
 when a node measures.
+
+Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); what it says
+is in the time of its data (:mod:`flexarm_core.stamps`): ``/tf`` and the tips with the stamp
+of their message, ``/diagnostics`` with the newest stamp handled, ``/tf_static`` with 0 (it is
+published at start, before any data; tf2 holds a static transform at every time, and a
+robot_state_publisher on sim time stamps it so before ``/clock``).
 
 Health on ``/diagnostics`` (``flexarm_state_publisher: frames``): OK and idle while nobody
 watches ``/tf``; then STALE until a ``/joint_states`` message comes, WARN when none came for
@@ -49,6 +58,7 @@ from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.scene_msgs import pose_stamped
+from flexarm_core.stamps import DataTime
 from flexarm_description.chain import (
     BASE_FRAME,
     Transform,
@@ -56,8 +66,9 @@ from flexarm_description.chain import (
     fixed_transforms,
     moving_transforms,
     planar_transform,
+    plane_transform,
 )
-from flexarm_description.urdf_model import robot_description
+from flexarm_description.urdf_model import MOCK_HARDWARE, robot_description
 from flexarm_msgs.msg import TipPose
 from tf2_msgs.msg import TFMessage
 
@@ -102,13 +113,17 @@ class StatePublisher(Node):
         frequency = declare(self, 'publish_frequency', 30.0,
                             '[Hz, wall clock] at most this many /tf (and tip pose) messages a '
                             'second per stream; <= 0: one per message received')
+        hardware = declare(self, 'hardware_plugin', MOCK_HARDWARE,
+                           'ros2_control hardware plugin of the URDF\'s <ros2_control> system; '
+                           "'': no <ros2_control> block", read_only=True)
         self._joints = arm_joints(geometry, camera['offset'])
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.create_publisher(String, topics.ROBOT_DESCRIPTION, latched).publish(
-            String(data=robot_description(geometry, arm['inertia'], camera['offset'])))
-        header = Header(stamp=self.get_clock().now().to_msg())
+            String(data=robot_description(geometry, arm['inertia'], camera['offset'], hardware)))
+        static = [*fixed_transforms(self._joints), plane_transform()]
         self.create_publisher(TFMessage, topics.TF_STATIC, latched).publish(TFMessage(
-            transforms=[transform_msg(t, header) for t in fixed_transforms(self._joints)]))
+            transforms=[transform_msg(t, Header()) for t in static]))
+        self._time = DataTime()
         self._counts = {'tf': 0, 'measured': 0, 'true': 0}
         self._last_joints: float | None = None      # monotonic time of the last joint state
         self._joint_problem = ''
@@ -128,7 +143,7 @@ class StatePublisher(Node):
                 self._on_tip, name=name, publisher=publisher, frame=frame), 10)
         self._tf = self.create_publisher(TFMessage, topics.TF, 100, event_callbacks=(
             PublisherEventCallbacks(matched=on_matched(topics.TF, *demands.values()))))
-        DiagnosticsPublisher(self, self._statuses)
+        DiagnosticsPublisher(self, self._statuses, stamp=self._time.stamp)
 
     def _watch(self, name: str, wanted: bool) -> None:
         """Subscribe input ``name`` while what it makes is watched."""
@@ -150,6 +165,7 @@ class StatePublisher(Node):
             self.get_logger().warn(self._joint_problem, throttle_duration_sec=10.0)
             return
         self._joint_problem = ''
+        self._time.saw(msg.header.stamp)
         self._tf.publish(TFMessage(transforms=[transform_msg(t, msg.header)
                                                for t in transforms]))
         self._counts['tf'] += 1
@@ -158,6 +174,7 @@ class StatePublisher(Node):
         if not msg.valid or not self._throttles[name]():
             return
         pose = (msg.pose.x, msg.pose.y, msg.pose.phi)
+        self._time.saw(msg.header.stamp)
         self._tf.publish(TFMessage(transforms=[transform_msg(
             planar_transform(BASE_FRAME, frame, pose), msg.header)]))
         publisher.publish(pose_stamped(pose, msg.header.stamp))

@@ -12,12 +12,14 @@ from flexarm_description.chain import (
     BASE_FRAME,
     CAMERA_OPTICAL_FRAME,
     TIP_FRAME,
+    Transform,
     arm_joints,
     compose,
     fixed_transforms,
     moving_transforms,
     planar_pose,
     planar_transform,
+    plane_transform,
 )
 from flexarm_description.urdf_model import robot_description
 
@@ -62,6 +64,25 @@ def test_planar_poses_map_into_the_x_z_plane_z_up() -> None:
     assert plane.orientation(0.0) == (0.0, -0.0, 0.0, 1.0)
 
 
+def test_arm_plane_holds_a_planar_pose_as_x_y_with_phi_about_z() -> None:
+    """A planar (x, y, phi) in arm_plane, as (x, y, 0) turned by phi about z, is where
+    planar_transform puts it in base_link: TipPose (arm_plane) and the scene's base_link
+    poses and markers name the same point."""
+    to_plane = plane_transform()
+    assert (to_plane.parent, to_plane.child) == (BASE_FRAME, 'arm_plane')
+    rng = np.random.default_rng(5)
+    for x, y, phi in rng.uniform((-2.0, -2.0, -math.pi), (2.0, 2.0, math.pi), (10, 3)):
+        in_plane = Transform('arm_plane', 'p', (x, y, 0.0), (0.0, 0.0, math.sin(phi / 2),
+                                                               math.cos(phi / 2)))
+        translation, rotation = compose([to_plane, in_plane])
+        expected, expected_rotation = compose([planar_transform(BASE_FRAME, 'p', (x, y, phi))])
+        np.testing.assert_allclose(translation, expected, atol=1e-12)
+        np.testing.assert_allclose(rotation.apply([1.0, 0.0, 0.0]),      # the tool axis
+                                   expected_rotation.apply([1.0, 0.0, 0.0]), atol=1e-12)
+    np.testing.assert_allclose(compose([to_plane])[1].apply([0.0, 0.0, 1.0]),
+                               plane.PLANE_NORMAL, atol=1e-12)     # z: the joints' axis
+
+
 def test_optical_frame_looks_at_the_plate_behind_the_arm(geometry) -> None:
     joints = arm_joints(geometry, (0.03, 0.0))
     transforms = moving_transforms(joints, dict(zip(JOINT_NAMES, (0.0, 0.6, 0.0, 0.0)))
@@ -81,7 +102,7 @@ def test_missing_joint_positions_are_an_error(geometry) -> None:
 
 def test_urdf_has_the_four_joints_with_table_1_limits(geometry) -> None:
     robot = ET.fromstring(robot_description(geometry, INERTIA, (0.03, 0.0)))
-    joints = {j.get('name'): j for j in robot.iter('joint')}
+    joints = {j.get('name'): j for j in robot.findall('joint')}
     moving = [name for name, j in joints.items() if j.get('type') != 'fixed']
     assert moving == list(JOINT_NAMES)
     assert [joints[n].get('type') for n in moving] == ['revolute', 'prismatic', 'revolute',

@@ -69,6 +69,7 @@ from std_msgs.msg import Float64, Float64MultiArray, Header
 
 from flexarm_core import liveness, topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.frames import BASE_FRAME, PLANE_FRAME
 from flexarm_core.goal_owner import full_name
 from flexarm_core.health_report import OK, CommandLog, Status, status
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
@@ -85,7 +86,6 @@ from flexarm_vision.camera_model import CameraModel
 
 FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
-BASE_FRAME = 'base_link'
 FOLLOW_CATCH_UP = 200    # steps at most on one /clock, following (2 s of sim time)
 CLOCK_SILENCE = 1.0      # [s, wall; liveness-scaled] of silent /clock before a takeover
 CLOCK_CHECK = 0.5        # [s, wall] between looks at the domain's /clock publishers
@@ -369,7 +369,7 @@ class SimNode(Node):
         x, y, phi = state.tip_pose
         if self._truth_pub.get_subscription_count():
             self._truth_pub.publish(TipPose(
-                header=self._header(now, BASE_FRAME), pose=PlanarPose(x=x, y=y, phi=phi),
+                header=self._header(now, PLANE_FRAME), pose=PlanarPose(x=x, y=y, phi=phi),
                 valid=True, settled=not state.is_moving, holes_used=0, residual=0.0))
         if self._tick % self._camera_every == 0 and self._image_pub.get_subscription_count():
             self._publish_image(now, state)

@@ -2,10 +2,10 @@
 
 Subscribes ``/camera/image_raw`` (mono8, mono16, rgb8, bgr8, rgba8, bgra8 or Bayer 8-bit:
 :mod:`.image_encoding`), ``/camera/camera_info`` and ``/joint_states`` (joint stillness);
-publishes one ``flexarm_msgs/TipPose`` per image, stamped with the image's capture time. The
-pose comes from :class:`TipPoseEstimator`; whether the arm was at rest from
-:class:`SettleDetector`. An invalid measurement carries NaN coordinates and the reason in
-``status``.
+publishes one ``flexarm_msgs/TipPose`` per image, stamped with the image's capture time, in
+the arm's plane (frame ``arm_plane``, :mod:`flexarm_core.frames`). The pose comes from
+:class:`TipPoseEstimator`; whether the arm was at rest from :class:`SettleDetector`. An
+invalid measurement carries NaN coordinates and the reason in ``status``.
 
 On demand (:mod:`flexarm_core.demand`): images and joint states are subscribed only while
 ``/tip_pose`` has a subscriber — a node that measures (the learner and the compensator
@@ -37,6 +37,10 @@ the log and as an ERROR on ``/diagnostics`` (which ``flexarm status`` and ``flex
 log line alone went unseen while every pose was off by the camera's error), and the node runs
 without that correction.
 
+Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); its
+``/diagnostics`` carry the newest stamp of the images and joint states it handled
+(:mod:`flexarm_core.stamps`), so they are in the graph's time, sim or wall.
+
 Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
 :func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
 nobody asks for tip poses), :func:`lens_status`, :func:`camera_info_status` and
@@ -62,6 +66,7 @@ from std_msgs.msg import Header
 from flexarm_core import topics
 from flexarm_core.demand import Demand, on_matched
 from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.frames import PLANE_FRAME
 from flexarm_core.health_report import (
     ERROR,
     OK,
@@ -75,6 +80,7 @@ from flexarm_core.health_report import (
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.paths import repo_path
+from flexarm_core.stamps import CDR_STAMP, DataTime, raw_stamp_ns
 from flexarm_core.tool_correction import ToolCorrection, read_calibration
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_calibration import CameraCorrection, read_camera_calibration
@@ -85,8 +91,6 @@ from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
 from flexarm_vision.settling import SettleDetector, SettleSettings
 from flexarm_vision.stored_correction import StoredCorrection
 
-BASE_FRAME = 'base_link'
-STAMP_END = 12            # serialized message: 4-byte CDR header, then header.stamp (8 bytes)
 HEALTH_WINDOW = 10.0      # [s, wall] images the measurement health looks back on
 MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health warns
 # The fit's plate scale and radial stretch beyond these: the camera differs from its
@@ -105,7 +109,7 @@ def seconds(stamp) -> float:
 
 def without_stamp(raw: bytes) -> bytes:
     """A serialized message whose first field is a std_msgs/Header, minus its stamp."""
-    return raw[STAMP_END:]
+    return raw[CDR_STAMP.stop:]
 
 
 def measurement_status(node: str, camera: str, window: WindowSummary, span: float,
@@ -246,7 +250,8 @@ class VisionNode(Node):
         self._inputs: list[Subscription] = []      # images and joint states while measuring
         self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10, event_callbacks=(
             PublisherEventCallbacks(matched=on_matched(topics.TIP_POSE, Demand(self._measure)))))
-        self._diagnostics = DiagnosticsPublisher(self, self.statuses)
+        self._time = DataTime()
+        self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._time.stamp)
         i = self._estimator.camera.intrinsics
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
                                f'a {self._estimator.plate.shape} hole plate')
@@ -335,6 +340,7 @@ class VisionNode(Node):
         self.get_logger().info(f'intrinsics from camera_info: {intrinsics}, {source}')
 
     def _on_joints(self, raw: bytes) -> None:
+        self._time.saw_ns(raw_stamp_ns(raw))
         content = without_stamp(raw)
         if content == self._last_joints:
             return
@@ -350,6 +356,7 @@ class VisionNode(Node):
         estimate = (self._estimator.estimate(image) if image is not None
                     else Estimate(None, False, 0, 0.0, reason))
         self._camera_id = msg.header.frame_id
+        self._time.saw(msg.header.stamp)
         self._recent.add(time.monotonic(), estimate.residual if estimate.valid else None)
         if not estimate.valid:
             self._last_invalid = estimate.status
@@ -360,7 +367,7 @@ class VisionNode(Node):
         out = TipPose(valid=estimate.valid, settled=estimate.valid and unsettled is None,
                       holes_used=estimate.holes_used, residual=estimate.residual)
         out.header.stamp = msg.header.stamp
-        out.header.frame_id = BASE_FRAME
+        out.header.frame_id = PLANE_FRAME
         if estimate.valid:
             x, y, phi = (float(v) for v in self._tool.value.pose(estimate.pose))
             out.pose = PlanarPose(x=x, y=y, phi=phi)

@@ -100,7 +100,7 @@ def test_joint_states_compare_without_their_stamp() -> None:
 
     # CDR padding bytes are unspecified (two serializations of one message may differ there:
     # the node then parses a repeat, harmless), so the stamp is replaced in place: the bytes
-    # before STAMP_END must be the stamp, and all of it.
+    # before CDR_STAMP.stop must be the stamp, and all of it.
     first = raw(1, 0.1)
     later = first[:4] + (2).to_bytes(4, 'little') + (9).to_bytes(4, 'little') + first[12:]
     stamp = deserialize_message(later, JointState).header.stamp
@@ -225,7 +225,7 @@ def test_vision_node_measures_the_rendered_pose(ros_node, launch, wait_for) -> N
         return next((m for m in reversed(received) if m.valid and m.settled), None)
 
     msg = wait_for(settled_pose, 30.0, 'a valid, settled /tip_pose')
-    assert msg.header.frame_id == 'base_link' and msg.status == ''
+    assert msg.header.frame_id == 'arm_plane' and msg.status == ''
     assert math.hypot(msg.pose.x - POSE[0], msg.pose.y - POSE[1]) < 0.2e-3
     assert abs(math.degrees(msg.pose.phi - POSE[2])) < 0.01
     assert msg.holes_used >= 12 and 0 < msg.residual < 0.05e-3

@@ -1,0 +1,12 @@
+"""Names of the flexarm frames (one place for every node and message).
+
+``base_link`` is the robot's root (REP 103: x forward, z up); the 3-D messages (``/tf``, the
+scene's poses and markers) are in it. ``arm_plane`` is the arm's plane: ``base_link`` turned
+about its x axis so that its x, y are the planar x, y_up of the flexarm messages and its z the
+joints' axis (:data:`flexarm_core.plane.PLANE_IN_BASE`). A planar message
+(``flexarm_msgs/TipPose``) names ``arm_plane``: a tf2 user then gets (x, y, 0) in it, the same
+point as (x, 0, y) in ``base_link``. The state publisher puts ``arm_plane`` on ``/tf_static``.
+"""
+
+BASE_FRAME = 'base_link'
+PLANE_FRAME = 'arm_plane'

@@ -1,6 +1,6 @@
-"""Live view in Foxglove: the channels the server offers, the shipped layout, the `flexarm up
---foxglove` flag, and (node level) `flexarm up --foxglove PORT` serving /tip_pose to a
-WebSocket client of the Foxglove protocol."""
+"""Live view in Foxglove: the channels the server offers, to clients offering either name of
+the protocol, the shipped layout, the `flexarm up --foxglove` flag, and (node level) `flexarm up
+--foxglove PORT` serving /tip_pose to a WebSocket client of the Foxglove protocol."""
 from __future__ import annotations
 
 import json
@@ -19,6 +19,7 @@ from typing import Any
 
 import pytest
 from rclpy.serialization import deserialize_message, serialize_message
+from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
 from flexarm_bringup.bag_schema import message_definition
@@ -26,14 +27,15 @@ from flexarm_bringup.cli import build_parser, main
 from flexarm_bringup.cli.graph import _foxglove_text
 from flexarm_bringup.outcome_text import Exit
 from flexarm_core import topics
+from flexarm_core.frames import PLANE_FRAME
 from flexarm_core.params import config_path
 from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.msg import PlanarPose, TipPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(17)]
 
-# The SDK's name of the protocol first; foxglove.websocket.v1 is its former name.
-SUBPROTOCOLS = ['foxglove.sdk.v1', 'foxglove.websocket.v1']
+SDK_NAME = 'foxglove.sdk.v1'
+FORMER_NAME = 'foxglove.websocket.v1'    # the only one Lichtblick <= 1.22.0 offers
 MESSAGE_DATA = 1          # opcode of a binary message data frame
 TIP_POSE_TYPE = 'flexarm_msgs/msg/TipPose'
 # The graph's names (flexarm_core.topics): what a layout may name.
@@ -48,8 +50,26 @@ def _free_port() -> int:
         return s.getsockname()[1]
 
 
-def _client(port: int) -> ClientConnection:
-    return connect(f'ws://127.0.0.1:{port}', subprotocols=SUBPROTOCOLS, open_timeout=10.0)
+def _client(port: int, subprotocols: list[str]) -> ClientConnection:
+    return connect(f'ws://127.0.0.1:{port}', subprotocols=subprotocols, open_timeout=10.0,
+                   max_size=None)
+
+
+@pytest.fixture
+def served() -> Iterator[tuple[Any, int]]:
+    """(SDK context, port of the front) of an SDK server behind a front, as the node has."""
+    import foxglove
+
+    from flexarm_bringup.foxglove_front import SubprotocolFront
+
+    context = foxglove.Context()
+    server = foxglove.start_server(host='127.0.0.1', port=0, context=context)
+    front = SubprotocolFront('127.0.0.1', 0, server.port)
+    try:
+        yield context, front.port
+    finally:
+        front.stop()
+        server.stop()
 
 
 def _advertised(ws: ClientConnection, topic: str, timeout: float) -> dict[str, Any]:
@@ -79,34 +99,77 @@ def _message_data(ws: ClientConnection, channel_id: int, timeout: float) -> tupl
     pytest.fail(f'no message on channel {channel_id} within {timeout} s')
 
 
-def test_a_channel_carries_cdr_with_the_full_ros2msg_schema() -> None:
-    import foxglove
+def _first_message(ws: ClientConnection, channel: Any, advertised: dict[str, Any],
+                   sent: bytes) -> bytes:
+    """Subscribe to the advertised channel, log ``sent`` on it once subscribed; the frame."""
+    ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
+        {'id': 7, 'channelId': advertised['id']}]}))
+    deadline = time.monotonic() + 5.0
+    while not channel.has_sinks() and time.monotonic() < deadline:
+        time.sleep(0.01)
+    channel.log(sent, log_time=123)
+    while isinstance(frame := ws.recv(timeout=5.0), str):
+        pass
+    return frame
 
+
+@pytest.mark.parametrize(('offer', 'agreed'), [
+    ([FORMER_NAME], FORMER_NAME), ([SDK_NAME], SDK_NAME),
+    ([FORMER_NAME, SDK_NAME], SDK_NAME), ([SDK_NAME, FORMER_NAME], SDK_NAME)])
+def test_a_channel_carries_cdr_with_the_full_ros2msg_schema_to_either_name(
+        served: tuple[Any, int], offer: list[str], agreed: str) -> None:
     from flexarm_bringup.foxglove_node import ros2_channel
 
-    context = foxglove.Context()
-    server = foxglove.start_server(host='127.0.0.1', port=0, context=context)
-    try:
-        channel = ros2_channel(topics.absolute(topics.TIP_POSE), TIP_POSE_TYPE, context)
-        with _client(server.port) as ws:
-            assert ws.subprotocol == 'foxglove.sdk.v1'
-            advertised = _advertised(ws, topics.absolute(topics.TIP_POSE), 5.0)
-            assert (advertised['encoding'], advertised['schemaName'],
-                    advertised['schemaEncoding']) == ('cdr', TIP_POSE_TYPE, 'ros2msg')
-            assert advertised['schema'] == message_definition(TIP_POSE_TYPE)
-            assert 'MSG: flexarm_msgs/PlanarPose' in advertised['schema']
-            sent = serialize_message(TipPose(pose=PlanarPose(x=1.45, y=-0.15), valid=True))
-            deadline = time.monotonic() + 5.0
-            ws.send(json.dumps({'op': 'subscribe', 'subscriptions': [
-                {'id': 7, 'channelId': advertised['id']}]}))
-            while not channel.has_sinks() and time.monotonic() < deadline:
-                time.sleep(0.01)
-            channel.log(sent, log_time=123)
-            frame = ws.recv(timeout=5.0)
-    finally:
-        server.stop()
+    context, port = served
+    channel = ros2_channel(topics.absolute(topics.TIP_POSE), TIP_POSE_TYPE, context)
+    sent = serialize_message(TipPose(pose=PlanarPose(x=1.45, y=-0.15), valid=True))
+    with _client(port, offer) as ws:
+        assert ws.subprotocol == agreed
+        assert json.loads(ws.recv(timeout=5.0))['op'] == 'serverInfo'
+        advertised = _advertised(ws, topics.absolute(topics.TIP_POSE), 5.0)
+        assert (advertised['encoding'], advertised['schemaName'],
+                advertised['schemaEncoding']) == ('cdr', TIP_POSE_TYPE, 'ros2msg')
+        assert advertised['schema'] == message_definition(TIP_POSE_TYPE)
+        assert 'MSG: flexarm_msgs/PlanarPose' in advertised['schema']
+        frame = _first_message(ws, channel, advertised, sent)
     assert frame[0] == MESSAGE_DATA and struct.unpack_from('<IQ', frame, 1) == (7, 123)
     assert frame[13:] == sent
+
+
+def test_a_camera_sized_message_passes_the_front_whole(served: tuple[Any, int]) -> None:
+    from flexarm_bringup.foxglove_node import ros2_channel
+
+    context, port = served
+    channel = ros2_channel(topics.absolute(topics.CAMERA_IMAGE), 'sensor_msgs/msg/Image',
+                           context)
+    sent = os.urandom(3 * 1024 * 1024)
+    with _client(port, [FORMER_NAME]) as ws:
+        advertised = _advertised(ws, topics.absolute(topics.CAMERA_IMAGE), 5.0)
+        assert _first_message(ws, channel, advertised, sent)[13:] == sent
+
+
+@pytest.mark.parametrize('offer', [None, ['foxglove.websocket.v2']])
+def test_other_offers_get_the_sdks_refusal(served: tuple[Any, int],
+                                           offer: list[str] | None) -> None:
+    with pytest.raises(InvalidStatus) as refused:
+        _client(served[1], offer)
+    assert refused.value.response.status_code == 400
+    assert b'sec-websocket-protocol' in refused.value.response.body
+
+
+def test_the_sdk_itself_still_refuses_the_former_name() -> None:
+    """The reason for the front: once this fails, the SDK accepts the former name itself."""
+    import foxglove
+
+    server = foxglove.start_server(host='127.0.0.1', port=0, context=foxglove.Context())
+    try:
+        with pytest.raises(InvalidStatus) as refused:
+            _client(server.port, [FORMER_NAME])
+        with _client(server.port, [SDK_NAME]) as ws:
+            assert ws.subprotocol == SDK_NAME
+    finally:
+        server.stop()
+    assert refused.value.response.status_code == 400
 
 
 def test_unknown_types_have_no_channel() -> None:
@@ -190,7 +253,8 @@ def test_up_with_foxglove_serves_tip_pose_to_a_websocket_client(
                 pytest.fail(f'flexarm up did not get ready: {log_path.read_text()}')
             time.sleep(0.1)
         assert f'ws://127.0.0.1:{port} ' in log_path.read_text()
-        with _client(port) as ws:
+        with _client(port, [FORMER_NAME]) as ws:
+            assert ws.subprotocol == FORMER_NAME
             channel = _advertised(ws, topics.absolute(topics.TIP_POSE), 30.0)
             assert (channel['encoding'], channel['schemaName']) == ('cdr', TIP_POSE_TYPE)
             assert not _served(ros_node, topics.TIP_POSE)
@@ -209,7 +273,7 @@ def test_up_with_foxglove_serves_tip_pose_to_a_websocket_client(
         shutil.rmtree(RUNS_DIR / name, ignore_errors=True)
     assert code == 0, log_path.read_text()
     tip = deserialize_message(payload, TipPose)
-    assert tip.header.frame_id == 'base_link'
+    assert tip.header.frame_id == PLANE_FRAME
     assert abs(log_time - time.time_ns()) < 120 * 10**9
     if tip.valid:
         assert 0.3 < tip.pose.x < 3.0 and math.isfinite(tip.pose.phi)

@@ -15,9 +15,10 @@ Decisions: every topic by default (``topics: ['*']``) except /camera/image_raw, 
 only with ``images: true`` (~9 MB/s at 30 Hz, and the camera rendering already shares the
 CPU). ROS subscriptions only for watched channels, as ``foxglove_bridge`` does: subscribed to
 every topic, the node took 17 % of a core at 10x real time with no client connected, 0.7 %
-this way. The server speaks the SDK's subprotocol ``foxglove.sdk.v1`` (the former
-``foxglove.websocket.v1`` under a new name, which this SDK refuses), as current Foxglove and
-``foxglove_bridge`` 3 do.
+this way. Clients connect to :class:`~flexarm_bringup.foxglove_front.SubprotocolFront`, which
+relays them to the SDK's server on a loopback port: the SDK speaks only ``foxglove.sdk.v1`` (as
+current Foxglove and ``foxglove_bridge`` 3 do) and refuses the same protocol under its former
+name ``foxglove.websocket.v1``, the only one older Lichtblick and roslibjs-foxglove offer.
 """
 from __future__ import annotations
 
@@ -30,6 +31,7 @@ from rclpy.node import Node
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 from flexarm_bringup.bag_schema import message_definition
+from flexarm_bringup.foxglove_front import SubprotocolFront
 from flexarm_bringup.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
@@ -71,13 +73,15 @@ class FoxgloveNode(Node):
         image_queue_depth = declare(self, 'image_queue_depth', 2,
                                     f'the same for {topics.CAMERA_IMAGE}', bounds=(1, 1000))
         self._sdk_context = foxglove.Context()
+        self.server = foxglove.start_server(name=SERVER_NAME, host='127.0.0.1', port=0,
+                                            context=self._sdk_context)
         try:
-            self.server = foxglove.start_server(name=SERVER_NAME, host=host, port=port,
-                                                context=self._sdk_context)
-        except RuntimeError as err:     # e.g. the port is taken
+            self.front = SubprotocolFront(host, port, self.server.port)
+        except OSError as err:          # e.g. the port is taken
+            self.server.stop()
             raise RuntimeError(f'cannot serve Foxglove on {host}:{port}: {err}') from None
         self.channels: dict[str, foxglove.Channel] = {}
-        self.get_logger().info(f'Foxglove WebSocket server on ws://{host}:{self.server.port} '
+        self.get_logger().info(f'Foxglove WebSocket server on ws://{host}:{self.front.port} '
                                f'serving {list(wanted)} (images: {images})')
         selection = TopicSelection(tuple(wanted), images, self.get_namespace())
         self.topics = RawTopicSubscriber(self, selection,
@@ -99,8 +103,10 @@ class FoxgloveNode(Node):
         return send
 
     def destroy_node(self) -> None:
-        """Stop the server (clients see it close), then the node."""
+        """Stop the server (clients see it close, through the front), its front, then the
+        node."""
         self.server.stop()
+        self.front.stop()
         super().destroy_node()
 
 

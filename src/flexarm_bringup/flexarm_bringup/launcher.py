@@ -15,7 +15,7 @@ import sys
 import threading
 import time
 from collections.abc import Iterable, Iterator, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import IO, Any
 
@@ -56,12 +56,27 @@ def _graph_file(path: Path | None) -> dict[str, Any]:
 
 
 def load_graph(robot: str = 'sim', path: Path | None = None) -> list[NodeSpec]:
-    """Node specs of the graph for a robot entry (``sim``, ``bridge``) of graph.yaml."""
+    """Node specs of the graph for a robot entry (``sim``, ``bridge``, ``ros2_control``) of
+    graph.yaml, each with the entry's settings it lists in ``robot_parameters``."""
     graph = _graph_file(path)
-    robots = graph['robots']
-    if robot not in robots:
-        raise ValueError(f'unknown robot {robot!r}; graph.yaml defines {sorted(robots)}')
-    return [NodeSpec.from_dict(d) for d in [*(robots[robot] or ()), *graph['nodes']]]
+    settings = robot_settings(robot, path)
+    return [_with_settings(d, settings)
+            for d in [*(graph['robots'][robot] or ()), *graph['nodes']]]
+
+
+def robot_settings(robot: str = 'sim', path: Path | None = None) -> dict[str, Any]:
+    """The parameters a robot entry gives its nodes (graph.yaml ``robot_settings``): the
+    graph's clock (``use_sim_time``) and how moves are sent (``motion.joint_commands``)."""
+    graph = _graph_file(path)
+    if robot not in graph['robots']:
+        raise ValueError(f'unknown robot {robot!r}; graph.yaml defines {sorted(graph["robots"])}')
+    return dict(graph['robot_settings'][robot])
+
+
+def _with_settings(d: Mapping[str, Any], settings: Mapping[str, Any]) -> NodeSpec:
+    spec = NodeSpec.from_dict(d)
+    wanted = d.get('robot_parameters') or ()
+    return replace(spec, parameters={**{k: settings[k] for k in wanted}, **spec.parameters})
 
 
 def load_optional(path: Path | None = None) -> dict[str, NodeSpec]:

@@ -52,6 +52,7 @@ from flexarm_bringup.launcher import (
     load_graph,
     load_optional,
     node_name,
+    robot_settings,
     ros_env,
     select_nodes,
     stop_all,
@@ -69,8 +70,8 @@ LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock 
 # Per-arm folders: (node's role, parameter).
 ARM_FOLDERS = (('learner', 'data_directory'), ('learner', 'model_directory'),
                ('vision', 'tool_calibration_file'), ('vision', 'camera_calibration_file'))
-# What "ready" means: (kind, name) pairs that must be discovered in the graph.
-READY_TOPICS = (topics.JOINT_STATES, topics.CLOCK, topics.TIP_POSE)
+# What "ready" means: what must be discovered in the graph (and /clock on sim time).
+READY_TOPICS = (topics.JOINT_STATES, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
 READY_SERVICES = (topics.TRAIN,)
 
@@ -85,6 +86,7 @@ class Graph:
                  namespace: str = '', only: tuple[str, ...] = ()) -> None:
         specs = load_graph(robot)
         extra = load_optional()
+        self._published, self._subscribed = ready_topics(robot_settings(robot))
         here = select_nodes([*(s.name for s in specs), *extra], only) if only else []
         optional = tuple(dict.fromkeys([*optional, *(n for n in here if n in extra)]))
         unknown = set(optional) - set(extra)
@@ -223,8 +225,11 @@ class Graph:
         found_services = {name for name, _ in node.get_service_names_and_types()}
         missing = [f'node {name}' for name in self.nodes if name not in found_nodes]
         missing += [f'remote node {name}' for name in self.remote if name not in found_nodes]
-        missing += [t for t in (topics.absolute(t, ns) for t in READY_TOPICS)
+        missing += [t for t in (topics.absolute(t, ns) for t in self._published)
                     if t not in found_topics or not node.count_publishers(t)]
+        missing += [f'a subscriber of {t}' for t in (topics.absolute(t, ns)
+                                                     for t in self._subscribed)
+                    if not node.count_subscribers(t)]
         missing += [a for a in (topics.absolute(a, ns) for a in READY_ACTIONS)
                     if f'{a}/_action/send_goal' not in found_services]
         missing += [s for s in (topics.absolute(s, ns) for s in READY_SERVICES)
@@ -280,6 +285,16 @@ class Graph:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def ready_topics(settings: Mapping[str, Any]) -> tuple[tuple[str, ...], tuple[str, ...]]:
+    """The topics a ready graph publishes and those it listens to, for a robot entry's
+    ``settings``: ``/clock`` only on sim time (a real arm's graph runs on wall time), and the
+    command topic of its ``motion.joint_commands`` (a controller executes what is sent)."""
+    clock = (topics.CLOCK,) if settings.get('use_sim_time') else ()
+    commands = (topics.JOINT_TRAJECTORY if settings.get('motion.joint_commands') == 'trajectory'
+                else topics.JOINT_COMMANDS)
+    return (*READY_TOPICS, *clock), (commands,)
 
 
 def arm_folders(parameters: Mapping[str, Mapping[str, Any]], namespace: str

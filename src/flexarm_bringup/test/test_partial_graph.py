@@ -6,7 +6,13 @@ import pytest
 
 from flexarm_bringup.launcher import select_nodes
 from flexarm_bringup.status_text import status_text
-from flexarm_bringup.supervisor import READY_ACTIONS, READY_SERVICES, READY_TOPICS, Graph
+from flexarm_bringup.supervisor import (
+    READY_ACTIONS,
+    READY_SERVICES,
+    READY_TOPICS,
+    Graph,
+    ready_topics,
+)
 from flexarm_core import topics
 
 CORE = ['flexarm_sim', 'flexarm_vision', 'flexarm_learner', 'flexarm_compensator']
@@ -43,9 +49,10 @@ class Probe:
 
     def __init__(self, nodes, lacking=()):
         self.nodes = nodes
-        names = [topics.absolute(n) for n in (*READY_TOPICS, *READY_SERVICES)]
+        names = [topics.absolute(n) for n in (*READY_TOPICS, topics.CLOCK, *READY_SERVICES)]
         names += [topics.absolute(a) + '/_action/send_goal' for a in READY_ACTIONS]
         self.names = [n for n in names if n not in lacking]
+        self.lacking = lacking
 
     def get_node_names_and_namespaces(self):
         return [(name, '/') for name in self.nodes]
@@ -57,6 +64,9 @@ class Probe:
 
     def count_publishers(self, name):
         return int(name in self.names)
+
+    def count_subscribers(self, name):
+        return int(name not in self.lacking)
 
 
 @pytest.fixture
@@ -87,6 +97,26 @@ def test_a_partial_graph_is_ready_only_with_the_remote_nodes_and_names_what_lack
 
     discovering(Probe(everything))
     graph.wait_ready(5.0)                                       # returns: ready
+
+
+def test_a_ros2_control_arm_is_ready_on_wall_time_with_a_trajectory_controller_listening(
+        tmp_path, discovering):
+    """No simulator, no bridge, no /clock: the integrator's controller_manager and camera
+    driver are the robot; the learner and the compensator send trajectories on wall time."""
+    assert ready_topics({'use_sim_time': True, 'motion.joint_commands': 'forward'}) == (
+        (*READY_TOPICS, topics.CLOCK), (topics.JOINT_COMMANDS,))
+    graph = Graph(17, tmp_path, robot='ros2_control')
+    assert not {'flexarm_sim', 'flexarm_bridge'} & set(graph.nodes)
+    for name in ('flexarm_learner', 'flexarm_compensator'):
+        assert graph.nodes[name].spec.parameters == {'use_sim_time': False,
+                                                     'motion.joint_commands': 'trajectory'}
+    trajectories = topics.absolute(topics.JOINT_TRAJECTORY)
+    discovering(Probe(list(graph.nodes), lacking=(topics.CLOCK, trajectories)))
+    with pytest.raises(TimeoutError) as refused:
+        graph.wait_ready(0.3)
+    assert str(refused.value).endswith(f'missing a subscriber of {trajectories}')
+    discovering(Probe(list(graph.nodes), lacking=(topics.CLOCK,)))
+    graph.wait_ready(5.0)                                       # ready without /clock
 
 
 def test_a_whole_graph_names_no_remote_part(tmp_path, discovering):

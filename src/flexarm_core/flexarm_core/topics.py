@@ -14,6 +14,8 @@ rest (the multi-robot convention of nav2: remap ``/tf:=tf`` for a viewer of one 
 
 JOINT_STATES = 'joint_states'                               # sensor_msgs/JointState
 JOINT_COMMANDS = 'forward_position_controller/commands'     # std_msgs/Float64MultiArray
+JOINT_TRAJECTORY = ('joint_trajectory_controller/'                # trajectory_msgs/
+                    'joint_trajectory')                         # JointTrajectory
 CLOCK = '/clock'                                            # rosgraph_msgs/Clock
 CAMERA_IMAGE = 'camera/image_raw'                           # sensor_msgs/Image (mono8)
 CAMERA_INFO = 'camera/camera_info'                          # sensor_msgs/CameraInfo, latched

@@ -1,10 +1,12 @@
 """The arm as the control nodes see it: joint commands out, joint states and tip poses in.
 
 Shared by the compensator and the learner, whose policies drive it as an
-:class:`~flexarm_control.execution.arm_motion.Arm`. Commands go to ros2_control's
-``/forward_position_controller/commands`` (one value per joint, in ``JOINT_NAMES`` order), so a
-real controller drops in. A move or a measurement waits in the arm's own time, the stamps of
-its joint states (sim time from the simulator): with several arms on one ``/clock`` a busy
+:class:`~flexarm_control.execution.arm_motion.Arm`. Commands follow one of ros2_controllers'
+contracts (:mod:`flexarm_control.ros.joint_commands`): a position set-point on
+``/forward_position_controller/commands`` or a trajectory on
+``/joint_trajectory_controller/joint_trajectory``, so a real controller drops in. A move or a
+measurement waits in the arm's own time, the stamps of its joint states (sim time from the
+simulator; a real arm's wall time): with several arms on one ``/clock`` a busy
 simulator following it can lag by seconds, and its arm is not late for that. Waits are also
 capped in wall time, so a stopped clock can never hang a goal. A wait also ends when
 ``/joint_states`` stop (the controller died or its link is down: nothing the arm does can be
@@ -37,8 +39,8 @@ from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
-from std_msgs.msg import Float64MultiArray
 
+from flexarm_control.ros.joint_commands import ForwardCommands, JointCommands
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import JOINT_NAMES
 from flexarm_core.measurement import Measurement, average_frames
@@ -124,7 +126,8 @@ def measurement_problem(frames: list[TipPose], wanted: int) -> str:
 class ArmInterface:
     """Joint commands, joint states and tip poses of one node, with bounded waits."""
 
-    def __init__(self, node: Node, frames_kept: int = 50) -> None:
+    def __init__(self, node: Node, frames_kept: int = 50,
+                 commands: JointCommands | None = None) -> None:
         self._node = node
         self._lock = threading.Lock()
         self._taken = Taken()
@@ -134,7 +137,7 @@ class ArmInterface:
         self._joints_heard: float | None = None   # [s, monotonic] when the newest was taken
         self._frames: deque[TipPose] = deque(maxlen=frames_kept)
         self.measurement_problem = ''     # why the last measure() failed ('' if it did not)
-        self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
+        self._commands = commands or ForwardCommands(node)
 
     @contextmanager
     def attached(self) -> Iterator[None]:
@@ -194,14 +197,16 @@ class ArmInterface:
 
     # --- commands ---------------------------------------------------------------------------
     def command(self, q: np.ndarray) -> None:
+        """Send the arm to ``q`` from where it is now."""
         if self._node.context.ok():       # a node that shuts down sends nothing any more
-            self._publisher.publish(Float64MultiArray(data=[float(v) for v in q]))
+            self._commands.send(self.positions(), np.asarray(q, dtype=float))
 
     def hold(self) -> np.ndarray | None:
-        """Stop the arm where it is: command the current joint positions."""
+        """Stop the arm where it is (the joints now)."""
         snapshot = self.joints
         if snapshot is not None:
-            self.command(snapshot.positions)
+            if self._node.context.ok():
+                self._commands.stop(snapshot.positions)
             return snapshot.positions
         return None
 

@@ -108,6 +108,7 @@ from flexarm_control.learning.model_health import HealthSettings, ModelHealth
 from flexarm_control.learning.model_store import payload_warning
 from flexarm_control.learning.predictors import Predictor, load_predictor
 from flexarm_control.ros.arm_interface import ArmInterface
+from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
@@ -142,7 +143,8 @@ class CompensatorNode(Node):
 
     def __init__(self, context: Context | None = None) -> None:
         super().__init__('flexarm_compensator', context=context)
-        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        arm = declare_tree(self, 'arm', 'config/arm.yaml')
+        self._geometry = ArmGeometry.from_dict(arm)
         self._compensator = Compensator(self._geometry, declare_tree(
             self, 'compensation', 'config/compensator.yaml'))
         self._pos_tol = declare(self, 'position_tolerance', 0.05e-3,
@@ -151,7 +153,8 @@ class CompensatorNode(Node):
                                 '[rad] default closed-loop angle tolerance', bounds=(0.0, 0.1))
         self._max_corrections = declare(
             self, 'max_corrections', 5, 'default CLOSED_LOOP corrective moves after the first')
-        motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
+        motion_tree = declare_tree(self, 'motion', 'config/motion.yaml')
+        motion = MotionSettings.from_dict(motion_tree)
         self._bounds = GoalBounds.nominal()
         reason = self._bounds.tolerance_error(self._pos_tol, self._ang_tol) or (
             None if 1 <= self._max_corrections <= self._bounds.max_corrections else
@@ -181,7 +184,7 @@ class CompensatorNode(Node):
         self._payload: float | None = None     # [kg] from /payload; None until it comes
 
         self._group = ReentrantCallbackGroup()   # in parallel under a multi-threaded executor
-        self._arm = ArmInterface(self)
+        self._arm = ArmInterface(self, commands=joint_commands(self, motion_tree, arm))
         self._motion = ArmMotion(self._arm, self._geometry, motion)
         self._model: tuple[Predictor, ModelInfo] | None = None     # swapped whole
         self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)

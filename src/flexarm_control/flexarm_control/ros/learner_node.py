@@ -103,6 +103,7 @@ from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_o
 from flexarm_control.learning.training import Screening, TrainingWorker
 from flexarm_control.learning.training_job import train_and_save, warm_up
 from flexarm_control.ros.arm_interface import ArmInterface
+from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
@@ -152,7 +153,8 @@ class LearnerNode(Node):
                                   bounds=(1, 100000))
         retries = declare(self, 'measurement_retries', 2,
                           'extra measurement attempts before a pose is skipped', bounds=(0, 100))
-        motion = MotionSettings.from_dict(declare_tree(self, 'motion', 'config/motion.yaml'))
+        motion_tree = declare_tree(self, 'motion', 'config/motion.yaml')
+        motion = MotionSettings.from_dict(motion_tree)
         self._coverage = np.array(declare(
             self, 'coverage_margin', [0.03, 0.03, 0.0436],
             '[m, m, rad] learning poses cover the region grown by this on every side'))
@@ -170,7 +172,7 @@ class LearnerNode(Node):
             raise ValueError(f'default_region {self._default_region} is not in regions')
 
         self._collecting = threading.Lock()
-        self._arm = ArmInterface(self)
+        self._arm = ArmInterface(self, commands=joint_commands(self, motion_tree, arm))
         self._collector = Collector(
             ArmMotion(self._arm, self._geometry, motion), self._geometry, retries,
             clock=lambda: self.get_clock().now().nanoseconds * 1e-9,

@@ -4,10 +4,11 @@
 What it offers is what a controller_manager with config/controllers.yaml and a camera driver
 would: ``/joint_states`` (joint_state_broadcaster, 50 Hz), ``/joint_trajectory_controller/
 joint_trajectory`` (joint_trajectory_controller's topic: a new trajectory replaces the one
-running, starting from where the reference is; the empty one holds the arm where it is) and
-the tip camera's ``Image`` and latched ``CameraInfo`` (5 Hz). Between the trajectory's points
-the reference is the cubic through their positions and velocities, as the controller's
-spline; the joints follow it with the hardware's own tracking error, a first-order lag of
+running, from where the reference is and how fast it goes; the empty one holds the arm where
+it is) and the tip camera's ``Image`` and latched ``CameraInfo`` (5 Hz). Between the
+trajectory's points the reference is the cubic through their positions and velocities
+(:class:`~flexarm_core.joint_trajectory.SampledTrajectory`, the controller's spline without
+accelerations); the joints follow it with the hardware's own tracking error, a first-order lag of
 ``TRACKING_LAG`` s. The tip is the simulated real arm's deflected pose at the joints (the
 simulator's plant, config/sim.yaml), seen by an ideal camera. Run as a node process::
 
@@ -27,9 +28,11 @@ from trajectory_msgs.msg import JointTrajectory
 
 from flexarm_core import topics
 from flexarm_core.frames import BASE_FRAME
+from flexarm_core.joint_trajectory import SampledTrajectory
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry
 from flexarm_core.node_main import run
 from flexarm_core.params import load_config
+from flexarm_core.trajectory_message import trajectory_from
 from flexarm_sim.camera import CameraRenderer
 from flexarm_sim.plant import configured_plant
 from flexarm_vision.camera_info import camera_info
@@ -40,37 +43,6 @@ CAMERA_EVERY = 10      # updates per camera frame: 5 Hz
 TRACKING_LAG = 0.05    # [s] of the joints behind the reference
 CAMERA_FRAME = 'tip_camera_optical_frame'
 START = np.array([0.0, 0.6, -0.5, -0.5])
-
-
-def hermite(t: float, t0: float, t1: float, p0: np.ndarray, v0: np.ndarray, p1: np.ndarray,
-            v1: np.ndarray) -> np.ndarray:
-    """The cubic from (p0, v0) at ``t0`` to (p1, v1) at ``t1``, at ``t``."""
-    h = t1 - t0
-    s = min(max((t - t0) / h, 0.0), 1.0) if h > 0 else 1.0
-    return ((2 * s ** 3 - 3 * s ** 2 + 1) * p0 + (s ** 3 - 2 * s ** 2 + s) * h * v0
-            + (-2 * s ** 3 + 3 * s ** 2) * p1 + (s ** 3 - s ** 2) * h * v1)
-
-
-class Trajectory:
-    """A received trajectory, from the reference where it was when it came."""
-
-    def __init__(self, msg: JointTrajectory, received: float, start: np.ndarray) -> None:
-        order = [list(msg.joint_names).index(n) for n in JOINT_NAMES]
-        self.received = received
-        self.times = [0.0] + [p.time_from_start.sec + 1e-9 * p.time_from_start.nanosec
-                              for p in msg.points]
-        zero = np.zeros(len(JOINT_NAMES))
-        self.positions = [start] + [np.asarray(p.positions)[order] for p in msg.points]
-        self.velocities = [zero] + [np.asarray(p.velocities)[order] if len(p.velocities)
-                                    else zero for p in msg.points]
-
-    def at(self, now: float) -> np.ndarray:
-        t = now - self.received
-        i = next((k for k, end in enumerate(self.times) if end >= t), len(self.times) - 1)
-        if i == 0:
-            return self.positions[0]
-        return hermite(t, self.times[i - 1], self.times[i], self.positions[i - 1],
-                       self.velocities[i - 1], self.positions[i], self.velocities[i])
 
 
 class Ros2ControlStandIn(Node):
@@ -85,7 +57,8 @@ class Ros2ControlStandIn(Node):
                                  Header(frame_id=CAMERA_FRAME))
         self._rng = np.random.default_rng(5)
         self._q = START.copy()
-        self._reference: np.ndarray | Trajectory = START.copy()
+        self._trajectory: tuple[SampledTrajectory, float] | None = None   # and when it came
+        self._held = START.copy()         # the reference without a trajectory
         self._tip = self._plant.pose(self._q)
         self._ticks = 0
         self._joints = self.create_publisher(JointState, topics.JOINT_STATES, 10)
@@ -97,19 +70,24 @@ class Ros2ControlStandIn(Node):
                                  10)
         self.create_timer(1.0 / RATE, self._update)
 
-    def _reference_now(self) -> np.ndarray:
-        ref = self._reference
-        return ref.at(time.monotonic()) if isinstance(ref, Trajectory) else ref
+    def _reference_now(self) -> tuple[np.ndarray, np.ndarray]:
+        if self._trajectory is None:
+            return self._held, np.zeros_like(self._held)
+        trajectory, since = self._trajectory
+        return trajectory.at(time.monotonic() - since)
 
     def _on_trajectory(self, msg: JointTrajectory) -> None:
-        here = self._reference_now()
-        self._reference = (Trajectory(msg, time.monotonic(), here) if msg.points
-                           else self._q.copy())
+        position, velocity = self._reference_now()
+        if msg.points:
+            trajectory = trajectory_from(msg).starting(position, velocity)
+            self._trajectory = (trajectory, time.monotonic())
+        else:
+            self._trajectory, self._held = None, self._q.copy()
 
     def _update(self) -> None:
         dt = 1.0 / RATE
         before = self._q.copy()
-        self._q += (self._reference_now() - self._q) * (1.0 - math.exp(-dt / TRACKING_LAG))
+        self._q += (self._reference_now()[0] - self._q) * (1.0 - math.exp(-dt / TRACKING_LAG))
         stamp = self.get_clock().now().to_msg()
         self._joints.publish(JointState(
             header=Header(stamp=stamp, frame_id=BASE_FRAME), name=list(JOINT_NAMES),

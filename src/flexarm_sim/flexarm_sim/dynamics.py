@@ -1,8 +1,10 @@
 """Motion of the simulated arm: rate-limited joints and the ringing of the flexible tip.
 
 * Joints: each moves to its commanded position along a time-optimal trapezoidal profile with
-  the Table 1 speed and a configured acceleration; the joint encoders (``/joint_states``) see
-  exactly this motion.
+  the Table 1 speed and a configured acceleration (the drive's own profile for a set-point),
+  or along a commanded trajectory (:meth:`ArmDynamics.follow`: a joint trajectory
+  controller's reference, tracked exactly; the trajectory keeps within the limits); the joint
+  encoders (``/joint_states``) see exactly this motion.
 * Tip: the actual pose is the plant's static pose at the current joints plus a vibration z,
   one damped mode per pose coordinate driven by the acceleration of the static pose (base
   excitation): z'' + 2ζω z' + ω² z = −p̈_static. ω is the Table 6 natural frequency for the
@@ -34,6 +36,7 @@ from typing import Any
 
 import numpy as np
 
+from flexarm_core.joint_trajectory import SampledTrajectory
 from flexarm_core.kinematics import ArmGeometry, command_error, wrap_angle
 from flexarm_core.natural_frequency import NaturalFrequency
 from flexarm_sim.errors import ArmErrors, Move
@@ -84,13 +87,24 @@ class ArmDynamics:
         self._z = np.zeros(3)
         self._zd = np.zeros(3)
         self._rest: tuple[Move, Plant] | None = None   # quiet since: until either changes
+        self._trajectory: tuple[SampledTrajectory, float] | None = None   # and its start time
 
     def command(self, target: np.ndarray) -> None:
         """New joint target (already checked against the limits by the caller)."""
+        self._trajectory = None
         self._move = self.errors.plan(self._move, self._q, np.asarray(target, dtype=float))
+
+    def follow(self, trajectory: SampledTrajectory) -> None:
+        """Follow ``trajectory`` from now (its points already checked against the limits),
+        from where the joints are and how fast they go."""
+        trajectory = trajectory.starting(self._q, self._qd)
+        self._move = self.errors.plan(self._move, self._q, trajectory.end.copy())
+        self._trajectory = (trajectory, self._time)
+        self._rest = None
 
     def hold(self) -> None:
         """Stop where the arm is now (decelerating at the configured rate)."""
+        self._trajectory = None
         q, qd, a = self._q, self._qd, self._amax
         self._move = self.errors.plan(self._move, q, q + np.sign(qd) * qd * qd / (2 * a))
 
@@ -171,6 +185,13 @@ class ArmDynamics:
         return pose
 
     def _advance_joints(self, dt: float, target: np.ndarray) -> None:
+        followed = self._trajectory
+        if followed is not None:
+            trajectory, since = followed
+            self._q, self._qd = trajectory.at(self._time + dt - since)
+            if self._time + dt - since >= trajectory.duration:
+                self._q, self._trajectory = trajectory.end.copy(), None
+            return
         error = target - self._q
         # Time-optimal speed toward the target: limited by speed and by braking distance.
         desired = np.sign(error) * np.minimum(self._vmax, np.sqrt(2 * self._amax * np.abs(error)))

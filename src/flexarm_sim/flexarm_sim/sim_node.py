@@ -1,7 +1,9 @@
 """Simulated robot controller: the flexible arm behind ros2_control's topic contract.
 
 Publishes ``/joint_states`` and the simulation ``/clock``, executes
-``/forward_position_controller/commands``, renders the tip camera
+``/forward_position_controller/commands`` (a set-point: the drive's own profile to it) and
+``/joint_trajectory_controller/joint_trajectory`` (followed in simulated time from its arrival;
+the empty trajectory holds the arm), each checked against the joint limits, renders the tip camera
 (``/camera/image_raw`` + ``/camera/camera_info``) at the actual, deflected and vibrating tip
 pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for evaluation only.
 
@@ -66,6 +68,7 @@ from rclpy.timer import Timer
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Float64, Float64MultiArray, Header
+from trajectory_msgs.msg import JointTrajectory
 
 from flexarm_core import liveness, topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
@@ -75,6 +78,7 @@ from flexarm_core.health_report import OK, CommandLog, Status, status
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.trajectory_message import trajectory_from
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_sim.clock_share import OWN, ClockShare, yields
 from flexarm_sim.dynamics import ArmDynamics, ArmState
@@ -206,6 +210,8 @@ class SimNode(Node):
         self._js_pub = self.create_publisher(JointState, topics.JOINT_STATES, 10)
         self.create_subscription(Float64MultiArray, topics.JOINT_COMMANDS,
                                  lambda msg: self.apply_command(list(msg.data)), 10)
+        self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY,
+                                 self.apply_trajectory, 10)
 
     def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
         if not self._js_pub.get_subscription_count():
@@ -222,6 +228,27 @@ class SimNode(Node):
             self.get_logger().error(f'joint command rejected, arm not moved: {reason}')
             return reason
         self._dynamics.command(np.asarray(values, dtype=float))
+        return None
+
+    def apply_trajectory(self, msg: JointTrajectory) -> str | None:
+        """Follow a joint trajectory (none: hold); the reason it was refused (arm not moved),
+        or None."""
+        if not msg.points:
+            self._commands.record(None)
+            self.hold()
+            return None
+        trajectory, reason = None, None
+        try:
+            trajectory = trajectory_from(msg)
+            reason = next(filter(None, (command_error(q.tolist(), self._geometry)
+                                        for q in trajectory.positions)), None)
+        except ValueError as error:
+            reason = str(error)
+        self._commands.record(reason)
+        if reason is not None:
+            self.get_logger().error(f'joint trajectory rejected, arm not moved: {reason}')
+            return reason
+        self._dynamics.follow(trajectory)
         return None
 
     def hold(self) -> None:

@@ -140,3 +140,31 @@ def test_a_rest_whose_ringing_has_ended_stays_exactly_still_until_something_chan
     arm.set_payload(5.0)                      # a load picked up at rest: the tip sags, rings
     arm.step(0.01)
     assert np.any(arm.state.tip_velocity) and arm.state.tip_pose[1] != still.tip_pose[1]
+
+
+def test_a_followed_trajectory_is_tracked_exactly_then_held_at_its_end(config):
+    from flexarm_core.joint_trajectory import SampledTrajectory
+
+    arm = make(config)
+    start = np.array(START)
+    end = start + np.array([0.1, 0.0, -0.05, 0.0])
+    times = np.arange(1, 31) * 0.1                      # 3 s, a smooth cosine ramp
+    s = (1 - np.cos(np.pi * times / 3.0)) / 2
+    sd = np.pi / 6.0 * np.sin(np.pi * times / 3.0)
+    trajectory = SampledTrajectory.from_points(
+        start, times, start + np.outer(s, end - start), np.outer(sd, end - start))
+    arm.step(0.01)
+    arm.follow(trajectory)
+    for _ in range(150):
+        arm.step(0.01)
+    expected = start + (1 - math.cos(math.pi * 1.5 / 3.0)) / 2 * (end - start)
+    assert arm.state.joint_positions == pytest.approx(expected, abs=1e-4)
+    assert arm.state.is_moving
+    for _ in range(160):
+        arm.step(0.01)
+    assert arm.state.joint_positions == pytest.approx(end, abs=1e-15)
+    assert not arm.state.is_moving and not np.any(arm.state.joint_velocities)
+    arm.follow(trajectory)                    # a new one starts where the joints are
+    arm.hold()                                # and a hold ends it
+    arm.step(0.01)
+    assert arm.state.joint_positions == pytest.approx(end, abs=1e-12)

@@ -12,16 +12,22 @@ Shaping (:func:`shape_move`): s is convolved with the shaper's impulses, s_shape
 Σ A_j s(t − t_j), evaluated exactly at each sample (no discrete convolution error). Its speed
 and acceleration are averages of the unshaped ones with the positive weights A_j summing to 1:
 never beyond the limits. The move lasts the profile's duration plus the shaper's.
+
+:class:`MovePlanner` plans a node's moves so: the limits and the nominal tip mode from the
+robot description (config/arm.yaml), the shaper from config/motion.yaml ``motion.shaping``.
 Pure numpy.
 """
 from __future__ import annotations
 
 import math
+from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from flexarm_control.execution.shaping import Shaper
+from flexarm_core.natural_frequency import NaturalFrequency
 
 
 @dataclass(frozen=True)
@@ -105,3 +111,55 @@ def shape_move(profile: JointProfile, shaper: Shaper, period: float) -> ShapedMo
     positions = profile.start + np.outer(s, delta)
     positions[-1] = profile.end          # exactly the target, not within rounding of it
     return ShapedMove(times, positions, np.outer(sd, delta), np.outer(sdd, delta), shaper)
+
+
+@dataclass(frozen=True)
+class MovePlanner:
+    """Plans a move's shaped joint reference (pure): the profile within ``velocity`` and
+    ``acceleration``, the ``shaping`` shaper at the tip mode of ``payload`` [kg] and the target's
+    No.2 arm length, sampled every ``period`` s."""
+
+    velocity: np.ndarray
+    acceleration: np.ndarray
+    period: float
+    shaping: str
+    mode: NaturalFrequency
+    damping_ratio: float
+
+    @classmethod
+    def from_dicts(cls, motion: Mapping[str, Any], arm: Mapping[str, Any]) -> MovePlanner:
+        tip = arm['tip_mode']
+        planner = cls(np.asarray(arm['velocity'], dtype=float),
+                      np.asarray(arm['acceleration'], dtype=float),
+                      float(motion['trajectory_period']), str(motion['shaping']),
+                      NaturalFrequency.from_dict(tip['natural_frequency']),
+                      float(tip['damping_ratio']))
+        Shaper.design(planner.shaping, 1.0, planner.damping_ratio)     # ValueError if unknown
+        if not planner.period > 0:
+            raise ValueError(f'motion.trajectory_period must be > 0, got {planner.period}')
+        return planner
+
+    def shaper(self, payload: float, target: np.ndarray) -> Shaper:
+        return Shaper.design(self.shaping, self.mode(payload, float(target[1])),
+                             self.damping_ratio)
+
+    def plan(self, start: np.ndarray, target: np.ndarray, payload: float) -> ShapedMove:
+        """The move from ``start`` to ``target``; at least one point after the start."""
+        shaper = self.shaper(payload, target)
+        profile = plan_profile(start, target, self.velocity, self.acceleration)
+        if not profile.duration:                # already there: one point, to hold it
+            return self._still(target, self.period, shaper)
+        return shape_move(profile, shaper, self.period)
+
+    def stop(self, here: np.ndarray) -> ShapedMove:
+        """Back to ``here`` at rest, from wherever the joints are and however fast they go:
+        in the time the cubic from full speed back to its start takes within the acceleration
+        limits (it starts braking at 4 v / T)."""
+        stop_time = float(4 * np.max(self.velocity / self.acceleration))
+        return self._still(here, stop_time, Shaper.design('off', 1.0, 0.0))
+
+    @staticmethod
+    def _still(at: np.ndarray, after: float, shaper: Shaper) -> ShapedMove:
+        still = np.array([at, at], dtype=float)
+        return ShapedMove(np.array([0.0, after]), still, np.zeros_like(still),
+                          np.zeros_like(still), shaper)

@@ -184,7 +184,8 @@ class CompensatorNode(Node):
         self._payload: float | None = None     # [kg] from /payload; None until it comes
 
         self._group = ReentrantCallbackGroup()   # in parallel under a multi-threaded executor
-        self._arm = ArmInterface(self, commands=joint_commands(self, motion_tree, arm))
+        self._arm = ArmInterface(self, commands=joint_commands(
+            self, motion_tree, arm, lambda: self._payload or 0.0))
         self._motion = ArmMotion(self._arm, self._geometry, motion)
         self._model: tuple[Predictor, ModelInfo] | None = None     # swapped whole
         self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)

@@ -172,7 +172,8 @@ class LearnerNode(Node):
             raise ValueError(f'default_region {self._default_region} is not in regions')
 
         self._collecting = threading.Lock()
-        self._arm = ArmInterface(self, commands=joint_commands(self, motion_tree, arm))
+        self._arm = ArmInterface(self, commands=joint_commands(
+            self, motion_tree, arm, lambda: self._payload))
         self._collector = Collector(
             ArmMotion(self._arm, self._geometry, motion), self._geometry, retries,
             clock=lambda: self.get_clock().now().nanoseconds * 1e-9,

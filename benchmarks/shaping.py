@@ -206,7 +206,7 @@ def main() -> None:
         out['settle_s_p95_off'] = off['settle_s_p95']
         out['settle_after_stop_s_p95_off'] = off['settle_after_stop_s_p95']
     if args.json:
-        print(json.dumps(out, indent=1))
+        print(json.dumps(out))
     else:
         print(json.dumps({k: v for k, v in out.items() if k != 'shapers'}, indent=1))
 

@@ -168,7 +168,8 @@ def main() -> None:
     parser.add_argument('--shapers', default=','.join(KINDS))
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
-    default = load_config('motion.yaml')['motion']['shaping']
+    nominal = load_config('arm.yaml', 'motion.yaml')
+    default = MovePlanner.from_dicts(nominal['motion'], nominal['arm']).shaping   # auto: its pick
     out: dict[str, Any] = {'default': default, 'payload_kg': args.payload, 'shapers': {}}
     kinds = args.shapers.split(',')
     for kind in kinds:

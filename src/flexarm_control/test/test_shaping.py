@@ -135,3 +135,15 @@ def test_shaping_leaves_the_residual_its_vibration_ratio_says(frequency):
         assert residual['zvd', ratio] < 0.06 * residual['off', ratio]
         assert residual['ei', ratio] < 0.06 * residual['off', ratio]
         assert residual['zv', ratio] > 3 * max(residual['zvd', ratio], residual['ei', ratio])
+
+
+def test_the_shipped_shaper_is_the_one_chosen_for_a_tap_test_s_frequency_uncertainty():
+    from flexarm_control.execution.shaped_move import MovePlanner
+    from flexarm_core.params import load_config
+
+    config = load_config('arm.yaml', 'motion.yaml')
+    assert config['motion']['shaping'] == 'auto'
+    planner = MovePlanner.from_dicts(config['motion'], config['arm'])
+    assert planner.shaping == 'zvd'                       # ±15 %: ZV would leave 20 %
+    exact = dict(config['motion'], shaping='zv')
+    assert MovePlanner.from_dicts(exact, config['arm']).shaping == 'zv'

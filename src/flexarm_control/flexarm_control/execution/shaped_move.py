@@ -14,7 +14,9 @@ and acceleration are averages of the unshaped ones with the positive weights A_j
 never beyond the limits. The move lasts the profile's duration plus the shaper's.
 
 :class:`MovePlanner` plans a node's moves so: the limits and the nominal tip mode from the
-robot description (config/arm.yaml), the shaper from config/motion.yaml ``motion.shaping``.
+robot description (config/arm.yaml), the shaper from config/motion.yaml ``motion.shaping``
+(``auto``: the shortest that keeps the ringing within 5 % over ±``frequency_uncertainty`` of
+the tabulated frequency, :func:`~flexarm_control.execution.shaping.choose_shaper`).
 Pure numpy.
 """
 from __future__ import annotations
@@ -26,7 +28,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.execution.shaping import Shaper
+from flexarm_control.execution.shaping import Shaper, choose_shaper
 from flexarm_core.natural_frequency import NaturalFrequency
 
 
@@ -129,11 +131,13 @@ class MovePlanner:
     @classmethod
     def from_dicts(cls, motion: Mapping[str, Any], arm: Mapping[str, Any]) -> MovePlanner:
         tip = arm['tip_mode']
+        damping, kind = float(tip['damping_ratio']), str(motion['shaping'])
+        if kind == 'auto':      # the choice depends on the frequency's ratio alone
+            kind = choose_shaper(1.0, damping, float(motion['frequency_uncertainty'])).kind
         planner = cls(np.asarray(arm['velocity'], dtype=float),
                       np.asarray(arm['acceleration'], dtype=float),
-                      float(motion['trajectory_period']), str(motion['shaping']),
-                      NaturalFrequency.from_dict(tip['natural_frequency']),
-                      float(tip['damping_ratio']))
+                      float(motion['trajectory_period']), kind,
+                      NaturalFrequency.from_dict(tip['natural_frequency']), damping)
         Shaper.design(planner.shaping, 1.0, planner.damping_ratio)     # ValueError if unknown
         if not planner.period > 0:
             raise ValueError(f'motion.trajectory_period must be > 0, got {planner.period}')

@@ -10,10 +10,9 @@ the deflection the model in use predicts there, × ``arrow_scale``, from the rig
 The array is republished at most once a second (wall clock) when something changed.
 
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second). Every marker of
-an array, and ``/diagnostics``, carries the time of the newest data shown (the last sample's
-stamp, the model's; :mod:`flexarm_core.stamps`), in the graph's time, sim or wall. An array
-with no data yet (the regions only, from config) is stamped 0: ROS's "no time yet", which rviz
-and Foxglove draw with the newest transform.
+an array, and ``/diagnostics``, carry the graph's time when they are published (the newest
+``/clock``, taken without waking the node, or wall time in a graph without one:
+:class:`flexarm_core.stamps.GraphTime`); an array waits until that time is known.
 
 Health on ``/diagnostics`` (``flexarm_scene: markers``): WARN when the model in use could not
 be loaded for the field, else OK, with the samples and arrows drawn.
@@ -36,7 +35,7 @@ from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.regions import regions_from_dict
-from flexarm_core.stamps import DataTime
+from flexarm_core.stamps import GraphTime
 from flexarm_description.chain import BASE_FRAME
 from flexarm_description.scene import (
     deflection_arrows,
@@ -87,24 +86,22 @@ class SceneNode(Node):
         self._arrows: list[tuple[np.ndarray, np.ndarray]] = []
         self._changed = True
         self._field_problem = ''
-        self._time = DataTime()
+        self._graph_time = GraphTime(self)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._pub = self.create_publisher(MarkerArray, topics.SCENE_MARKERS, latched)
         self.create_subscription(DeflectionSample, topics.SAMPLES, self._on_sample, 100)
         self.create_subscription(ModelInfo, topics.ACTIVE_MODEL, self._on_model, latched)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self.create_timer(1.0, self._publish, clock=Clock(clock_type=ClockType.STEADY_TIME))
-        DiagnosticsPublisher(self, self._statuses, stamp=self._time.stamp)
+        DiagnosticsPublisher(self, self._statuses, stamp=self._graph_time.stamp)
 
     def _on_sample(self, msg: DeflectionSample) -> None:
         pose = msg.measured_pose
-        self._time.saw(msg.stamp)
         self._samples = (self._samples + [(pose.x, pose.y, pose.phi)])[-self._max_samples:]
         self._changed = True
 
     def _on_model(self, msg: ModelInfo) -> None:
         self._model = msg
-        self._time.saw(msg.stamp)
         self._update_field()
 
     def _on_payload(self, msg: Float64) -> None:
@@ -141,10 +138,11 @@ class SceneNode(Node):
                        f'{len(self._samples)} samples, {field}', values)]
 
     def _publish(self) -> None:
-        if not self._changed:
+        stamp = self._graph_time.stamp()
+        if not self._changed or not (stamp.sec or stamp.nanosec):
             return
         self._changed = False
-        header = Header(stamp=self._time.stamp(), frame_id=BASE_FRAME)
+        header = Header(stamp=stamp, frame_id=BASE_FRAME)
         markers = [Marker(header=header, action=Marker.DELETEALL)]
         for i, region in enumerate(self._regions):
             markers.append(_marker(header, 'regions', i, Marker.LINE_STRIP, REGION_COLOUR,

@@ -1,15 +1,23 @@
-"""The time of a node's data: the stamp for what a node without a clock of its own says.
+"""The time of a node's data, and the graph's time: stamps for a node without ``/clock``.
 
 Nodes that skip the ``/clock`` subscription (each ``/clock`` is a wake-up of the node) cannot
 read sim time from their clock, and their wall clock mixed into a sim-time graph steps back
-and forth by decades. They stamp what they say with the newest stamp of the data they handled
-instead, so it is in the graph's time (sim or wall, whichever the data are in) and never steps
-back. Before the first data the stamp is 0: ROS's "no time yet", what a sim-time clock reads
-before ``/clock``; for tf2, a static transform holds at every time whatever its stamp.
+and forth by decades. What they derive from data keeps the data's stamp; what is about now (a
+node's health on ``/diagnostics``, the scene's markers) is stamped with the graph's time
+(:class:`GraphTime`): the newest ``/clock``, taken without waking the node, or the node's own
+clock where the graph has no ``/clock`` (a real arm's wall time). :class:`DataTime` keeps the
+newest stamp seen (0 before any: ROS's "no time yet", what a sim-time clock reads before
+``/clock``; for tf2, a static transform holds at every time whatever its stamp).
 """
 from __future__ import annotations
 
 from builtin_interfaces.msg import Time
+from rclpy.node import Node
+from rclpy.qos import QoSProfile
+from rosgraph_msgs.msg import Clock
+
+from flexarm_core import topics
+from flexarm_core.taken import Taken, take
 
 NS = 1_000_000_000
 CDR_STAMP = slice(4, 12)    # serialized: 4-byte CDR encapsulation, then the stamp (8 bytes)
@@ -47,3 +55,23 @@ class DataTime:
         """The newest stamp seen, as a message field."""
         sec, nanosec = divmod(self.ns, NS)
         return Time(sec=sec, nanosec=nanosec)
+
+
+class GraphTime:
+    """The graph's time now for a node that does not follow ``/clock``: the newest ``/clock``
+    (at most one ``/clock`` period old), 0 while the graph has a ``/clock`` not yet heard, the
+    node's own clock in a graph without one."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._clock = node.create_subscription(Clock, topics.CLOCK, lambda _: None,
+                                               QoSProfile(depth=1), callback_group=Taken(),
+                                               raw=True)
+        self._newest = DataTime()
+
+    def stamp(self) -> Time:
+        while (raw := take(self._clock)) is not None:
+            self._newest.saw_ns(raw_stamp_ns(raw))
+        if self._newest.ns or self._node.count_publishers(topics.CLOCK):
+            return self._newest.stamp()
+        return self._node.get_clock().now().to_msg()

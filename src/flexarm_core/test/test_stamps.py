@@ -1,4 +1,5 @@
 """A node's data time: the newest stamp seen, from messages or their serialized bytes."""
+import pytest
 from builtin_interfaces.msg import Time
 from rclpy.serialization import serialize_message
 from rosgraph_msgs.msg import Clock
@@ -26,3 +27,24 @@ def test_the_stamp_of_a_serialized_clock_or_header_message() -> None:
     assert raw_stamp_ns(serialize_message(joints)) == 3_000_000_007
     big_endian = b'\x00\x00\x00\x00' + (2).to_bytes(4, 'big') + (9).to_bytes(4, 'big')
     assert raw_stamp_ns(big_endian) == 2_000_000_009
+
+
+@pytest.mark.node
+def test_graph_time_is_the_newest_clock_and_the_node_s_own_clock_without_one(ros_node,
+                                                                             wait_for) -> None:
+    """A node off /clock stamps what is about now with the graph's clock: wall time where
+    nobody publishes /clock, else the newest /clock (0 until one is heard), taken unasked."""
+    import time
+
+    from flexarm_core import topics
+    from flexarm_core.stamps import GraphTime
+
+    graph = GraphTime(ros_node)
+    assert abs(to_ns(graph.stamp()) * 1e-9 - time.time()) < 5.0          # no /clock: wall
+    clock = ros_node.create_publisher(Clock, topics.CLOCK, 10)
+    wait_for(lambda: ros_node.count_publishers(topics.CLOCK), 10.0, 'the /clock publisher')
+    assert to_ns(graph.stamp()) == 0                    # a /clock in the graph, none heard yet
+    for sec in (41, 42):
+        clock.publish(Clock(clock=Time(sec=sec, nanosec=5)))
+    wait_for(lambda: graph.stamp().sec == 42, 10.0, 'the newest /clock')
+    assert graph.stamp() == Time(sec=42, nanosec=5)

@@ -24,9 +24,9 @@ has one. Decision: watching the arm (rviz, Foxglove, a recorder) asks for the me
 so the vision node and the camera run while someone watches; an unwatched graph measures only
 when a node measures.
 
-Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); what it says
-is in the time of its data (:mod:`flexarm_core.stamps`): ``/tf`` and the tips with the stamp
-of their message, ``/diagnostics`` with the newest stamp handled, ``/tf_static`` with 0 (it is
+Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second): ``/tf`` and the
+tips carry the stamp of their message, ``/diagnostics`` the graph's time (the newest ``/clock``
+taken when they are published, :class:`flexarm_core.stamps.GraphTime`), ``/tf_static`` 0 (it is
 published at start, before any data; tf2 holds a static transform at every time, and a
 robot_state_publisher on sim time stamps it so before ``/clock``).
 
@@ -58,7 +58,7 @@ from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.scene_msgs import pose_stamped
-from flexarm_core.stamps import DataTime
+from flexarm_core.stamps import GraphTime
 from flexarm_description.chain import (
     BASE_FRAME,
     Transform,
@@ -123,7 +123,6 @@ class StatePublisher(Node):
         static = [*fixed_transforms(self._joints), plane_transform()]
         self.create_publisher(TFMessage, topics.TF_STATIC, latched).publish(TFMessage(
             transforms=[transform_msg(t, Header()) for t in static]))
-        self._time = DataTime()
         self._counts = {'tf': 0, 'measured': 0, 'true': 0}
         self._last_joints: float | None = None      # monotonic time of the last joint state
         self._joint_problem = ''
@@ -143,7 +142,7 @@ class StatePublisher(Node):
                 self._on_tip, name=name, publisher=publisher, frame=frame), 10)
         self._tf = self.create_publisher(TFMessage, topics.TF, 100, event_callbacks=(
             PublisherEventCallbacks(matched=on_matched(topics.TF, *demands.values()))))
-        DiagnosticsPublisher(self, self._statuses, stamp=self._time.stamp)
+        DiagnosticsPublisher(self, self._statuses, stamp=GraphTime(self).stamp)
 
     def _watch(self, name: str, wanted: bool) -> None:
         """Subscribe input ``name`` while what it makes is watched."""
@@ -165,7 +164,6 @@ class StatePublisher(Node):
             self.get_logger().warn(self._joint_problem, throttle_duration_sec=10.0)
             return
         self._joint_problem = ''
-        self._time.saw(msg.header.stamp)
         self._tf.publish(TFMessage(transforms=[transform_msg(t, msg.header)
                                                for t in transforms]))
         self._counts['tf'] += 1
@@ -174,7 +172,6 @@ class StatePublisher(Node):
         if not msg.valid or not self._throttles[name]():
             return
         pose = (msg.pose.x, msg.pose.y, msg.pose.phi)
-        self._time.saw(msg.header.stamp)
         self._tf.publish(TFMessage(transforms=[transform_msg(
             planar_transform(BASE_FRAME, frame, pose), msg.header)]))
         publisher.publish(pose_stamped(pose, msg.header.stamp))

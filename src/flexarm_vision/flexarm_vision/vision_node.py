@@ -38,8 +38,8 @@ log line alone went unseen while every pose was off by the camera's error), and 
 without that correction.
 
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); its
-``/diagnostics`` carry the newest stamp of the images and joint states it handled
-(:mod:`flexarm_core.stamps`), so they are in the graph's time, sim or wall.
+``/diagnostics`` carry the graph's time, the newest ``/clock`` taken when they are published
+(:class:`flexarm_core.stamps.GraphTime`), or wall time in a graph without one.
 
 Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
 :func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
@@ -80,7 +80,7 @@ from flexarm_core.health_report import (
 from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.paths import repo_path
-from flexarm_core.stamps import CDR_STAMP, DataTime, raw_stamp_ns
+from flexarm_core.stamps import CDR_STAMP, GraphTime
 from flexarm_core.tool_correction import ToolCorrection, read_calibration
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_calibration import CameraCorrection, read_camera_calibration
@@ -250,8 +250,7 @@ class VisionNode(Node):
         self._inputs: list[Subscription] = []      # images and joint states while measuring
         self._pub = self.create_publisher(TipPose, topics.TIP_POSE, 10, event_callbacks=(
             PublisherEventCallbacks(matched=on_matched(topics.TIP_POSE, Demand(self._measure)))))
-        self._time = DataTime()
-        self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._time.stamp)
+        self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=GraphTime(self).stamp)
         i = self._estimator.camera.intrinsics
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
                                f'a {self._estimator.plate.shape} hole plate')
@@ -340,7 +339,6 @@ class VisionNode(Node):
         self.get_logger().info(f'intrinsics from camera_info: {intrinsics}, {source}')
 
     def _on_joints(self, raw: bytes) -> None:
-        self._time.saw_ns(raw_stamp_ns(raw))
         content = without_stamp(raw)
         if content == self._last_joints:
             return
@@ -356,7 +354,6 @@ class VisionNode(Node):
         estimate = (self._estimator.estimate(image) if image is not None
                     else Estimate(None, False, 0, 0.0, reason))
         self._camera_id = msg.header.frame_id
-        self._time.saw(msg.header.stamp)
         self._recent.add(time.monotonic(), estimate.residual if estimate.valid else None)
         if not estimate.valid:
             self._last_invalid = estimate.status

@@ -28,11 +28,8 @@ from collections import deque
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
 from dataclasses import dataclass
-from typing import Any
 
 import numpy as np
-from rclpy.callback_groups import CallbackGroup
-from rclpy.exceptions import InvalidHandle
 from rclpy.node import Node
 from rclpy.qos import QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
@@ -44,6 +41,7 @@ from flexarm_control.ros.joint_commands import ForwardCommands, JointCommands
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import JOINT_NAMES
 from flexarm_core.measurement import Measurement, average_frames
+from flexarm_core.taken import Taken, take
 from flexarm_msgs.msg import TipPose
 
 # A wait of T s of sim time may take at most this many times T (+ slack) of wall time.
@@ -59,31 +57,6 @@ _POLL = 0.02   # [s] waits take the inputs that arrived this often
 JOINT_SILENCE = 3.0
 NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # /joint_states
 TIP_POSES = 10   # queue of /tip_pose: a measurement's frames, between two looks at most a few
-
-
-class Taken(CallbackGroup):
-    """The callback group of subscriptions that the executor never runs: their owner takes
-    what arrived when it looks (:func:`take`)."""
-
-    def can_execute(self, entity: Any) -> bool:
-        return False
-
-    def beginning_execution(self, entity: Any) -> bool:
-        return False
-
-    def ending_execution(self, entity: Any) -> None:
-        return None
-
-
-def take(subscription: Subscription) -> Any:
-    """The oldest message waiting in a subscription of a :class:`Taken` group (raw bytes for
-    a raw subscription); None if none, or if the node shut down and destroyed it."""
-    try:
-        with subscription.handle:
-            taken = subscription.handle.take_message(subscription.msg_type, subscription.raw)
-    except InvalidHandle:
-        return None
-    return None if taken is None else taken[0]
 
 
 @dataclass(frozen=True)

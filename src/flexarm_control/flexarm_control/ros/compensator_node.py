@@ -119,6 +119,7 @@ from flexarm_core.node_main import Offload, finish_goal, run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.regions import regions_from_dict
 from flexarm_core.scene_msgs import pose_stamped
+from flexarm_core.stamps import to_ns
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
@@ -133,10 +134,6 @@ OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
             CONTROLLER_TIMEOUT: Result.CONTROLLER_TIMEOUT,
             MEASUREMENT_FAILED: Result.MEASUREMENT_FAILED,
             TOLERANCE_NOT_MET: Result.TOLERANCE_NOT_MET, UNREACHABLE: Result.UNREACHABLE}
-
-
-def _nanoseconds(stamp: TimeMsg) -> int:
-    return stamp.sec * 1_000_000_000 + stamp.nanosec
 
 
 class CompensatorNode(Node):
@@ -231,8 +228,8 @@ class CompensatorNode(Node):
     # --- model hot reload -------------------------------------------------------------------
     def _on_model(self, msg: ModelInfo) -> None:
         if self._model is not None and (msg.version == self._model[1].version
-                                        or _nanoseconds(msg.stamp)
-                                        < _nanoseconds(self._model[1].stamp)):
+                                        or to_ns(msg.stamp)
+                                        < to_ns(self._model[1].stamp)):
             return      # the same model, or an announcement older than the one in use
         self._load_model(msg.path, f'version {msg.version}', msg)
 

@@ -31,7 +31,7 @@ from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 import numpy as np
-from builtin_interfaces.msg import Duration
+from rclpy.duration import Duration
 from rclpy.node import Node
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -64,16 +64,12 @@ class ForwardCommands:
         self.send(here, here)
 
 
-def duration(seconds: float) -> Duration:
-    nanoseconds = round(seconds * 1e9)
-    return Duration(sec=nanoseconds // 1_000_000_000, nanosec=nanoseconds % 1_000_000_000)
-
-
 def trajectory_message(move: ShapedMove) -> JointTrajectory:
     """``move`` as joint_trajectory_controller takes it: its samples after the start."""
     return JointTrajectory(joint_names=list(JOINT_NAMES), points=[
         JointTrajectoryPoint(positions=p.tolist(), velocities=v.tolist(),
-                             accelerations=a.tolist(), time_from_start=duration(t))
+                             accelerations=a.tolist(),
+                             time_from_start=Duration(nanoseconds=round(t * 1e9)).to_msg())
         for t, p, v, a in zip(move.times[1:], move.positions[1:], move.velocities[1:],
                               move.accelerations[1:])])
 

@@ -263,7 +263,7 @@ class Launcher:
                  **parameters: Any) -> Any:
         from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env
 
-        specs = {**load_optional(), **{s.name: s for s in load_graph(robot)}}
+        specs = {**load_optional(robot), **{s.name: s for s in load_graph(robot)}}
         log = self._folder / (f'{namespace}_{name}.log' if namespace else f'{name}.log')
         node = NodeProcess(specs[name], ros_env(self._domain_id, self._folder / 'ros_log'),
                            log, parameters, namespace)

@@ -79,9 +79,12 @@ def _with_settings(d: Mapping[str, Any], settings: Mapping[str, Any]) -> NodeSpe
     return replace(spec, parameters={**{k: settings[k] for k in wanted}, **spec.parameters})
 
 
-def load_optional(path: Path | None = None) -> dict[str, NodeSpec]:
-    """Nodes of graph.yaml started only on request (e.g. the recorder), by name."""
-    return {d['name']: NodeSpec.from_dict(d) for d in _graph_file(path).get('optional') or ()}
+def load_optional(robot: str = 'sim', path: Path | None = None) -> dict[str, NodeSpec]:
+    """Nodes of graph.yaml started only on request (e.g. the recorder), by name, each with the
+    settings of the robot entry it lists in ``robot_parameters``."""
+    settings = robot_settings(robot, path)
+    return {d['name']: _with_settings(d, settings)
+            for d in _graph_file(path).get('optional') or ()}
 
 
 def all_nodes(path: Path | None = None) -> list[NodeSpec]:

@@ -19,10 +19,10 @@ SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close
 cleanly: the handlers only stop the spin loop (:func:`spin_until_signalled`), the bag is
 closed after spinning stops.
 
-Health on ``/diagnostics``: :func:`recorder_status`, stamped with the newest ``/clock``
-recorded (:mod:`flexarm_core.stamps`; 0 before one, and in a graph without ``/clock``): the
-recorder skips the node's own ``/clock`` subscription, which would wake it once more for each
-``/clock`` it already records, and its wall clock would mix into a sim-time bag.
+Health on ``/diagnostics``: :func:`recorder_status`, stamped with the graph's time
+(:class:`flexarm_core.stamps.GraphTime`: the newest ``/clock`` in a simulated graph, taken
+without waking the node; wall time on a real arm): the recorder skips the node's own
+``/clock`` subscription, which would wake it once more for each ``/clock`` it records.
 """
 from __future__ import annotations
 
@@ -49,11 +49,12 @@ from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, WARN, Status, status
 from flexarm_core.node_params import declare
 from flexarm_core.paths import BAGS_DIR
-from flexarm_core.stamps import DataTime, raw_stamp_ns
+from flexarm_core.stamps import GraphTime
 
 DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded
-DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.CLOCK, topics.CAMERA_INFO,
+DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.JOINT_TRAJECTORY,
+                  topics.CLOCK, topics.CAMERA_INFO,
                   topics.TIP_POSE, topics.TIP_POSE_TRUTH, topics.SAMPLES, topics.MODEL,
                   topics.ACTIVE_MODEL, topics.MODEL_HEALTH, topics.PAYLOAD, topics.OUTCOMES,
                   topics.DIAGNOSTICS, topics.ROBOT_DESCRIPTION, topics.TF, topics.TF_STATIC,
@@ -130,10 +131,9 @@ class RecorderNode(Node):
                                f'{self.writer.path}')
         self.topics = RawTopicSubscriber(self, selection, self._add_topic, 'recording',
                                          discovery_period, queue_depth, image_queue_depth)
-        self._time = DataTime()
         self._diagnostics = DiagnosticsPublisher(self, lambda: [recorder_status(
             self.get_name(), str(self.writer.path), sorted(self.topics.subscriptions),
-            sorted(self.topics.left_out), self.writer.message_count)], stamp=self._time.stamp)
+            sorted(self.topics.left_out), self.writer.message_count)], stamp=GraphTime(self).stamp)
 
     def _add_topic(self, topic: str, publishers: Sequence[TopicEndpointInfo]) -> RawHandler:
         """Add the topic to the bag; the handler that writes its messages."""
@@ -145,11 +145,7 @@ class RecorderNode(Node):
         def record(data: bytes, info: Any) -> None:
             self.writer.write(topic, data, time.time_ns(), info['source_timestamp'])
 
-        def record_clock(data: bytes, info: Any) -> None:
-            record(data, info)
-            self._time.saw_ns(raw_stamp_ns(data))
-
-        return record_clock if topic == topics.CLOCK else record
+        return record
 
     def destroy_node(self) -> None:
         """Close the bag (summary, rosbag2 metadata, metadata.yaml), then the node."""

@@ -85,7 +85,7 @@ class Graph:
                  report: Callable[[str], None] = print, discovery: str = 'LOCALHOST',
                  namespace: str = '', only: tuple[str, ...] = ()) -> None:
         specs = load_graph(robot)
-        extra = load_optional()
+        extra = load_optional(robot)
         self._published, self._subscribed = ready_topics(robot_settings(robot))
         here = select_nodes([*(s.name for s in specs), *extra], only) if only else []
         optional = tuple(dict.fromkeys([*optional, *(n for n in here if n in extra)]))

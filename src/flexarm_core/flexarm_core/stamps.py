@@ -4,8 +4,8 @@ Nodes that skip the ``/clock`` subscription (each ``/clock`` is a wake-up of the
 read sim time from their clock, and their wall clock mixed into a sim-time graph steps back
 and forth by decades. What they derive from data keeps the data's stamp; what is about now (a
 node's health on ``/diagnostics``, the scene's markers) is stamped with the graph's time
-(:class:`GraphTime`): the newest ``/clock``, taken without waking the node, or the node's own
-clock where the graph has no ``/clock`` (a real arm's wall time). :class:`DataTime` keeps the
+(:class:`GraphTime`): the newest ``/clock``, taken without waking the node, in a simulated
+graph, or the node's own clock (a real arm's wall time). :class:`DataTime` keeps the
 newest stamp seen (0 before any: ROS's "no time yet", what a sim-time clock reads before
 ``/clock``; for tf2, a static transform holds at every time whatever its stamp).
 """
@@ -14,9 +14,11 @@ from __future__ import annotations
 from builtin_interfaces.msg import Time
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
+from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 
 from flexarm_core import topics
+from flexarm_core.node_params import declare
 from flexarm_core.taken import Taken, take
 
 NS = 1_000_000_000
@@ -58,20 +60,25 @@ class DataTime:
 
 
 class GraphTime:
-    """The graph's time now for a node that does not follow ``/clock``: the newest ``/clock``
-    (at most one ``/clock`` period old), 0 while the graph has a ``/clock`` not yet heard, the
-    node's own clock in a graph without one."""
+    """The graph's time now for a node that does not follow ``/clock``. The node's ``sim_clock``
+    parameter (declared here; config/graph.yaml's robot entry sets it, as ``use_sim_time`` for
+    the nodes that follow ``/clock``) says which: true, the newest ``/clock`` (at most one
+    ``/clock`` period old; 0 until one is heard); false, the node's own clock (wall time)."""
 
     def __init__(self, node: Node) -> None:
         self._node = node
-        self._clock = node.create_subscription(Clock, topics.CLOCK, lambda _: None,
-                                               QoSProfile(depth=1), callback_group=Taken(),
-                                               raw=True)
+        self._clock: Subscription | None = None
+        if declare(node, 'sim_clock', False, "the graph runs on the simulator's /clock: stamps "
+                   'of what is about now are taken from it (not followed); false: wall time',
+                   read_only=True):
+            self._clock = node.create_subscription(Clock, topics.CLOCK, lambda _: None,
+                                                   QoSProfile(depth=1),
+                                                   callback_group=Taken(), raw=True)
         self._newest = DataTime()
 
     def stamp(self) -> Time:
+        if self._clock is None:
+            return self._node.get_clock().now().to_msg()
         while (raw := take(self._clock)) is not None:
             self._newest.saw_ns(raw_stamp_ns(raw))
-        if self._newest.ns or self._node.count_publishers(topics.CLOCK):
-            return self._newest.stamp()
-        return self._node.get_clock().now().to_msg()
+        return self._newest.stamp()

@@ -30,20 +30,26 @@ def test_the_stamp_of_a_serialized_clock_or_header_message() -> None:
 
 
 @pytest.mark.node
-def test_graph_time_is_the_newest_clock_and_the_node_s_own_clock_without_one(ros_node,
-                                                                             wait_for) -> None:
-    """A node off /clock stamps what is about now with the graph's clock: wall time where
-    nobody publishes /clock, else the newest /clock (0 until one is heard), taken unasked."""
+def test_graph_time_is_wall_time_by_default(ros_node) -> None:
     import time
 
+    from flexarm_core.stamps import GraphTime
+
+    assert abs(to_ns(GraphTime(ros_node).stamp()) * 1e-9 - time.time()) < 5.0
+
+
+@pytest.mark.node
+@pytest.mark.parametrize('ros_node', [{'sim_clock': True}], indirect=True)
+def test_graph_time_on_a_simulated_graph_is_the_newest_clock(ros_node, wait_for) -> None:
+    """A node off /clock in a simulated graph stamps what is about now with the newest /clock,
+    taken unasked; 0 (no time yet) until one is heard, never the wall clock."""
     from flexarm_core import topics
     from flexarm_core.stamps import GraphTime
 
     graph = GraphTime(ros_node)
-    assert abs(to_ns(graph.stamp()) * 1e-9 - time.time()) < 5.0          # no /clock: wall
+    assert to_ns(graph.stamp()) == 0
     clock = ros_node.create_publisher(Clock, topics.CLOCK, 10)
-    wait_for(lambda: ros_node.count_publishers(topics.CLOCK), 10.0, 'the /clock publisher')
-    assert to_ns(graph.stamp()) == 0                    # a /clock in the graph, none heard yet
+    wait_for(lambda: ros_node.count_subscribers(topics.CLOCK), 10.0, 'the /clock subscriber')
     for sec in (41, 42):
         clock.publish(Clock(clock=Time(sec=sec, nanosec=5)))
     wait_for(lambda: graph.stamp().sec == 42, 10.0, 'the newest /clock')

@@ -39,7 +39,7 @@ def test_a_ros2_control_arm_is_learned_and_reached_through_trajectories_without_
     launch('flexarm_compensator', robot=ROBOT)
     client = ready_client()
 
-    collected = client.collect(10, region='B', dataset='arm', timeout=240)
+    collected = client.collect(8, region='B', dataset='arm', timeout=240)
     assert collected.error_code == CollectSamples.Result.SUCCESSFUL, collected.error_string
     assert collected.skipped == 0
     trained = client.train('', dataset='arm', timeout=120)

@@ -9,6 +9,7 @@ error source is off: the camera alone is tested.
 import math
 
 import pytest
+from learned_goal import learn_and_reach
 
 from flexarm_bringup.cli import Exit, main
 from flexarm_control.execution.collection import BLIND_POSES
@@ -76,12 +77,4 @@ def test_a_camera_five_times_off_its_calibration_is_calibrated_learns_and_reache
     assert (k1, k2) == pytest.approx((camera['k1'], camera['k2']), abs=4e-3)
     assert lens.is_file() and 'not determined from the plate: ' in capsys.readouterr().out
     assert 'camera off its calibration' not in valid_pose().status
-    collected = client.collect(12, region='B', dataset='seen', timeout=180)
-    assert collected.error_code == CollectSamples.Result.SUCCESSFUL, collected.error_string
-    assert collected.skipped == 0
-    trained = client.train('', dataset='seen', timeout=120)
-    assert trained.success, trained.message
-    client.wait_for_model(trained.model_version, timeout=20)
-    moved = client.move_to(*TARGET, mode='predictive', timeout=120)
-    assert moved.error_code == MoveToPose.Result.SUCCESSFUL, moved.error_string
-    assert moved.position_error < 0.1e-3, moved.position_error
+    learn_and_reach(client, 12, 'seen', TARGET, collect_timeout=180)

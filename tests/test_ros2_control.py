@@ -8,10 +8,10 @@ import math
 from pathlib import Path
 
 import pytest
+from learned_goal import learn_and_reach
 
 from flexarm_bringup.launcher import NodeProcess, NodeSpec, ros_env, stop_all
 from flexarm_core import topics
-from flexarm_msgs.action import CollectSamples, MoveToPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
 TARGET = (1.30, -0.20, math.radians(-61))            # Table 10, B6
@@ -39,15 +39,7 @@ def test_a_ros2_control_arm_is_learned_and_reached_through_trajectories_without_
     launch('flexarm_compensator', robot=ROBOT)
     client = ready_client()
 
-    collected = client.collect(8, region='B', dataset='arm', timeout=240)
-    assert collected.error_code == CollectSamples.Result.SUCCESSFUL, collected.error_string
-    assert collected.skipped == 0
-    trained = client.train('', dataset='arm', timeout=120)
-    assert trained.success, trained.message
-    client.wait_for_model(trained.model_version, timeout=20)
-    moved = client.move_to(*TARGET, mode='predictive', timeout=120)
-    assert moved.error_code == MoveToPose.Result.SUCCESSFUL, moved.error_string
-    assert moved.position_error < 0.1e-3, moved.position_error
+    learn_and_reach(client, 8, 'arm', TARGET, collect_timeout=240)
 
     assert client.count_publishers(topics.CLOCK) == 0
     assert client.count_publishers(topics.absolute(topics.JOINT_COMMANDS)) == 0

@@ -11,40 +11,109 @@ meanwhile. rclpy 7.1.6's ``rclpy.experimental.EventsExecutor`` costs less per me
 """
 from __future__ import annotations
 
+import os
+import signal
+import threading
 from collections.abc import Callable, Coroutine
 from concurrent.futures import Future as JobFuture
 from concurrent.futures import ThreadPoolExecutor
+from concurrent.futures import wait as wait_jobs
 from typing import Any, TypeVar
 
 import rclpy
 from rclpy.action.server import ServerGoalHandle
-from rclpy.executors import ExternalShutdownException
+from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
+from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
+
+from flexarm_core import liveness
 
 T = TypeVar('T')
 
 
-def run(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
-    """Init rclpy, build the node, spin until Ctrl-C / SIGTERM / shutdown, clean up.
+STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
+# [s, wall; liveness-scaled] for the executor to finish the callback it runs, and for a work
+# thread to end its job once the context is shut down (waits poll it every 20 ms; a job that
+# computes, a training in its worker process, is not waited for beyond this)
+STOP_WAIT = 10.0
 
-    A RuntimeError raised by a subscription take while SIGINT shuts the context down (an
-    rclpy race) ends the node like the interrupt it is, with exit code 0.
+
+def run(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
+    """Init rclpy, build the node, spin until SIGINT / SIGTERM / shutdown, then tear down in
+    order, on this thread alone: stop the executor, shut the context down (work threads'
+    waits end), let the node end its work threads (its ``destroy_node``), destroy it.
+
+    Why not rclpy's own signal handling: on SIGINT it raises KeyboardInterrupt wherever the
+    main thread is — inside a callback half-way through creating or destroying an entity (the
+    on-demand subscriptions of the vision node and the state publisher change exactly when a
+    graph stops and its subscribers leave) — while rclpy's signal thread shuts the context
+    down concurrently, and the nodes' work threads still use the node while ``destroy_node``
+    finalises it underneath them: a segmentation fault in ``destroy_node``, now and then.
+    Here the executor spins in a thread of its own and a signal only wakes this thread (a
+    no-op handler and the wakeup fd: whichever thread the kernel hands it to, nothing is
+    interrupted and nothing is killed), so the teardown runs in one order whatever the threads
+    were doing. The node exits 0 on SIGINT and SIGTERM, idle or mid-goal.
     """
-    rclpy.init(args=args)
-    node = None
+    woken, wake = os.pipe()
+    os.set_blocking(wake, False)
+    signal.set_wakeup_fd(wake)
+    for sig in STOP_SIGNALS:
+        signal.signal(sig, _asked_to_stop)
+    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
+    node = executor = None
+    spin: Spin | None = None
     try:
         node = make_node()
-        rclpy.spin(node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    except RuntimeError:
-        if rclpy.ok():
-            raise
+        executor = SingleThreadedExecutor()
+        executor.add_node(node)
+        spin = Spin(executor, lambda: os.write(wake, b'\0'))
+        os.read(woken, 1)       # a signal, or the spin ended by itself
     finally:
+        if spin is not None:
+            spin.stop(liveness.limit(STOP_WAIT))
+        if executor is not None:
+            executor.shutdown(timeout_sec=0.0)  # drops its wait set (it holds entities in use)
+        rclpy.try_shutdown()
         if node is not None:
             node.destroy_node()
-        rclpy.try_shutdown()
+    if spin is not None and spin.error is not None:
+        raise spin.error
+
+
+def _asked_to_stop(signum: int, frame: Any) -> None:
+    """Nothing: the signal's byte on the wakeup fd is what ends :func:`run`'s wait."""
+
+
+class Spin:
+    """The executor spinning in a thread of its own until :meth:`stop` (or the context's
+    shutdown, or a callback's exception, which it keeps in :attr:`error`); ``ended()`` is
+    called when it ends."""
+
+    def __init__(self, executor: SingleThreadedExecutor, ended: Callable[[], object]) -> None:
+        self._executor = executor
+        self._stopped: Future = Future()
+        self._ended = ended
+        self.error: BaseException | None = None
+        self._thread = threading.Thread(target=self._spin, name='spin')
+        self._thread.start()
+
+    def _spin(self) -> None:
+        try:
+            self._executor.spin_until_future_complete(self._stopped)
+        except ExternalShutdownException:
+            pass
+        except BaseException as exc:   # noqa: BLE001 - re-raised by the main thread
+            self.error = exc
+        finally:
+            self._ended()
+
+    def stop(self, timeout: float) -> None:
+        """End the spin after the callback it runs; wait up to ``timeout`` s for it."""
+        if not self._stopped.done():
+            self._stopped.set_result(None)
+        self._executor.wake()
+        self._thread.join(timeout)
 
 
 class Offload:
@@ -60,6 +129,7 @@ class Offload:
     def __init__(self, node: Node, threads: int) -> None:
         self._node = node
         self._pool = ThreadPoolExecutor(threads, thread_name_prefix=node.get_name())
+        self._jobs: set[JobFuture] = set()
 
     def wrap(self, call: Callable[..., T]) -> Callable[..., Coroutine[Any, Any, T]]:
         """``call`` as a coroutine function that runs it in the pool: its result, or its
@@ -77,12 +147,22 @@ class Offload:
                 if executor is not None:
                     executor.wake()
 
-            self._pool.submit(call, *args).add_done_callback(hand_over)
+            job = self._pool.submit(call, *args)
+            self._jobs.add(job)
+            job.add_done_callback(self._jobs.discard)
+            job.add_done_callback(hand_over)
             return await ended
         return apart
 
-    def shutdown(self) -> None:
+    def shutdown(self, timeout: float | None = None) -> bool:
+        """Drop the calls that wait for a thread and wait up to ``timeout`` s (default
+        :data:`STOP_WAIT`, liveness-scaled) for the running ones to end: the node is destroyed
+        after this, and a thread still in a call would use it. Whether all ended."""
         self._pool.shutdown(wait=False, cancel_futures=True)
+        running = list(self._jobs)
+        _, pending = wait_jobs(running, liveness.limit(STOP_WAIT) if timeout is None
+                               else timeout)
+        return not pending
 
 
 def finish_goal(handle: ServerGoalHandle, code: int, canceled_code: int) -> None:

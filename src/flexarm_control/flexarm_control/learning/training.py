@@ -342,6 +342,8 @@ def _worker_start(parent: int, initializer: Callable[[], None] | None) -> None:
     SIGKILL would otherwise leave its worker running, reparented to init), then
     ``initializer``."""
     signal_on_parent_death(signal.SIGKILL)
+    for sig in (signal.SIGINT, signal.SIGTERM):   # sent to the node's whole process group:
+        signal.signal(sig, signal.SIG_IGN)         # the node ends its worker (shutdown)
     if os.getppid() != parent:      # the parent died before the line above
         os._exit(1)
     if initializer is not None:
@@ -389,4 +391,11 @@ class TrainingWorker:
                                'worker process and new jobs are refused until it ends') from exc
 
     def shutdown(self) -> None:
-        self._pool.shutdown(wait=False, cancel_futures=True)
+        """Drop queued jobs and end the worker process now, also in the middle of a job (its
+        result is no longer awaited; a training writes nothing until it has ended). Its
+        process is ours alone: SIGKILL, then it is reaped. (``ProcessPoolExecutor`` ends its
+        workers only after their jobs before Python 3.14's ``kill_workers``.)"""
+        workers = list((getattr(self._pool, '_processes', None) or {}).values())
+        for worker in workers:
+            worker.kill()
+        self._pool.shutdown(wait=True, cancel_futures=True)

@@ -502,10 +502,10 @@ class LearnerNode(Node):
         return response
 
     def destroy_node(self) -> None:
+        self._trainer.shutdown()   # first: the threads that wait on a training end with it
+        self._chooser.shutdown(wait=False, cancel_futures=True)
         self._goals.shutdown()
         self._models.shutdown()
-        self._chooser.shutdown(wait=False, cancel_futures=True)
-        self._trainer.shutdown()
         self._collect_server.destroy()   # Node.destroy_node leaves actions (and the node) alive
         self._refresh_server.destroy()
         super().destroy_node()

@@ -111,6 +111,9 @@ NODE = [
           ('samples_for_1mm', 'curves', 'campaign_s_per_sample'),
           ('curves.sobol.A.0.worst_max_mm', 'campaign_s_per_sample.sobol',
            'campaign_s_per_sample.active'), timeout=150.0, seconds=25),
+    Smoke('lifecycle', ('--cycles', '1', '--nodes', 'state_publisher'),
+          ('crashes', 'hung', 'signal_exits', 'stops', 'per_node'), ('crashes', 'stops'),
+          timeout=150.0, domain='--domain-id', seconds=25),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id', seconds=13),
 ]

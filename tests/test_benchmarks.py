@@ -79,6 +79,8 @@ OFFLINE = [
           ('samples', 'kinematic', 'gp'), ('kinematic.fit_s', 'gp.fit_s')),
     Smoke('compensation', ('--kind', 'kinematic', '--targets', 'A1', '--samples', '12'),
           ('kind', 'rows', 'predictive_max_ms'), ('predictive_max_ms',)),
+    # The README's headline figures as last measured, checked (measuring them takes minutes)
+    Smoke('headline', ('--only', '', '--no-write'), ('figures', 'no_longer_hold')),
     # The README's test command on a module of this checkout (a fresh clone sets up a venv).
     Smoke('suite', ('--here', '--runs', '1', '--tests',
                     '-n 0 src/flexarm_control/test/test_modes.py'),

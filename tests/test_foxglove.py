@@ -25,10 +25,11 @@ from websockets.sync.client import ClientConnection, connect
 from flexarm_bringup.bag_schema import message_definition
 from flexarm_bringup.cli import build_parser, main
 from flexarm_bringup.cli.graph import _foxglove_text
+from flexarm_bringup.launcher import node_name
 from flexarm_bringup.outcome_text import Exit
-from flexarm_core import topics
+from flexarm_core import liveness, topics
 from flexarm_core.frames import PLANE_FRAME
-from flexarm_core.params import config_path
+from flexarm_core.params import config_path, load_config
 from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.msg import PlanarPose, TipPose
 
@@ -42,6 +43,10 @@ TIP_POSE_TYPE = 'flexarm_msgs/msg/TipPose'
 # The graph's names as a viewer sees a graph without namespace: the constants in full.
 GRAPH_NAMES = {topics.absolute(v) for k, v in vars(topics).items()
                if k.isupper() and isinstance(v, str)}
+UP_TIMEOUT = 90           # [s] `flexarm up --timeout`: its own bound on the graph's start
+# [s, liveness-scaled] of up's bounds after the graph is ready (first reports, the model, the
+# calibration, the Foxglove node's announcement: cli/graph.py's waits, 21 s in all)
+UP_AFTER_READY = 30.0
 
 
 def _free_port() -> int:
@@ -172,6 +177,56 @@ def test_the_sdk_itself_still_refuses_the_former_name() -> None:
     assert refused.value.response.status_code == 400
 
 
+def test_the_front_listens_once_made_and_the_node_says_so_for_its_own_process() -> None:
+    """What up waits for before it says where to connect: the node's line, logged once the
+    SDK's server and the front are made (each listens when made), naming its process."""
+    from flexarm_bringup.foxglove_front import SubprotocolFront
+    from flexarm_bringup.foxglove_node import announcement, listening_url
+
+    front = SubprotocolFront('127.0.0.1', 0, _free_port())
+    try:
+        socket.create_connection(('127.0.0.1', front.port), timeout=1.0).close()
+    finally:
+        front.stop()
+    log = ('[INFO] [1.0] [flexarm_foxglove]: ' + announcement('ws://127.0.0.1:8765', 41)
+           + ", serving ['*'] (images: False)\n[INFO] [2.0] [flexarm_foxglove]: serving /x\n")
+    assert listening_url(log, 41) == 'ws://127.0.0.1:8765'
+    assert listening_url(log, 4) is None and listening_url(log, 411) is None   # another run
+    assert listening_url('', 41) is None
+
+
+class _NodeLog:
+    """A stand-in of a running node's process and log for up's wait (a NodeProcess)."""
+
+    def __init__(self, log_path: Path, pid: int) -> None:
+        from types import SimpleNamespace
+
+        self.log_path, self.returncode = log_path, None
+        self.process = SimpleNamespace(pid=pid)
+        self.spec = SimpleNamespace(name='flexarm_foxglove')
+
+
+def test_up_says_where_to_connect_only_once_the_node_said_it_listens(tmp_path: Path) -> None:
+    import threading
+
+    from flexarm_bringup.cli.graph import _foxglove_served
+    from flexarm_bringup.foxglove_node import announcement
+
+    node = _NodeLog(tmp_path / 'flexarm_foxglove.log', 41)
+    node.log_path.write_text(f'{announcement("ws://127.0.0.1:1", 40)}\n')   # its predecessor
+    said = threading.Timer(0.3, lambda: node.log_path.write_text(
+        f'{announcement("ws://127.0.0.1:9001", 41)}, serving [] (images: False)\n'))
+    said.start()
+    started = time.monotonic()
+    text = _foxglove_served(node, within=30.0)
+    assert time.monotonic() - started >= 0.25
+    assert text.startswith('Foxglove: open a connection to ws://127.0.0.1:9001 ')
+    node.returncode = 1
+    node.log_path.write_text('')
+    assert _foxglove_served(node, within=30.0).startswith(
+        'Foxglove: not served: flexarm_foxglove exited')
+
+
 def test_unknown_types_have_no_channel() -> None:
     import foxglove
 
@@ -220,11 +275,12 @@ def test_layout_opens_the_graphs_topics_in_its_four_panels() -> None:
 def test_foxglove_flag_port_defaults_to_the_config_and_is_checked(capsys) -> None:
     parse = build_parser().parse_args
     assert parse(['up']).foxglove is None
-    assert parse(['up', '--foxglove']).foxglove == 0
+    assert parse(['up', '--foxglove']).foxglove == 0          # the node's configured port
     assert parse(['up', '--foxglove', '9001', '--rtf', '2']).foxglove == 9001
-    assert 'ws://127.0.0.1:8765 ' in _foxglove_text(0)
-    assert 'ws://127.0.0.1:9001 ' in _foxglove_text(9001)
-    assert 'foxglove_layout.json' in _foxglove_text(0)
+    config = load_config('foxglove.yaml', node_name=node_name('foxglove'))
+    assert (config['host'], config['port']) == ('127.0.0.1', 8765)
+    assert 'ws://127.0.0.1:9001 ' in _foxglove_text('ws://127.0.0.1:9001')
+    assert 'foxglove_layout.json' in _foxglove_text('ws://127.0.0.1:9001')
     assert main(['up', '--foxglove', '70000']) == Exit.USAGE
     assert 'must be a TCP port 1..65535' in capsys.readouterr().err
 
@@ -244,15 +300,17 @@ def test_up_with_foxglove_serves_tip_pose_to_a_websocket_client(
     with open(log_path, 'wb') as log:
         up = subprocess.Popen(
             [sys.executable, '-m', 'flexarm_bringup.cli', 'up', '--foxglove', str(port),
-             '--domain-id', str(domain_id), '--name', name, '--timeout', '90'],
+             '--domain-id', str(domain_id), '--name', name, '--timeout', str(UP_TIMEOUT)],
             stdout=log, stderr=subprocess.STDOUT, env={**os.environ, 'PYTHONUNBUFFERED': '1'})
     try:
-        deadline = time.monotonic() + 120.0
+        # up says where to connect once the node has said its server listens (an event);
+        # up bounds every wait before it, so this bound only catches an up that hangs
+        deadline = time.monotonic() + UP_TIMEOUT + liveness.limit(UP_AFTER_READY)
         while 'Foxglove: ' not in log_path.read_text(errors='replace'):
             if up.poll() is not None or time.monotonic() > deadline:
                 pytest.fail(f'flexarm up did not get ready: {log_path.read_text()}')
             time.sleep(0.1)
-        assert f'ws://127.0.0.1:{port} ' in log_path.read_text()
+        assert f'Foxglove: open a connection to ws://127.0.0.1:{port} ' in log_path.read_text()
         with _client(port, [FORMER_NAME]) as ws:
             assert ws.subprotocol == FORMER_NAME
             channel = _advertised(ws, topics.absolute(topics.TIP_POSE), 30.0)

@@ -63,7 +63,9 @@ async def _pipe(reader: asyncio.StreamReader, writer: asyncio.StreamWriter) -> N
 
 class SubprotocolFront:
     """Listens on ``host:port`` in a thread of its own and relays each connection to the
-    WebSocket server on ``127.0.0.1:upstream_port``; OSError when it cannot listen."""
+    WebSocket server on ``127.0.0.1:upstream_port``; OSError when it cannot listen. Made, it
+    listens: the constructor returns once the socket is bound and listening (``port`` is its
+    port), so a client may connect at once."""
 
     def __init__(self, host: str, port: int, upstream_port: int) -> None:
         self._upstream_port = upstream_port

@@ -19,9 +19,16 @@ this way. Clients connect to :class:`~flexarm_bringup.foxglove_front.Subprotocol
 relays them to the SDK's server on a loopback port: the SDK speaks only ``foxglove.sdk.v1`` (as
 current Foxglove and ``foxglove_bridge`` 3 do) and refuses the same protocol under its former
 name ``foxglove.websocket.v1``, the only one older Lichtblick and roslibjs-foxglove offer.
+
+Readiness: the node is in the ROS graph (discovered, so "ready" for the supervisor) before its
+server listens. Once the SDK's server and the front both listen, and not before, it logs
+:func:`announcement` (the URL and its process id); ``flexarm up`` waits for that line
+(:func:`listening_url`) before it tells where to connect, so what it says is true when said.
 """
 from __future__ import annotations
 
+import os
+import re
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -42,6 +49,20 @@ from flexarm_core import topics
 from flexarm_core.node_params import declare
 
 SERVER_NAME = 'flexarm'
+LISTENING = 'Foxglove WebSocket server listening on'
+
+
+def announcement(url: str, pid: int) -> str:
+    """The log line by which the node of process ``pid`` says that ``url`` accepts clients."""
+    return f'{LISTENING} {url} (process {pid})'
+
+
+def listening_url(log: str, pid: int) -> str | None:
+    """The URL the node of process ``pid`` announced in its log (:func:`announcement`), or
+    None before it did. The pid tells a restarted node's line from its predecessor's (a
+    node's log file is appended to)."""
+    found = re.search(rf'{re.escape(LISTENING)} (ws://\S+) \(process {pid}\)', log)
+    return None if found is None else found[1]
 
 
 def ros2_channel(topic: str, type_name: str, context: foxglove.Context) -> foxglove.Channel:
@@ -81,8 +102,10 @@ class FoxgloveNode(Node):
             self.server.stop()
             raise RuntimeError(f'cannot serve Foxglove on {host}:{port}: {err}') from None
         self.channels: dict[str, foxglove.Channel] = {}
-        self.get_logger().info(f'Foxglove WebSocket server on ws://{host}:{self.front.port} '
-                               f'serving {list(wanted)} (images: {images})')
+        # both listen now (the SDK's server and the front bound and listen when made)
+        url = f'ws://{host}:{self.front.port}'
+        self.get_logger().info(f'{announcement(url, os.getpid())}, serving {list(wanted)} '
+                               f'(images: {images})')
         selection = TopicSelection(tuple(wanted), images, self.get_namespace())
         self.topics = RawTopicSubscriber(self, selection,
                                          self._add_channel, 'serving', discovery_period,

@@ -85,7 +85,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             if node_name('vision') in graph.nodes:
                 print(_calibration(watch), flush=True)
             if args.foxglove is not None:
-                print(_foxglove_text(args.foxglove), flush=True)
+                print(_foxglove_served(graph.nodes[node_name('foxglove')],
+                                       liveness.limit(FOXGLOVE_WAIT)), flush=True)
             while True:     # what goes wrong: a death, an ERROR in a (re)started node's reports
                 reports.step(0.5)
                 restarted = [n for n in graph.check() if not graph.nodes[n].reported]
@@ -113,6 +114,11 @@ REPORT_WAIT = 5.0
 RESTART_REPORT_WAIT = 20.0
 
 
+# [s, wall; liveness-scaled] for the Foxglove node of a ready graph to say that its server
+# listens (it is discovered, so the graph is ready, before it makes the server)
+FOXGLOVE_WAIT = 10.0
+
+
 def _bind_lifetime(outlive_parent: bool) -> bool:
     """Tie ``up`` (and so its graph) to what started it, unless ``outlive_parent``: the kernel
     sends SIGTERM when the starting process (thread) ends, a harness killed at its time budget
@@ -137,13 +143,36 @@ def _remote_text(remote: tuple[str, ...], discovery: str) -> str:
     return text
 
 
-def _foxglove_text(port: int) -> str:
-    """Where Foxglove connects (``port`` 0: config/foxglove.yaml's) and which layout."""
-    from flexarm_core.params import config_path, load_config
+def _foxglove_served(node: Any, within: float) -> str:
+    """Where Foxglove connects, once the Foxglove node (a :class:`NodeProcess`) has said in its
+    log that its server listens (the URL it said), or why it is not said: the node died, or
+    did not say so ``within`` seconds."""
+    import time
 
-    config = load_config('foxglove.yaml', node_name=node_name('foxglove'))
-    return (f'Foxglove: open a connection to ws://{config["host"]}:{port or config["port"]} '
-            f'(Foxglove WebSocket) and import the layout {config_path("foxglove_layout.json")}')
+    from flexarm_bringup.foxglove_node import listening_url
+
+    deadline = time.monotonic() + within
+    while True:
+        pid = node.process.pid
+        try:
+            url = listening_url(node.log_path.read_text(errors='replace'), pid)
+        except OSError:
+            url = None
+        if url is not None:
+            return _foxglove_text(url)
+        if node.returncode is not None or time.monotonic() > deadline:
+            why = ('exited' if node.returncode is not None
+                   else f'has not said that it listens after {within:.0f} s')
+            return f'Foxglove: not served: {node.spec.name} {why} (log: {node.log_path})'
+        time.sleep(0.05)
+
+
+def _foxglove_text(url: str) -> str:
+    """Where Foxglove connects (the server's URL) and which layout."""
+    from flexarm_core.params import config_path
+
+    return (f'Foxglove: open a connection to {url} (Foxglove WebSocket) and import the '
+            f'layout {config_path("foxglove_layout.json")}')
 
 
 def _starting_model(watch: Any, listen: float = 3.0) -> str:

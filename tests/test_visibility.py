@@ -4,22 +4,26 @@ markers, and every node's health on /diagnostics; its bag is in one time, the si
 /tip_pose (arm_plane) and /scene/measured_tip (base_link) are the same point through /tf."""
 import signal
 import threading
+import time
 import xml.etree.ElementTree as ET
 
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
+from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from flexarm_bringup.bag_tools import read_decoded
-from flexarm_bringup.stamp_order import backwards_steps, header_stamps
+from flexarm_bringup.stamp_order import backwards_steps, beyond_sent, header_stamps
 from flexarm_core import topics
 from flexarm_core.frames import PLANE_FRAME
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
 from flexarm_core.params import load_config
+from flexarm_core.stamps import to_ns
+from flexarm_core.taken import Taken
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
 from flexarm_msgs.msg import DeflectionSample, PlanarPose
 from tf2_msgs.msg import TFMessage
@@ -138,18 +142,40 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
     recorder = started['flexarm_recorder']
     recorder.signal(signal.SIGINT)
     recorder.process.wait(timeout=30.0)
-    check_bag(tmp_path / 'bags' / 'visible')
+    check_bag(tmp_path / 'bags' / 'visible',
+              clock_published_after(ros_node, time.time_ns(), wait_for))
 
 
-def check_bag(bag) -> None:
-    """One time in the bag: every stream's header stamps in order and none beyond the sim's
-    /clock (no wall time), the markers stamped; the measured tip is one point in both frames."""
-    messages = [(topic, msg) for topic, msg, _ in read_decoded(bag)]
-    clock = max(c.clock.sec + 1e-9 * c.clock.nanosec for t, c in messages if t == '/clock')
+def clock_published_after(node, wall_ns: int, wait_for) -> int:
+    """The stamp [ns] of a /clock the simulator published after ``wall_ns`` (its source
+    timestamp, wall clock): the graph's time then, beyond every stamp sent before."""
+    clock = node.create_subscription(Clock, topics.CLOCK, lambda _: None, 10,
+                                     callback_group=Taken())
+
+    def published_after() -> int | None:
+        with clock.handle:
+            while (taken := clock.handle.take_message(Clock, False)) is not None:
+                msg, info = taken
+                if info['source_timestamp'] >= wall_ns:
+                    return to_ns(msg.clock)
+        return None
+
+    return wait_for(published_after, 30.0, 'a /clock published after the recording ended')
+
+
+def check_bag(bag, final_ns: int) -> None:
+    """One time in the bag: every stream's header stamps in order and none ahead of the
+    graph's time when its message was sent (no wall time, nothing from the future:
+    stamp_order.beyond_sent, bounded by ``final_ns`` after the last recorded /clock), the
+    markers stamped; the measured tip is one point in both frames."""
+    recorded = [(topic, msg, raw.publish_time) for topic, msg, raw in read_decoded(bag)]
+    messages = [(topic, msg) for topic, msg, _ in recorded]
+    assert any(topic == topics.CLOCK for topic, _ in messages), 'no /clock recorded'
     stamps = [s for topic, msg in messages for s in header_stamps(topic, msg)]
     assert {k: n for k, n in backwards_steps(stamps).items() if n} == {}
-    late = {stream for stream, ns in stamps if ns * 1e-9 > clock + 1.0}
-    assert not late, f'stamped beyond the last /clock ({clock:.1f} s): {sorted(late)}'
+    ahead = {stream: f'{lead * 1e-9:.3f} s' for stream, lead in beyond_sent(
+        recorded, final_ns).items()}
+    assert not ahead, f'stamped ahead of the graph\'s time when sent, by: {ahead}'
     last_markers = [m for t, m in messages if t == '/scene/markers'][-1].markers
     assert all(m.header.stamp.sec or m.header.stamp.nanosec for m in last_markers)
     reported = {s.name.split(':')[0] for t, m in messages if t == '/diagnostics'

@@ -307,12 +307,12 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     Parameters of the node: ``@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}],
     indirect=True)``.
     """
-    import threading
-
     import rclpy
     from rclpy.context import Context
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.parameter import Parameter
+
+    from flexarm_core.node_main import Spin
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
@@ -320,16 +320,16 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
         Parameter(name, value=value) for name, value in getattr(request, 'param', {}).items()])
     executor = MultiThreadedExecutor(context=context)
     executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
+    spin = Spin(executor, lambda: None)
     try:
         yield node
     finally:
         # The spin ends before anything of the node goes: a wait set still being built from
-        # a destroyed entity raises in the spin thread ("cannot use Destroyable").
+        # a destroyed entity raises in the spin thread ("cannot use Destroyable"), and so
+        # does an executor shut down while it spins (its guard condition is gone).
+        assert spin.stop(10.0), "the test node's executor did not stop"
         executor.shutdown(timeout_sec=2.0)
-        thread.join(timeout=10.0)
-        assert not thread.is_alive(), "the test node's executor did not stop"
+        assert spin.error is None, f'the test node\'s executor failed: {spin.error!r}'
         for waitable in list(node.waitables):   # a test's action servers: destroy_node
             waitable.destroy()                   # leaves them, and the node, alive
         node.destroy_node()

@@ -70,8 +70,14 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
         spin = Spin(executor, lambda: os.write(wake, b'\0'))
         os.read(woken, 1)       # a signal, or the spin ended by itself
     finally:
-        if spin is not None:
-            spin.stop(liveness.limit(STOP_WAIT))
+        if spin is not None and not spin.stop(liveness.limit(STOP_WAIT)):
+            # a callback that does not end: destroying the node under it would crash; the
+            # process exit frees what it holds
+            assert node is not None
+            node.get_logger().error(f'a callback still ran {liveness.limit(STOP_WAIT):g} s '
+                                    'after the stop '
+                                    'was asked for: exiting without destroying the node')
+            node = executor = None
         if executor is not None:
             executor.shutdown(timeout_sec=0.0)  # drops its wait set (it holds entities in use)
         rclpy.try_shutdown()
@@ -95,7 +101,7 @@ class Spin:
         self._stopped: Future = Future()
         self._ended = ended
         self.error: BaseException | None = None
-        self._thread = threading.Thread(target=self._spin, name='spin')
+        self._thread = threading.Thread(target=self._spin, name='spin', daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
@@ -108,12 +114,14 @@ class Spin:
         finally:
             self._ended()
 
-    def stop(self, timeout: float) -> None:
-        """End the spin after the callback it runs; wait up to ``timeout`` s for it."""
+    def stop(self, timeout: float) -> bool:
+        """End the spin after the callback it runs; wait up to ``timeout`` s for it. Whether
+        it ended (then, and only then, the executor may be shut down)."""
         if not self._stopped.done():
             self._stopped.set_result(None)
         self._executor.wake()
         self._thread.join(timeout)
+        return not self._thread.is_alive()
 
 
 class Offload:

@@ -30,6 +30,7 @@ from flexarm_bringup.launcher import stop_all
 from flexarm_bringup.supervisor import Graph
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import liveness, topics
+from flexarm_core.node_main import Spin
 from flexarm_msgs.action import MoveToPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
@@ -83,13 +84,12 @@ def link(module_launch, domain_id):
         command = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
         executor = SingleThreadedExecutor(context=context)
         executor.add_node(node)
-        thread = threading.Thread(target=executor.spin, daemon=True)
-        thread.start()
+        thread = Spin(executor, lambda: None)
         yield proxy, nodes[1], command, to
     finally:
-        if thread is not None:                   # the spin ends before the node goes
+        stopped = thread is None or thread.stop(5.0)   # the spin ends before the node goes
+        if thread is not None:
             executor.shutdown(timeout_sec=2.0)
-            thread.join(timeout=5.0)
         if node is not None:
             node.destroy_node()
         if context is not None:
@@ -99,7 +99,7 @@ def link(module_launch, domain_id):
         codes = stop_all(nodes, timeout=5.0)     # before the module's other tests start
         running = [name for name, code in codes.items() if code is None]
         assert not running, f'node(s) {running} could not be stopped and reaped'
-        assert thread is None or not thread.is_alive(), "the test node's executor did not stop"
+        assert stopped, "the test node's executor did not stop"
 
 
 @pytest.fixture

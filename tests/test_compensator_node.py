@@ -35,6 +35,7 @@ from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import topics
 from flexarm_core.health_report import ERROR, WARN
 from flexarm_core.kinematics import ArmGeometry, forward, inverse
+from flexarm_core.node_main import Spin
 from flexarm_core.params import config_path, load_config
 from flexarm_core.regions import regions_from_dict
 from flexarm_msgs.action import MoveToPose
@@ -430,17 +431,15 @@ def in_process(shared, domain_id, client, request):
     # at a barrier (the node itself spins single-threaded).
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(node)
-    thread = threading.Thread(target=executor.spin, daemon=True)
-    thread.start()
+    spin = Spin(executor, lambda: None)
     outcomes = []
     client.create_subscription(GoalOutcome, topics.OUTCOMES, outcomes.append, 10)
     try:
         client.wait_until_ready(timeout=30.0, learner=False)
         yield node, client, outcomes
     finally:
+        assert spin.stop(10.0), "the node's executor did not stop"   # before the node goes
         executor.shutdown(timeout_sec=2.0)
-        thread.join(timeout=10.0)               # the spin ends before the node goes
-        assert not thread.is_alive(), "the node's executor did not stop"
         node.destroy_node()
         rclpy.try_shutdown(context=context)
 

@@ -13,16 +13,30 @@ The two tips are also published as ``geometry_msgs/PoseStamped`` on ``/scene/mea
 ``/scene/true_tip``.
 
 Each stream is published at most ``publish_frequency`` times a second of wall-clock time (the
-simulator publishes joint states at 100 Hz of sim time, 1000 a second at 10x real time), with
-the stamp of the message it comes from, like robot_state_publisher's ``publish_frequency``:
-joint states are taken raw and only the one published is parsed.
+simulator publishes joint states and the ground truth at 100 Hz of sim time, 1000 a second
+each at 10x real time), with the stamp of the message it comes from, like
+robot_state_publisher's ``publish_frequency``. No input message wakes the node: the inputs are
+taken raw (:class:`flexarm_core.taken.Taken`) by one wall timer at ``publish_frequency``,
+which runs while an input is subscribed and publishes the newest of each stream (the newest
+valid measured tip) that came since the last, parsing only that one. Measured at 10x real
+time with a recorder on /tf (benchmarks/footprint.py): a callback per input message (the ground
+truth parsed each time) cost the node 0.30-0.32 of a core, the timer 0.09-0.10, most of it
+Fast DDS receiving 2000 messages a second and the 30 wake-ups. ``publish_frequency`` <= 0: a
+callback per message, each published.
 
-On demand (:mod:`flexarm_core.demand`): each input is subscribed only while what it makes
-is watched — ``/joint_states`` while ``/tf`` has a subscriber, ``/tip_pose`` while ``/tf`` or
-``/scene/measured_tip`` has one, ``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip``
-has one. Decision: watching the arm (rviz, Foxglove, a recorder) asks for the measured tip too,
-so the vision node and the camera run while someone watches; an unwatched graph measures only
-when a node measures.
+On demand (:mod:`flexarm_core.demand`'s rule, fed by the publishers' matched events): each
+input is subscribed only while what it makes is watched — ``/joint_states`` while ``/tf`` has
+a subscriber, ``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip`` has one, and
+``/tip_pose`` while ``/tf`` or ``/scene/measured_tip`` has a *viewer*: a subscriber that is not
+a recorder (``recorders``: node names). Decision: watching the arm (rviz, Foxglove, a test)
+asks for the measured tip too, so the vision node and the simulated camera run while someone
+watches (about half a core at 10x real time: rendering and measuring 50 frames a wall second);
+a recorder's subscription asks only for the frames that cost little (the joints and the true
+tip, from streams the recorder takes anyway) and records the measured tip whenever the graph
+measures for someone else (flexarm_bringup.recorder_node: a recording does not make the graph
+measure). A recorder's node name may be known a moment after its subscription matched (Fast
+DDS); until then it counts as a viewer, and the decision is taken again every
+``RECHECK`` s until every subscriber is known.
 
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second): ``/tf`` and the
 tips carry the stamp of their message, ``/diagnostics`` the graph's time (the newest ``/clock``
@@ -42,16 +56,17 @@ from collections.abc import Callable
 from functools import partial
 
 from geometry_msgs.msg import PoseStamped, TransformStamped
+from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile, ReliabilityPolicy
 from rclpy.serialization import deserialize_message
 from rclpy.subscription import Subscription
+from rclpy.timer import Timer
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
 from flexarm_core import topics
-from flexarm_core.demand import Demand, on_matched
 from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, STALE, WARN, Status, status
 from flexarm_core.kinematics import ArmGeometry
@@ -59,6 +74,7 @@ from flexarm_core.node_main import run
 from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.scene_msgs import pose_stamped
 from flexarm_core.stamps import GraphTime
+from flexarm_core.taken import Taken, take
 from flexarm_description.chain import (
     BASE_FRAME,
     Transform,
@@ -75,23 +91,23 @@ from tf2_msgs.msg import TFMessage
 MEASURED_FRAME = 'tip_measured'
 TRUE_FRAME = 'tip_true'
 JOINTS_STALE = 5.0      # [s, wall] without /joint_states: the frames are stale
-NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # /joint_states
+RECHECK = 0.2           # [s, wall] between looks at subscribers whose node is not known yet
+RECORDERS = ['flexarm_recorder']
+NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # joints, truth
+MEASURED = 10           # /tip_pose frames kept between two timer ticks (50 a second at 10x)
+UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'     # rmw's name of a node it does not know yet
 
 
-class Throttle:
-    """True at most ``frequency`` times a second (monotonic clock); ``frequency`` <= 0: always."""
+def wanted_inputs(subscribers: dict[str, int], recording: dict[str, int]) -> dict[str, bool]:
+    """Which inputs to subscribe (module docstring), from the subscriber count of each output
+    (``/tf``, ``/scene/measured_tip``, ``/scene/true_tip``) and how many of them are
+    recorders'."""
+    def viewers(output: str) -> int:
+        return subscribers.get(output, 0) - recording.get(output, 0)
 
-    def __init__(self, frequency: float, clock: Callable[[], float] = time.monotonic) -> None:
-        self._period = 1.0 / frequency if frequency > 0 else 0.0
-        self._clock = clock
-        self._next = float('-inf')
-
-    def __call__(self) -> bool:
-        now = self._clock()
-        if now < self._next:
-            return False
-        self._next = now + self._period
-        return True
+    return {'joints': subscribers.get(topics.TF, 0) > 0,
+            'true': subscribers.get(topics.TF, 0) + subscribers.get(topics.TRUE_TIP, 0) > 0,
+            'measured': viewers(topics.TF) + viewers(topics.MEASURED_TIP) > 0}
 
 
 def transform_msg(t: Transform, header: Header) -> TransformStamped:
@@ -113,6 +129,9 @@ class StatePublisher(Node):
         frequency = declare(self, 'publish_frequency', 30.0,
                             '[Hz, wall clock] at most this many /tf (and tip pose) messages a '
                             'second per stream; <= 0: one per message received')
+        self._recorders = set(declare(
+            self, 'recorders', RECORDERS, 'names of the nodes that record rather than '
+            'watch: their subscriptions do not ask for the measured tip (the camera)'))
         hardware = declare(self, 'hardware_plugin', MOCK_HARDWARE,
                            'ros2_control hardware plugin of the URDF\'s <ros2_control> system; '
                            "'': no <ros2_control> block", read_only=True)
@@ -126,35 +145,82 @@ class StatePublisher(Node):
         self._counts = {'tf': 0, 'measured': 0, 'true': 0}
         self._last_joints: float | None = None      # monotonic time of the last joint state
         self._joint_problem = ''
-        self._throttles = {name: Throttle(frequency) for name in ('joints', 'measured', 'true')}
-        tips = {'measured': (topics.TIP_POSE, topics.MEASURED_TIP, MEASURED_FRAME),
-                'true': (topics.TIP_POSE_TRUTH, topics.TRUE_TIP, TRUE_FRAME)}
-        # Each input by name: how to subscribe it, and its subscription while it is wanted.
-        self._sources: dict[str, Callable[[], Subscription]] = {'joints': partial(
-            self.create_subscription, JointState, topics.JOINT_STATES, self._on_joints, NEWEST,
-            raw=True)}
+        self._period = 1.0 / frequency if frequency > 0 else 0.0
+        self._taken = Taken() if self._period else None
+        self._steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self._tick: Timer | None = None             # takes the inputs, while any is subscribed
+        self._recheck: Timer | None = None          # while a subscriber's node is unknown
+        self._subscribers: dict[str, int] = {}      # output: matched subscriptions
+        tips = {'measured': (topics.TIP_POSE, topics.MEASURED_TIP, MEASURED_FRAME, MEASURED),
+                'true': (topics.TIP_POSE_TRUTH, topics.TRUE_TIP, TRUE_FRAME, NEWEST)}
+        # Each input by name: how to subscribe it, what handles a message (raw), and its
+        # subscription while it is wanted.
+        self._sources: dict[str, tuple[type, str, QoSProfile | int]] = {
+            'joints': (JointState, topics.JOINT_STATES, NEWEST)}
+        self._handlers: dict[str, Callable[[bytes], bool]] = {'joints': self._on_joints}
         self._inputs: dict[str, Subscription] = {}
-        demands = {name: Demand(partial(self._watch, name)) for name in ('joints', *tips)}
-        for name, (source, target, frame) in tips.items():
+        for name, (source, target, frame, qos) in tips.items():
             publisher = self.create_publisher(PoseStamped, target, 10, event_callbacks=(
-                PublisherEventCallbacks(matched=on_matched(target, demands[name]))))
-            self._sources[name] = partial(self.create_subscription, TipPose, source, partial(
-                self._on_tip, name=name, publisher=publisher, frame=frame), 10)
+                PublisherEventCallbacks(matched=partial(self._matched, target))))
+            self._sources[name] = (TipPose, source, qos)
+            self._handlers[name] = partial(self._on_tip, name=name, publisher=publisher,
+                                           frame=frame)
         self._tf = self.create_publisher(TFMessage, topics.TF, 100, event_callbacks=(
-            PublisherEventCallbacks(matched=on_matched(topics.TF, *demands.values()))))
+            PublisherEventCallbacks(matched=partial(self._matched, topics.TF))))
         DiagnosticsPublisher(self, self._statuses, stamp=GraphTime(self).stamp)
 
-    def _watch(self, name: str, wanted: bool) -> None:
-        """Subscribe input ``name`` while what it makes is watched."""
-        if wanted:
-            self._inputs[name] = self._sources[name]()
-        else:
-            self.destroy_subscription(self._inputs.pop(name))
+    # --- demand -------------------------------------------------------------------------------
+    def _matched(self, output: str, info) -> None:
+        self._subscribers[output] = info.current_count
+        self._decide()
 
-    def _on_joints(self, raw: bytes) -> None:
+    def _decide(self) -> None:
+        """Subscribe the inputs that are wanted now, unsubscribe the others (module
+        docstring); look again soon while a subscriber's node is not known yet."""
+        recording, unknown = {}, False
+        for output, count in self._subscribers.items():
+            if output == topics.TRUE_TIP or not count:
+                continue
+            nodes = [info.node_name for info in self.get_subscriptions_info_by_topic(output)]
+            recording[output] = sum(name in self._recorders for name in nodes)
+            unknown |= len(nodes) < count or UNKNOWN_NODE in nodes
+        for name, wanted in wanted_inputs(self._subscribers, recording).items():
+            if wanted and name not in self._inputs:
+                message_type, topic, qos = self._sources[name]
+                handler = self._handlers[name]
+                self._inputs[name] = self.create_subscription(
+                    message_type, topic, handler if self._taken is None else lambda _: None,
+                    qos, raw=True, callback_group=self._taken)
+            elif not wanted and name in self._inputs:
+                self.destroy_subscription(self._inputs.pop(name))
+        self._tick = self._timer(self._tick, self._taken is not None and bool(self._inputs),
+                                 self._period, self._take_inputs)
+        self._recheck = self._timer(self._recheck, unknown, RECHECK, self._decide)
+
+    def _timer(self, timer: Timer | None, wanted: bool, period: float,
+               callback: Callable[[], None]) -> Timer | None:
+        """The timer running while wanted (made or destroyed as need be)."""
+        if wanted and timer is None:
+            return self.create_timer(period, callback, clock=self._steady)
+        if not wanted and timer is not None:
+            self.destroy_timer(timer)
+            return None
+        return timer
+
+    # --- inputs -------------------------------------------------------------------------------
+    def _take_inputs(self) -> None:
+        """Publish the newest message of each input that came since the last tick (of the
+        measured tip the newest valid one)."""
+        for name, subscription in list(self._inputs.items()):
+            taken = []
+            while (raw := take(subscription)) is not None:
+                taken.append(raw)
+            for raw in reversed(taken):
+                if self._handlers[name](raw):
+                    break
+
+    def _on_joints(self, raw: bytes) -> bool:
         self._last_joints = time.monotonic()
-        if not self._throttles['joints']():
-            return
         msg = deserialize_message(raw, JointState)
         positions = dict(zip(msg.name, msg.position, strict=False))
         try:
@@ -162,20 +228,25 @@ class StatePublisher(Node):
         except ValueError as exc:
             self._joint_problem = f'/joint_states: {exc}'
             self.get_logger().warn(self._joint_problem, throttle_duration_sec=10.0)
-            return
+            return True
         self._joint_problem = ''
         self._tf.publish(TFMessage(transforms=[transform_msg(t, msg.header)
                                                for t in transforms]))
         self._counts['tf'] += 1
+        return True
 
-    def _on_tip(self, msg: TipPose, name: str, publisher, frame: str) -> None:
-        if not msg.valid or not self._throttles[name]():
-            return
+    def _on_tip(self, raw: bytes, name: str, publisher, frame: str) -> bool:
+        """Publish a valid tip pose (the frame and the pose); whether it was valid."""
+        msg = deserialize_message(raw, TipPose)
+        if not msg.valid:
+            return False
         pose = (msg.pose.x, msg.pose.y, msg.pose.phi)
         self._tf.publish(TFMessage(transforms=[transform_msg(
             planar_transform(BASE_FRAME, frame, pose), msg.header)]))
-        publisher.publish(pose_stamped(pose, msg.header.stamp))
+        if publisher.get_subscription_count():      # else /tf asked for it: made for nobody
+            publisher.publish(pose_stamped(pose, msg.header.stamp))
         self._counts[name] += 1
+        return True
 
     def _statuses(self) -> list[Status]:
         values = {'joint state age [s]': 'none yet' if self._last_joints is None else

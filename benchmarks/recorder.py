@@ -5,9 +5,12 @@ domain, publishes from this process for ``--seconds``: /joint_states at ``--join
 and 640x480 mono8 /camera/image_raw at ``--image-rate`` Hz (reliable, keep last), waits
 until the recorder has flushed what it will get, stops it with SIGINT, then reads the bag
 back and compares with what was published (dropped = published - recorded). Drops depend
-on the machine's load (printed): a starved recorder overflows its queues.
+on the machine's load (printed): a starved recorder overflows its queues. The recorder's CPU
+(``recorder_cores``: user + system time per wall second) is measured from the first message
+published until the last was flushed: its start-up (imports, discovery) is left out.
 
-    python benchmarks/recorder.py [--seconds 10] [--joint-rate 1000] [--image-rate 30] [--json]
+    python benchmarks/recorder.py [--seconds 10] [--joint-rate 1000] [--image-rate 30]
+        [--compression zstd|lz4|none] [--json]
 """
 from __future__ import annotations
 
@@ -17,6 +20,7 @@ import os
 import signal
 import tempfile
 import time
+from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
@@ -50,8 +54,10 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
-def publish(node: Any, seconds: float, joint_rate: float, image_rate: float) -> dict[str, int]:
-    """Publish both streams on schedule (catching up when late); return counts sent."""
+def publish(node: Any, seconds: float, joint_rate: float, image_rate: float,
+            started: Callable[[], None] = lambda: None) -> dict[str, int]:
+    """Publish both streams on schedule (catching up when late); return counts sent.
+    ``started()`` is called once both are matched, just before the first message."""
     joint_pub = node.create_publisher(JointState, JOINT_STATES, QoSProfile(depth=1000))
     image_pub = node.create_publisher(Image, CAMERA_IMAGE, QoSProfile(depth=30))
     deadline = time.monotonic() + 20.0
@@ -65,6 +71,7 @@ def publish(node: Any, seconds: float, joint_rate: float, image_rate: float) -> 
     image = Image(height=HEIGHT, width=WIDTH, encoding='mono8', step=WIDTH,
                   data=bytes(range(256)) * (WIDTH * HEIGHT // 256))
     sent = {JOINT_STATES: 0, CAMERA_IMAGE: 0}
+    started()
     start = time.monotonic()
     while (elapsed := time.monotonic() - start) < seconds:
         while sent[JOINT_STATES] < elapsed * joint_rate:
@@ -81,18 +88,23 @@ def publish(node: Any, seconds: float, joint_rate: float, image_rate: float) -> 
 
 
 def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int,
-            run_dir: Path) -> dict[str, Any]:
+            run_dir: Path, compression: str = 'zstd') -> dict[str, Any]:
     bag_dir = run_dir / 'bench'
     recorder = NodeProcess(load_optional()['flexarm_recorder'],
                            ros_env(domain_id, run_dir / 'ros_log'), run_dir / 'recorder.log',
                            {'bag_directory': str(run_dir), 'bag_name': 'bench',
-                            'record_images': True})
+                            'record_images': True, 'compression': compression})
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     node = rclpy.create_node('bench_recorder', context=context)
     recorder.start()
+    marks: dict[str, float] = {}
+
+    def started() -> None:
+        marks['cpu'], marks['wall'] = _cpu_seconds(recorder.process.pid), time.monotonic()
+
     try:
-        sent = publish(node, seconds, joint_rate, image_rate)
+        sent = publish(node, seconds, joint_rate, image_rate, started)
         total = sent[JOINT_STATES] + sent[CAMERA_IMAGE]
         deadline, last, stalled_since = time.monotonic() + 30.0, -1, time.monotonic()
         while time.monotonic() < deadline and (count := _flushed_count(bag_dir)) < total:
@@ -101,7 +113,8 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
             elif time.monotonic() - stalled_since > 3.0:
                 break                                # nothing more is coming
             time.sleep(0.1)
-        cpu = _cpu_seconds(recorder.process.pid)
+        cpu = _cpu_seconds(recorder.process.pid) - marks['cpu']
+        busy = time.monotonic() - marks['wall']
         recorder.signal(signal.SIGINT)
         recorder.process.wait(timeout=15.0)
     finally:
@@ -123,7 +136,9 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
         'images_per_s': recorded[CAMERA_IMAGE] / window,
         'image_mb_per_s': image_bytes / window / 1e6,
         'bag_mb': info['size_bytes'] / 1e6,
-        'recorder_cpu_percent': 100.0 * cpu / window,
+        'recorder_cores': cpu / busy, 'recorder_cpu_percent': 100.0 * cpu / busy,
+        'recorder_us_per_message': 1e6 * cpu / max(1, sum(recorded.values())),
+        'compression': compression,
         'clean_close': info['complete'] and info['rosbag2_metadata'],
         'load_average_1min': os.getloadavg()[0],
     }
@@ -134,13 +149,16 @@ def main() -> None:
     parser.add_argument('--seconds', type=float, default=10.0)
     parser.add_argument('--joint-rate', type=float, default=1000.0)
     parser.add_argument('--image-rate', type=float, default=30.0)
+    parser.add_argument('--compression', default='zstd', choices=('zstd', 'lz4', 'none'))
     parser.add_argument('--domain-id', type=int, default=92)
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     with tempfile.TemporaryDirectory() as tmp:
-        r = measure(args.seconds, args.joint_rate, args.image_rate, args.domain_id, Path(tmp))
+        r = measure(args.seconds, args.joint_rate, args.image_rate, args.domain_id, Path(tmp),
+                    args.compression)
     print(f'published for {r["seconds"]:.1f} s; recorder CPU {r["recorder_cpu_percent"]:.0f} %'
-          f', bag {r["bag_mb"]:.1f} MB, closed cleanly: {r["clean_close"]}, '
+          f' ({r["recorder_us_per_message"]:.0f} us a message), bag {r["bag_mb"]:.1f} MB '
+          f'({r["compression"]}), closed cleanly: {r["clean_close"]}, '
           f'machine load {r["load_average_1min"]:.1f}')
     print('topic                published  recorded  dropped')
     for t in r['published']:

@@ -9,10 +9,15 @@ Jazzy), the same mapping that ``metadata.yaml`` holds under ``rosbag2_bagfile_in
 From version 9 on, rosbag2 reads a topic's ``offered_qos_profiles`` there as a YAML list of
 profiles, not as the string the channel carries.
 
-Messages are grouped in uncompressed chunks. A chunk is written when it reaches
-``chunk_size`` or on :meth:`BagWriter.flush`; every written chunk stays readable if the
-process dies (SIGKILL), and each flush also rewrites ``metadata.yaml`` (atomically) so the
-directory describes what is on disk.
+Messages are grouped in chunks, each compressed (``compression``: ``zstd`` by default, as
+rosbag2's MCAP writer does, ``lz4`` or ``none``) inside the MCAP file, so every MCAP
+reader (``mcap``, ``mcap-ros2-support``, rosbags, rosbag2, Foxglove) decodes it and the rosbag2
+metadata names no file compression. Measured on this machine (4-joint JointState, 156 bytes,
+50 000 of them): writing costs 4.3 us a message uncompressed, 4.3 with lz4 and 4.7 with zstd,
+and the file is 6x (lz4) or 9x (zstd) smaller; a recorded demo's bag 4x (zstd). A chunk is
+written when it reaches ``chunk_size`` (before compression) or on :meth:`BagWriter.flush`;
+every written chunk stays readable if the process dies (SIGKILL), and each flush also rewrites
+``metadata.yaml`` (atomically) so the directory describes what is on disk.
 """
 from __future__ import annotations
 
@@ -33,6 +38,9 @@ METADATA_VERSION = 9            # rosbag2 bag metadata version of ROS 2 Jazzy
 ROS_DISTRO = 'jazzy'
 LIBRARY = f'flexarm_bringup.bag_writer (mcap {mcap.__version__})'
 DEFAULT_CHUNK_SIZE = 512 * 1024
+COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
+                'none': CompressionType.NONE}
+DEFAULT_COMPRESSION = 'zstd'
 
 
 def offered_qos_yaml(profiles: Sequence[Mapping[str, Any]]) -> str:
@@ -70,8 +78,13 @@ class BagWriter:
     Not thread-safe: call it from one thread (the recorder's executor).
     """
 
-    def __init__(self, bag_dir: str | Path, chunk_size: int = DEFAULT_CHUNK_SIZE) -> None:
-        """Create ``bag_dir`` (it must not exist or be empty) and start its MCAP file."""
+    def __init__(self, bag_dir: str | Path, chunk_size: int = DEFAULT_CHUNK_SIZE,
+                 compression: str = DEFAULT_COMPRESSION) -> None:
+        """Create ``bag_dir`` (it must not exist or be empty) and start its MCAP file, its
+        chunks compressed with ``compression`` (:data:`COMPRESSIONS`)."""
+        if compression not in COMPRESSIONS:
+            raise ValueError(f'chunk compression {compression!r}: one of '
+                             f'{", ".join(COMPRESSIONS)}')
         self.bag_dir = Path(bag_dir)
         if self.bag_dir.exists() and any(self.bag_dir.iterdir()):
             raise FileExistsError(f'bag directory {self.bag_dir} exists and is not empty')
@@ -79,7 +92,7 @@ class BagWriter:
         self.path = self.bag_dir / f'{self.bag_dir.name}.mcap'
         self._file = open(self.path, 'wb')
         self._writer = Writer(self._file, chunk_size=chunk_size,
-                              compression=CompressionType.NONE)
+                              compression=COMPRESSIONS[compression])
         self._writer.start(profile='ros2', library=LIBRARY)
         self._schemas: dict[str, int] = {}
         self._topics: dict[str, _Topic] = {}

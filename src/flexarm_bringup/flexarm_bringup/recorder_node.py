@@ -1,23 +1,50 @@
 """``flexarm_recorder``: record flexarm topics into an MCAP bag (rosbag2 layout).
 
-Writes ``<bag_directory>/<bag_name>/<bag_name>.mcap`` with :class:`BagWriter`: messages are
-taken raw (serialized CDR) from the wire, so nothing is decoded. Each wanted topic (names or
-patterns, :mod:`flexarm_bringup.topic_discovery`) is subscribed once a publisher of it is
-discovered (checked every ``discovery_period``), with its type from the graph and a QoS that
-matches all its publishers (latched topics such as /learner/model are recorded even if
-published before), keep last ``queue_depth`` (deep enough for bursts while Python takes the
-messages one by one; the camera's own, smaller depth bounds the memory of queued images).
-Log times are wall-clock receive times (so a bag is ordered even before /clock runs);
-publish times are the publishers' source timestamps. Message stamps keep the graph's (sim)
-time.
+Writes ``<bag_directory>/<bag_name>/<bag_name>.mcap`` with :class:`BagWriter`, its chunks
+compressed (``compression``, zstd by default: the demo's bag 50-60 bytes a message instead of
+200, for no measurable CPU: benchmarks/recorder.py gives 44-48 us a message with zstd, lz4 or
+none alike). Each wanted topic (names or patterns, :mod:`flexarm_bringup.topic_discovery`) is
+subscribed once a publisher of it is discovered (checked every ``discovery_period``), with its
+type from the graph and a QoS that matches all its publishers (latched topics such as
+/learner/model are recorded even if published before), keep last ``queue_depth``.
+
+Cost: a recording must not slow the arm it records. The messages are serialized CDR taken from
+the wire and written as they are, never decoded, and no message wakes the node: the
+subscriptions are :class:`~flexarm_core.taken.Taken`, and every ``take_period`` (wall clock)
+one timer takes what arrived on every topic and writes it in receive order. At 10x real time
+the simulator publishes ``/joint_states`` and the ground truth 1000 times a wall second each.
+Measured here (benchmarks/recorder.py, 2000 joint states a second): an executor callback per
+message cost 230-270 us of CPU a message, and the recorder fell behind and dropped 7-9 % of
+them on a loaded machine; taken in batches, 30-48 us a message in all and none dropped, of
+which some 8 in Python (3 to take, 4.5 to write) and the rest Fast DDS receiving them. In the
+graph at 10x (benchmarks/footprint.py) the recorder costs 0.08-0.10 of a core, idle or
+collecting, where it cost 0.45-0.56. ``queue_depth`` must hold a ``take_period`` of the
+busiest topic (1000 a second: 100 a period of 0.1 s) with room for a late timer; the camera's
+own, smaller depth bounds the memory of queued images. Log times are the messages' receive
+times (rmw ``received_timestamp``, wall clock: a bag is ordered even before /clock runs);
+publish times are the publishers' source timestamps; message stamps keep the graph's (sim)
+time. A batch is written in receive order, and what was received after the batch began waits
+for the next, so the log times grow monotonically across batches too.
+
+Decision: the recorder records what the graph makes; it does not make the graph measure. The
+vision node measures (and the simulator renders its camera, ~0.5 core at 10x) only while
+``/tip_pose`` has a subscriber (:mod:`flexarm_core.demand`), so with ``passive_measurements``
+(the default) ``/tip_pose`` is subscribed only while another node has been subscribed to it
+for two discovery passes in a row (a viewer's chain: the state publisher for rviz or
+Foxglove), and left at the first pass without one. The learner's and the compensator's own
+measurements are brief (a few frames) and land in the bag as ``/learner/samples`` and
+``/compensator/outcomes``. The state publisher likewise does not ask for the measured tip
+for a recorder's ``/tf`` subscription (its ``recorders`` parameter), only for a viewer's.
+Everything else is subscribed throughout: ``/joint_states`` and the ground truth at the
+simulator's full rate, the joint frames on ``/tf`` at the state publisher's 30 Hz.
 
 Decision: one bag per recorder run. ``flexarm up --record NAME`` records the whole session
 in one bag; a trial that wants a bag of its own starts (and stops) a recorder for itself.
 
 Chunks are flushed every ``flush_period`` (wall clock, also under sim time), so after a
 SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close the bag
-cleanly: the handlers only stop the spin loop (:func:`spin_until_signalled`), the bag is
-closed after spinning stops.
+cleanly: the handlers only stop the spin loop (:func:`spin_until_signalled`); what already
+arrived is taken and written (:func:`_drain`), then the bag is closed.
 
 Health on ``/diagnostics``: :func:`recorder_status`, stamped with the graph's time
 (:class:`flexarm_core.stamps.GraphTime`: the newest ``/clock`` in a simulated graph, taken
@@ -27,17 +54,26 @@ without waking the node; wall time on a real arm): the recorder skips the node's
 from __future__ import annotations
 
 import time
+from bisect import bisect_right
 from collections.abc import Sequence
+from operator import itemgetter
 from pathlib import Path
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from flexarm_bringup.bag_writer import DEFAULT_CHUNK_SIZE, BagWriter, duration_yaml
+from flexarm_bringup.bag_writer import (
+    COMPRESSIONS,
+    DEFAULT_CHUNK_SIZE,
+    DEFAULT_COMPRESSION,
+    BagWriter,
+    duration_yaml,
+)
 from flexarm_bringup.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
@@ -50,6 +86,7 @@ from flexarm_core.health_report import OK, WARN, Status, status
 from flexarm_core.node_params import declare
 from flexarm_core.paths import BAGS_DIR
 from flexarm_core.stamps import GraphTime
+from flexarm_core.taken import Taken
 
 DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded
@@ -97,7 +134,8 @@ def recorder_status(node: str, bag: str, recorded: Sequence[str], left_out: Sequ
 
 
 class RecorderNode(Node):
-    """Subscribes raw to the wanted topics as they appear and writes them to one bag."""
+    """Subscribes raw to the wanted topics as they appear, takes what arrived every
+    ``take_period`` and writes it to one bag."""
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('flexarm_recorder', **kwargs)
@@ -109,9 +147,17 @@ class RecorderNode(Node):
                          'topics to record: names or fnmatch patterns ("*": all)')
         record_images = declare(self, 'record_images', False,
                                 f'also record {topics.CAMERA_IMAGE}')
+        self._passive = declare(self, 'passive_measurements', True,
+                                f'record {topics.TIP_POSE} only while another node consumes '
+                                'it (the vision node measures only while it has a '
+                                'subscriber); false: subscribe throughout (the camera runs '
+                                'for the bag)')
         discovery_period = declare(self, 'discovery_period', 0.5,
                                    'period of looking for publishers of wanted topics [s]',
                                    bounds=(0.01, 60.0))
+        take_period = declare(self, 'take_period', 0.1,
+                              'period of taking what arrived and writing it [s, wall clock]',
+                              bounds=(0.001, 10.0))
         flush_period = declare(self, 'flush_period', 1.0,
                                'period of writing the chunk in progress to disk [s]',
                                bounds=(0.01, 3600.0))
@@ -121,22 +167,30 @@ class RecorderNode(Node):
         image_queue_depth = declare(self, 'image_queue_depth', 30,
                                     f'the same for {topics.CAMERA_IMAGE}', bounds=(1, 10000))
         chunk_size = declare(self, 'chunk_size', DEFAULT_CHUNK_SIZE,
-                             'MCAP chunk size [bytes]')
+                             'MCAP chunk size [bytes, before compression]')
+        compression = declare(self, 'compression', DEFAULT_COMPRESSION,
+                              f'MCAP chunk compression: {", ".join(COMPRESSIONS)}')
         self.writer = BagWriter(Path(directory) / (name or default_bag_name()),
-                                chunk_size=chunk_size)
-        self.create_timer(flush_period, self.writer.flush,
-                          clock=Clock(clock_type=ClockType.STEADY_TIME))
+                                chunk_size=chunk_size, compression=compression)
+        self._pending: list[tuple[int, str, bytes, int]] = []   # taken, not yet written
+        self._consumed: dict[str, int] = {}     # passes in a row another node consumed it
+        self._measured = topics.absolute(topics.TIP_POSE, self.get_namespace())
+        steady = Clock(clock_type=ClockType.STEADY_TIME)
+        self.create_timer(take_period, self.take, clock=steady)
+        self.create_timer(flush_period, self.flush, clock=steady)
         selection = TopicSelection(tuple(wanted), record_images, self.get_namespace())
         self.get_logger().info(f'recording {list(wanted)} (images: {record_images}) to '
                                f'{self.writer.path}')
         self.topics = RawTopicSubscriber(self, selection, self._add_topic, 'recording',
-                                         discovery_period, queue_depth, image_queue_depth)
+                                         discovery_period, queue_depth, image_queue_depth,
+                                         active=self._active, callback_group=Taken())
         self._diagnostics = DiagnosticsPublisher(self, lambda: [recorder_status(
             self.get_name(), str(self.writer.path), sorted(self.topics.subscriptions),
             sorted(self.topics.left_out), self.writer.message_count)], stamp=GraphTime(self).stamp)
 
     def _add_topic(self, topic: str, publishers: Sequence[TopicEndpointInfo]) -> RawHandler:
-        """Add the topic to the bag; the handler that writes its messages."""
+        """Add the topic to the bag; the handler that writes a message (its subscription is
+        taken, so only a caller outside the executor would use it)."""
         type_hash = str(publishers[0].topic_type_hash)
         self.writer.add_topic(topic, publishers[0].topic_type,
                               [qos_profile_dict(p.qos_profile) for p in publishers],
@@ -147,8 +201,62 @@ class RecorderNode(Node):
 
         return record
 
+    def _active(self, topic: str) -> bool:
+        """Whether the topic is to be subscribed now (each discovery pass): all but the
+        measured tip, and that one too unless ``passive_measurements`` (module docstring)."""
+        if not self._passive or topic != self._measured:
+            return True
+        me = (self.get_name(), self.get_namespace())
+        consumed = any((info.node_name, info.node_namespace) != me
+                       for info in self.get_subscriptions_info_by_topic(topic))
+        self._consumed[topic] = self._consumed.get(topic, 0) + 1 if consumed else 0
+        subscribed = getattr(self, 'topics', None)      # None: the first pass, at start
+        if not consumed and subscribed is not None and topic in subscribed.subscriptions:
+            self._take_topic(topic, subscribed.subscriptions[topic])    # before it goes
+        return self._consumed[topic] >= 2
+
+    def _take_topic(self, topic: str, subscription: Any) -> None:
+        """Move what arrived on one subscription to the pending messages."""
+        pending = self._pending
+        try:
+            with subscription.handle:
+                take = subscription.handle.take_message
+                while (taken := take(subscription.msg_type, True)) is not None:
+                    data, info = taken
+                    pending.append((info['received_timestamp'] or time.time_ns(), topic,
+                                    data, info['source_timestamp']))
+        except InvalidHandle:           # destroyed meanwhile (shutdown)
+            pass
+
+    def take(self) -> int:
+        """Take what arrived on every topic and write it in receive order, but what was
+        received after this call began (that waits for the next, so log times never step
+        back); the messages written."""
+        cutoff = time.time_ns()
+        for topic, subscription in list(self.topics.subscriptions.items()):
+            self._take_topic(topic, subscription)
+        if not self._pending:
+            return 0
+        self._pending.sort(key=itemgetter(0))
+        split = bisect_right(self._pending, cutoff, key=itemgetter(0))
+        ready, self._pending = self._pending[:split], self._pending[split:]
+        write = self.writer.write
+        for received, topic, data, published in ready:
+            write(topic, data, received, published)
+        return len(ready)
+
+    def flush(self) -> None:
+        """Take and write what arrived, then write the chunk in progress to disk."""
+        self.take()
+        self.writer.flush()
+
     def destroy_node(self) -> None:
-        """Close the bag (summary, rosbag2 metadata, metadata.yaml), then the node."""
+        """Write what is pending, close the bag (summary, rosbag2 metadata, metadata.yaml),
+        then destroy the node."""
+        self.take()
+        for received, topic, data, published in sorted(self._pending, key=itemgetter(0)):
+            self.writer.write(topic, data, received, published)
+        self._pending = []
         self.writer.close()
         self.get_logger().info(
             f'closed {self.writer.path}: {self.writer.message_count} messages')
@@ -157,13 +265,14 @@ class RecorderNode(Node):
 
 def _drain(executor: SingleThreadedExecutor, node: RecorderNode) -> None:
     """Write what has already arrived (e.g. the last goal's outcome, published just before
-    the graph is stopped): spin until nothing new comes for DRAIN_QUIET, at most DRAIN_MAX."""
+    the graph is stopped): take until nothing new comes for DRAIN_QUIET, at most DRAIN_MAX
+    (spinning meanwhile: a latched topic found now is still subscribed)."""
     deadline = time.monotonic() + DRAIN_MAX
-    count, quiet_since = node.writer.message_count, time.monotonic()
+    quiet_since = time.monotonic()
     while time.monotonic() < deadline and time.monotonic() - quiet_since < DRAIN_QUIET:
         executor.spin_once(timeout_sec=0.02)
-        if node.writer.message_count != count:
-            count, quiet_since = node.writer.message_count, time.monotonic()
+        if node.take() or node._pending:
+            quiet_since = time.monotonic()
 
 
 def main(args: list[str] | None = None) -> None:

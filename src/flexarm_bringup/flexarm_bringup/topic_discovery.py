@@ -26,6 +26,7 @@ from fnmatch import fnmatchcase
 from typing import Any
 
 import rclpy
+from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
 from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
@@ -97,14 +98,17 @@ class RawTopicSubscriber:
     ``prepare(topic, publishers)`` is called once per topic, when it is found, and gives the
     handler of its messages; ``purpose`` ('recording', 'serving') words the log. With
     ``active``, a found topic is subscribed only while ``active(topic)`` holds (checked each
-    discovery pass) and unsubscribed when it stops holding; without it, always.
+    discovery pass) and unsubscribed when it stops holding; without it, always. The
+    subscriptions are made in ``callback_group`` (None: the node's default), e.g. one whose
+    messages the owner takes itself instead of the executor calling the handler.
     """
 
     def __init__(self, node: Node, selection: TopicSelection, prepare: Prepare, purpose: str,
                  period: float, queue_depth: int, image_queue_depth: int,
-                 active: Callable[[str], bool] | None = None) -> None:
+                 active: Callable[[str], bool] | None = None,
+                 callback_group: CallbackGroup | None = None) -> None:
         self._node, self._selection, self._prepare = node, selection, prepare
-        self._purpose, self._active = purpose, active
+        self._purpose, self._active, self._group = purpose, active, callback_group
         self._queue_depth, self._image_queue_depth = queue_depth, image_queue_depth
         self._found: dict[str, tuple[type, RawHandler]] = {}
         self.subscriptions: dict[str, Any] = {}
@@ -149,7 +153,8 @@ class RawTopicSubscriber:
         depth = (self._image_queue_depth if topic == self._selection.image_topic
                  else self._queue_depth)
         self.subscriptions[topic] = self._node.create_subscription(
-            message_type, topic, handler, request_qos(publishers, depth), raw=True)
+            message_type, topic, handler, request_qos(publishers, depth), raw=True,
+            callback_group=self._group)
 
 
 def spin_until_signalled(make_node: Callable[[], Node], args: list[str] | None = None,

@@ -9,6 +9,7 @@ import math
 import re
 import shutil
 import signal
+import time
 from pathlib import Path
 from typing import Any
 
@@ -352,7 +353,8 @@ def _start_and_publish(launch: Any, ros_node: Any, wait_for: Any,
     joint_pub = ros_node.create_publisher(JointState, topics.JOINT_STATES, 2 * N)
     tip_pub = ros_node.create_publisher(TipPose, topics.TIP_POSE, 2 * N)
     recorder = launch('flexarm_recorder', bag_directory=str(bag_dir), bag_name='t',
-                      topics=[topics.JOINT_STATES, topics.TIP_POSE, topics.MODEL])
+                      topics=[topics.JOINT_STATES, topics.TIP_POSE, topics.MODEL],
+                      passive_measurements=False)
     wait_for(lambda: all(p.get_subscription_count() for p in (model_pub, joint_pub, tip_pub)),
              20.0, 'the recorder to subscribe to all three topics')
     for i in range(N):
@@ -395,6 +397,8 @@ def test_recorder_closes_bag_with_every_message_on_signal(
     assert channels[BAG_TIP].metadata['topic_type_hash'].startswith('RIHS01_')
     info = bag_info(tmp_path / 't')
     assert info['complete'] and info['rosbag2_metadata'] and info['message_count'] == 2 * N + 1
+    log_times = [m.log_time for m in _writes(tmp_path / 't' / 't.mcap')]   # taken in batches,
+    assert log_times == sorted(log_times)                   # written in receive order
 
 
 @pytest.mark.node
@@ -434,3 +438,137 @@ def test_recorder_bag_survives_sigkill_up_to_its_last_chunk(
     positions = [m.position[0] for m in by_topic[BAG_JOINTS]]
     assert positions == [float(i) for i in range(len(positions))]
     assert len(by_topic[BAG_TIP]) == N and len(by_topic[BAG_MODEL]) == 1
+
+
+def _writes(path: Path) -> list[Message]:
+    """The messages of a closed bag in the order they are in the file."""
+    with open(path, 'rb') as f:
+        return [m for _, _, m in make_reader(f).iter_messages(log_time_order=False)]
+
+
+@pytest.mark.parametrize('compression', ['zstd', 'lz4', 'none'])
+def test_compressed_bag_decodes_fully_with_the_bag_tools(tmp_path: Path,
+                                                          compression: str) -> None:
+    """Chunks compressed inside the MCAP file: the bag tools and the ROS 2 decoder read every
+    message back, the rosbag2 metadata names no file compression."""
+    bag = tmp_path / compression
+    tips = [TipPose(pose=_pose(0.001 * i, -0.2, 0.1), valid=True) for i in range(50)]
+    with BagWriter(bag, chunk_size=4096, compression=compression) as writer:
+        writer.add_topic(topics.JOINT_STATES, 'sensor_msgs/msg/JointState', [QOS])
+        writer.add_topic(topics.TIP_POSE, 'flexarm_msgs/msg/TipPose', [QOS])
+        for i in range(500):
+            writer.write(topics.JOINT_STATES, _joint_state(i), T0 + 2 * i)
+            if i % 10 == 0:
+                writer.write(topics.TIP_POSE, serialize_message(tips[i // 10]), T0 + 2 * i + 1)
+    path = bag / f'{compression}.mcap'
+    with open(path, 'rb') as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert len(chunks) > 3
+    assert {c.compression for c in chunks} == {'' if compression == 'none' else compression}
+    factory = DecoderFactory()
+    decoded: dict[str, list[Any]] = {}
+    for schema, channel, message in read_messages(path):
+        decode = factory.decoder_for(channel.message_encoding, schema)
+        decoded.setdefault(channel.topic, []).append(decode(message.data))
+    assert [m.position[0] for m in decoded[topics.JOINT_STATES]] == \
+        pytest.approx([0.001 * i for i in range(500)])
+    assert [m.pose.x for m in decoded[topics.TIP_POSE]] == [t.pose.x for t in tips]
+    assert [t for t, _, _ in _decoded(path)].count(topics.TIP_POSE) == 50
+    info = bag_info(bag)
+    assert info['complete'] and info['message_count'] == 550
+    on_disk = yaml.safe_load((bag / 'metadata.yaml').read_text())['rosbag2_bagfile_information']
+    assert (on_disk['compression_format'], on_disk['compression_mode']) == ('', '')
+
+
+def test_compressed_bag_decodes_fully_with_rosbags(tmp_path: Path) -> None:
+    """rosbags (where installed) reads a zstd bag. Its messages are serialized by rosbags
+    itself, exactly as they come on the wire: rclpy's serialize_message pads its buffer with
+    a few stray bytes, which rosbags' strict CDR reader refuses (a recorded bag's messages,
+    taken from the wire, have none)."""
+    highlevel = pytest.importorskip('rosbags.highlevel')
+    typesys = pytest.importorskip('rosbags.typesys')
+    import numpy as np
+
+    store = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
+    joint_state, header, stamp, text = (store.types[name] for name in (
+        'sensor_msgs/msg/JointState', 'std_msgs/msg/Header', 'builtin_interfaces/msg/Time',
+        'std_msgs/msg/String'))
+
+    def state(i: int) -> bytes:
+        return store.serialize_cdr(joint_state(
+            header=header(stamp=stamp(sec=i, nanosec=0), frame_id='base_link'),
+            name=['joint1'], position=np.array([0.001 * i]), velocity=np.array([0.0]),
+            effort=np.array([], dtype=np.float64)), 'sensor_msgs/msg/JointState')
+
+    with BagWriter(tmp_path / 'b', chunk_size=4096) as writer:
+        writer.add_topic(topics.JOINT_STATES, 'sensor_msgs/msg/JointState', [QOS])
+        writer.add_topic(topics.ROBOT_DESCRIPTION, 'std_msgs/msg/String', [QOS])
+        for i in range(300):
+            writer.write(topics.JOINT_STATES, state(i), T0 + 2 * i)
+            writer.write(topics.ROBOT_DESCRIPTION, store.serialize_cdr(
+                text(data=f'<robot name="{i}"/>'), 'std_msgs/msg/String'), T0 + 2 * i + 1)
+    with highlevel.AnyReader([tmp_path / 'b'], default_typestore=store) as reader:
+        read = [(c.topic, reader.deserialize(raw, c.msgtype))
+                for c, _, raw in reader.messages()]
+    assert [m.position[0] for t, m in read if t == topics.JOINT_STATES] == \
+        pytest.approx([0.001 * i for i in range(300)])
+    assert [m.data for t, m in read if t == topics.ROBOT_DESCRIPTION] == \
+        [f'<robot name="{i}"/>' for i in range(300)]
+
+
+def test_writer_refuses_an_unknown_compression(tmp_path: Path) -> None:
+    with pytest.raises(ValueError, match='zstd'):
+        BagWriter(tmp_path / 'b', compression='gzip')
+    assert not (tmp_path / 'b').exists()
+
+
+@pytest.mark.node
+def test_a_recording_does_not_make_the_graph_measure(
+        launch: Any, ros_node: Any, wait_for: Any, tmp_path: Path, domain_id: int) -> None:
+    """The recorder and the state publisher (whose /tf it records) leave /tip_pose alone, so
+    the vision node would not measure for the bag; a viewer of /tf asks for it, the recorder
+    then records it too, and both leave it when the viewer goes."""
+    import rclpy
+    from rclpy.context import Context
+
+    from tf2_msgs.msg import TFMessage
+
+    tip_pub = ros_node.create_publisher(TipPose, topics.TIP_POSE, 100)    # the vision node's
+    launch('flexarm_state_publisher')
+    recorder = launch('flexarm_recorder', bag_directory=str(tmp_path), bag_name='p',
+                      discovery_period=0.1)
+
+    def consumers() -> set[str]:
+        return {i.node_name for i in ros_node.get_subscriptions_info_by_topic(topics.TIP_POSE)}
+
+    wait_for(lambda: 'flexarm_recorder' in {
+        i.node_name for i in ros_node.get_subscriptions_info_by_topic(topics.TF)},
+        20.0, 'the recorder to subscribe to /tf')
+    wait_for(lambda: 'flexarm_state_publisher' in {
+        i.node_name for i in ros_node.get_subscriptions_info_by_topic(topics.JOINT_STATES)},
+        20.0, 'the state publisher to take /joint_states for the recorder')
+    deadline = time.monotonic() + 1.5                # a dozen discovery passes
+    while time.monotonic() < deadline:
+        assert not consumers(), 'a recording asked for the measured tip'
+        tip_pub.publish(TipPose(pose=_pose(-1.0, 0.0, 0.0), valid=True))   # nobody's
+        time.sleep(0.05)
+
+    context = Context()                              # a viewer: rviz on /tf
+    rclpy.init(context=context, domain_id=domain_id)
+    viewer = rclpy.create_node('viewer', context=context)
+    viewer.create_subscription(TFMessage, topics.TF, lambda _: None, 100)
+    try:
+        wait_for(lambda: consumers() == {'flexarm_state_publisher', 'flexarm_recorder'},
+                 20.0, 'the state publisher and then the recorder on /tip_pose')
+        for i in range(20):
+            tip_pub.publish(TipPose(pose=_pose(0.001 * i, 0.0, 0.0), valid=True))
+            time.sleep(0.01)
+        time.sleep(0.5)                              # taken and written (take_period 0.1 s)
+    finally:
+        viewer.destroy_node()
+        rclpy.try_shutdown(context=context)
+    wait_for(lambda: not consumers(), 20.0, 'both to leave /tip_pose with the viewer')
+    recorder.signal(signal.SIGINT)
+    assert recorder.process.wait(timeout=10.0) == 0, recorder.log_tail()
+    recorded = [m.pose.x for t, _, m in _decoded(tmp_path / 'p' / 'p.mcap') if t == BAG_TIP]
+    assert recorded == pytest.approx([0.001 * i for i in range(20)])

@@ -5,6 +5,13 @@ then per working region: collects learning samples (dataset = the region's name)
 predictor, waits until the compensator has hot-reloaded it, and runs that region's targets in
 RIGID, PREDICTIVE and CLOSED_LOOP modes, judged against the simulator's ground truth.
 
+Where the time goes: the summary's ``phases`` list each phase (start, calibration, and per
+region collect, train, load model, goals; then shutdown and results) with its wall seconds
+and, while the graph runs, the simulated seconds it advanced and their ratio (``rtf``), from
+the newest ``/clock`` taken without waking the client (:class:`SimTime`). ``seconds`` is the
+wall time of the whole run (graph start to results written), ``achieved_rtf`` the simulated
+time advanced per wall second from the graph ready to the end of the last goal.
+
 Decision: one predictor per working region, as the paper's benchmark uses two separate
 working spaces (A, B) — 40 samples over both at once fit 4-7x worse (offline on the plant:
 max error 1.7 mm over A+B against 0.26 mm in A alone and 0.45 mm in B alone). The
@@ -20,6 +27,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -116,6 +124,7 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
         watchdog.start()
         say(f'graph ready after {time.monotonic() - started:.1f} s')
         client.wait_until_ready(timeout=30.0)
+        phases = Phases(SimTime(client), started)
         truth = TruthMonitor(client)
         calibration = None
         if not settings.world:          # the realistic world: calibrate the camera first
@@ -128,6 +137,7 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
             say(f'tool calibration against the reference (the ground truth): camera error '
                 f'axial {calibration["axial_mm"]:.4f} mm, lateral '
                 f'{calibration["lateral_mm"]:.4f} mm, {calibration["angle_deg"]:.5f} deg')
+            phases.mark('calibration')
         for region in region_names:
             bar = tqdm(total=settings.samples, desc=f'collect {region}', unit='sample',
                        disable=not progress)
@@ -138,10 +148,13 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
             bar.close()
             if collected.error_code != 0:
                 raise RuntimeError(f'collection in {region} failed: {collected.error_string}')
+            phases.mark(f'collect {region}', samples=collected.collected)
             trained = client.train(settings.kind, dataset=region)
             if not trained.success:
                 raise RuntimeError(f'training on {region} failed: {trained.message}')
+            phases.mark(f'train {region}')
             model = client.wait_for_model(trained.model_version)
+            phases.mark(f'load model {region}')
             m = trained.metrics
             learning[region] = {
                 'samples': collected.total, 'skipped': collected.skipped,
@@ -163,7 +176,11 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
             trials += run_trials(client, truth, targets, settings.modes, settings.name,
                                  on_trial=lambda t, bar=bar: bar.update(1))
             bar.close()
+            phases.mark(f'goals {region}', goals=len(targets) * len(settings.modes))
+        achieved_rtf = phases.achieved_rtf()
+    phases.mark('shutdown', graph=False)
     summary = {'name': settings.name, 'seconds': time.monotonic() - started,
+               'achieved_rtf': achieved_rtf, 'phases': phases.rows,
                'world': 'ideal' if settings.world else 'realistic',
                'tool_calibration': calibration,
                'learning': learning, 'summary': summarise(trials),
@@ -171,8 +188,72 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
                'bag': str(BAGS_DIR / settings.name) if settings.record else None,
                'nodes_died': watchdog.dead}
     write_results(summary, trials, out_dir, geometry, regions)
+    phases.mark('results', graph=False)
+    summary['seconds'] = time.monotonic() - started
+    write_summary(summary, out_dir)             # with the whole run's time
     summary['results'] = str(out_dir)
     return summary
+
+
+class SimTime:
+    """The graph's simulated time [s], the newest ``/clock`` taken from a raw keep-last-1
+    subscription that never wakes the client (:class:`flexarm_core.taken.Taken`)."""
+
+    def __init__(self, node: Any) -> None:
+        from rclpy.qos import QoSProfile
+        from rosgraph_msgs.msg import Clock
+
+        from flexarm_core.taken import Taken
+
+        self._subscription = node.create_subscription(
+            Clock, topics.CLOCK, lambda _: None, QoSProfile(depth=1), callback_group=Taken(),
+            raw=True)
+        self._ns: int | None = None
+
+    def now(self, timeout: float = 5.0) -> float | None:
+        """The newest ``/clock`` [s]; waits up to ``timeout`` for the first one (None if none
+        came: a graph on wall time)."""
+        from flexarm_core.stamps import raw_stamp_ns
+        from flexarm_core.taken import take
+
+        deadline = time.monotonic() + timeout
+        while True:
+            while (raw := take(self._subscription)) is not None:
+                self._ns = raw_stamp_ns(raw)
+            if self._ns is not None or time.monotonic() > deadline:
+                return None if self._ns is None else self._ns * 1e-9
+            time.sleep(0.01)
+
+
+class Phases:
+    """Where a run's time goes: per phase its wall seconds and the simulated seconds the graph
+    advanced meanwhile (``rtf``: their ratio), from :class:`SimTime` marks."""
+
+    def __init__(self, sim: SimTime, started: float,
+                 clock: Callable[[], float] = time.monotonic) -> None:
+        """``started``: when the run began (``clock``'s time); the first phase, ``start``,
+        ends now (the graph is ready)."""
+        self._sim, self._clock = sim, clock
+        self._start = self._last = (clock(), sim.now())
+        self.rows: list[dict[str, Any]] = [
+            {'phase': 'start', 'seconds': self._start[0] - started}]
+
+    def mark(self, phase: str, graph: bool = True, **extra: Any) -> None:
+        """The phase that ends now (``graph``: the graph still runs, its time is read)."""
+        now = (self._clock(), self._sim.now(timeout=0.0) if graph else None)
+        row: dict[str, Any] = {'phase': phase, 'seconds': now[0] - self._last[0], **extra}
+        if now[1] is not None and self._last[1] is not None:
+            row['sim_seconds'] = now[1] - self._last[1]
+            row['rtf'] = row['sim_seconds'] / max(row['seconds'], 1e-9)
+        self.rows.append(row)
+        self._last = now if now[1] is not None else (now[0], self._last[1])
+
+    def achieved_rtf(self) -> float | None:
+        """Simulated seconds per wall second from the first mark (the graph ready) to now."""
+        wall, sim = self._clock(), self._sim.now(timeout=0.0)
+        if sim is None or self._start[1] is None:
+            return None
+        return (sim - self._start[1]) / max(wall - self._start[0], 1e-9)
 
 
 class _Watchdog:
@@ -213,6 +294,22 @@ def _client(domain_id: int):
     finally:
         client.destroy_node()
         rclpy.try_shutdown(context=context)
+
+
+def phases_text(summary: dict) -> str:
+    """Where the run's wall time went, phase by phase (with the real-time factor the graph
+    achieved in each), and the achieved factor over the run."""
+    parts = []
+    for row in summary['phases']:
+        notes = [f'{row[key]} {key}' for key in ('samples', 'goals') if key in row]
+        if 'rtf' in row:
+            notes.append(f'x{row["rtf"]:.1f}')
+        parts.append(f'{row["phase"]} {row["seconds"]:.1f} s'
+                     + (f' ({", ".join(notes)})' if notes else ''))
+    rtf = summary.get('achieved_rtf')
+    return ('time: ' + ', '.join(parts)
+            + ('' if rtf is None else f'; x{rtf:.2f} real time achieved from ready to the '
+               'last goal'))
 
 
 def table_text(summary: dict) -> str:
@@ -256,6 +353,14 @@ def table_text(summary: dict) -> str:
     return '\n'.join(lines)
 
 
+def write_summary(summary: dict, out_dir: Path) -> None:
+    """``out_dir/summary.json``, written atomically."""
+    from flexarm_core.atomic_file import atomic_write
+
+    atomic_write(out_dir / 'summary.json', lambda f: f.write(
+        json.dumps(summary, indent=1).encode()))
+
+
 def write_results(summary: dict, trials: list[Trial], out_dir: Path, geometry: ArmGeometry,
                   regions: dict[str, Region]) -> None:
     """The run's files in ``out_dir``, each written atomically: summary.json, table.md,
@@ -267,8 +372,7 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path, geometry: A
     from flexarm_core.atomic_file import atomic_write
 
     out_dir.mkdir(parents=True, exist_ok=True)
-    atomic_write(out_dir / 'summary.json', lambda f: f.write(
-        json.dumps(summary, indent=1).encode()))
+    write_summary(summary, out_dir)
     atomic_write(out_dir / 'table.md', lambda f: f.write(table_text(summary).encode()))
     plots.write_csv(out_dir / 'trials.csv', TRIAL_CSV_FIELDS, [t.csv_row() for t in trials])
     plots.write_csv(out_dir / 'moves.csv', MOVE_CSV_FIELDS,

@@ -13,7 +13,6 @@ arrive after the result.
 from __future__ import annotations
 
 import math
-import threading
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import asdict, dataclass
@@ -123,26 +122,21 @@ def _xyphi(pose: PlanarPose) -> list[float]:
 
 
 class TruthMonitor:
-    """Latest ground-truth tip pose, heard by the client node."""
+    """The ground-truth tip pose after a goal, heard by the client node. ``/sim/tip_pose_truth``
+    is subscribed only while a pose is asked for: the simulator builds and publishes the truth
+    only while it has a subscriber (1000 messages a wall second at 10x real time), and the
+    client would parse each one whenever it spins, all through the run."""
 
     def __init__(self, client: FlexarmClient) -> None:
-        self._lock = threading.Lock()
-        self._latest: tuple[float, np.ndarray] | None = None
-        client.create_subscription(TipPose, topics.TIP_POSE_TRUTH, self._on_truth, 10)
-
-    def _on_truth(self, msg: TipPose) -> None:
-        with self._lock:
-            self._latest = (time.monotonic(), np.array([msg.pose.x, msg.pose.y, msg.pose.phi]))
+        del client                              # subscribed to in after(), on demand
 
     def after(self, since: float, client: FlexarmClient, timeout: float = 5.0) -> np.ndarray:
-        """The first truth received after wall time ``since`` (spinning the client)."""
-        deadline = time.monotonic() + timeout
-        while time.monotonic() < deadline:
-            with self._lock:
-                if self._latest is not None and self._latest[0] > since:
-                    return self._latest[1]
-            client.spin_once(0.05)
-        raise TimeoutError(f'no {topics.TIP_POSE_TRUTH} for {timeout:.0f} s')
+        """The first truth received after wall time ``since`` (now or earlier: it subscribes
+        now), spinning the client."""
+        del since                               # whatever comes after subscribing is later
+        [msg] = client.messages_from(topics.TIP_POSE_TRUTH, TipPose, 1, timeout,
+                                     what='ground-truth poses')
+        return np.array([msg.pose.x, msg.pose.y, msg.pose.phi])
 
 
 def run_trials(client: FlexarmClient, truth: TruthMonitor,

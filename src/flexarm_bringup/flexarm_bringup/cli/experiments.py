@@ -23,6 +23,7 @@ def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
 
     from flexarm_bringup.experiment import (
         ExperimentSettings,
+        phases_text,
         reserved_domain,
         run_experiment,
         table_text,
@@ -36,6 +37,7 @@ def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
     with reserved_domain(args.domain_id) as domain:
         summary = run_experiment(settings, domain, progress=_progress(args))
     print(table_text(summary))
+    print(phases_text(summary))
     print(f'results in {summary["results"]}' + (
         f', bag in {summary["bag"]}' if summary['bag'] else '') +
         f'; {summary["seconds"]:.0f} s in all')

@@ -1,13 +1,16 @@
 """The graph's own footprint: CPU and memory of each node idle at x1 and x10 real time and
-while collecting at x10, and the real-time factor the simulator achieves meanwhile.
+while collecting at x10, and the real-time factor the simulator achieves meanwhile; the same
+at x10 with the recorder on (``flexarm up --record``, as ``flexarm demo`` records its run).
 
 Starts the default graph of ``flexarm up`` (simulated robot, supervisor API) in a free ROS
-domain (or ``--domain-id``), twice: at a real-time factor of 1, then of 10 (the simulator's
-factor is fixed at start). Each time it waits until the graph is ready and ``--settle`` seconds
-more (start-up work: imports, discovery), then measures a stretch of ``--seconds`` doing
-nothing (``idle_x1``, ``idle_x10``); at x10 it then collects ``--samples`` deflection samples
-through the learner's ``/collect_samples`` (:class:`~flexarm_control.ros.client.FlexarmClient`,
-into a temporary data folder) and measures that stretch too (``collect_x10``).
+domain (or ``--domain-id``), three times: at a real-time factor of 1, then of 10 (the
+simulator's factor is fixed at start), then of 10 with the recorder (its default topics, into a
+temporary bag; ``--no-record`` leaves this graph out). Each time it waits until the graph is
+ready and ``--settle`` seconds more (start-up work: imports, discovery), then measures a
+stretch of ``--seconds`` doing nothing (``idle_x1``, ``idle_x10``, ``idle_x10_recorded``); at
+x10 it then collects ``--samples`` deflection samples through the learner's
+``/collect_samples`` (:class:`~flexarm_control.ros.client.FlexarmClient`, into a temporary data
+folder) and measures that stretch too (``collect_x10``, ``collect_x10_recorded``).
 
 CPU: user + system time of each node's process and its child processes from
 ``/proc/<pid>/stat`` at the start and end of a stretch, per wall second (1.0 = one core busy:
@@ -22,11 +25,13 @@ the machine disturbs the figures, read them with it.
         [--domain-id N] [--json]
     python benchmarks/footprint.py --smoke --json        # shortest stretches, 2 samples
 
-JSON (last line): ``idle_x1``, ``idle_x10``, ``collect_x10``, each with ``total_cores``,
-``achieved_rtf``, ``wall_s``, ``rss_mb``, ``machine_busy``, ``load_1min``,
-``benchmark_cores`` (``collect_x10`` also ``s_per_sample_wall``, ``collected``,
-``error_code``); ``rss_mb_total`` (the largest total of the stretches); ``nodes``: per node
-and stretch ``cores`` and ``rss_mb``.
+JSON (last line): ``idle_x1``, ``idle_x10``, ``collect_x10`` (and ``idle_x10_recorded``,
+``collect_x10_recorded``), each with ``total_cores``, ``achieved_rtf``, ``wall_s``, ``rss_mb``,
+``machine_busy``, ``load_1min``, ``benchmark_cores`` (the collections also
+``s_per_sample_wall``, ``collected``, ``error_code``); ``rss_mb_total`` (the largest total of
+the stretches); ``nodes``: per node and stretch ``cores`` and ``rss_mb``; ``recorder``: the
+recorder's own ``cores`` per recorded stretch (``idle_x10``, ``collect_x10``), and its bag's
+``messages`` and ``bag_mb`` (absent with ``--no-record``).
 """
 from __future__ import annotations
 
@@ -45,6 +50,7 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
+from flexarm_bringup.bag_tools import bag_info
 from flexarm_bringup.experiment import reserved_domain
 from flexarm_bringup.supervisor import Graph
 from flexarm_control.ros.client import FlexarmClient
@@ -54,6 +60,7 @@ TICK = os.sysconf('SC_CLK_TCK')
 PAGE = os.sysconf('SC_PAGE_SIZE')
 READY_S = 120.0        # [s] bound of the graph's bring-up
 SMOKE = {'settle': 1.0, 'seconds': 3.0, 'samples': 2}
+RECORDER = 'flexarm_recorder'
 
 
 def _stat(pid: int) -> list[str] | None:
@@ -169,13 +176,19 @@ def collection(client: FlexarmClient, samples: int) -> Callable[[], dict[str, An
     return work
 
 
-def run_graph(domain: int, folder: Path, rtf: float, args: argparse.Namespace
+def run_graph(domain: int, folder: Path, rtf: float, args: argparse.Namespace,
+              record: bool = False
               ) -> dict[str, tuple[dict[str, Any], dict[str, dict[str, float]]]]:
-    """One graph at ``rtf``: its idle stretch and, at x10, the collection."""
-    graph = Graph(domain, folder / f'x{rtf:g}', report=lambda text: print(f'  {text}'),
+    """One graph at ``rtf`` (with the recorder if ``record``): its idle stretch and, at x10,
+    the collection."""
+    suffix = '_recorded' if record else ''
+    graph = Graph(domain, folder / f'x{rtf:g}{suffix}', report=lambda text: print(f'  {text}'),
                   parameters={'flexarm_sim': {'real_time_factor': rtf},
                               'flexarm_learner': {'data_directory': str(folder / 'data'),
-                                                  'model_directory': str(folder / 'models')}})
+                                                  'model_directory': str(folder / 'models')},
+                              RECORDER: {'bag_directory': str(folder / 'bags'),
+                                         'bag_name': 'footprint'}},
+                  optional=(RECORDER,) if record else ())
     stretches = {}
     clock = client = context = None
     graph.start()
@@ -187,12 +200,12 @@ def run_graph(domain: int, folder: Path, rtf: float, args: argparse.Namespace
             rclpy.init(context=context, domain_id=domain)
             client = FlexarmClient('flexarm_footprint_client', context=context)
             client.wait_until_ready(timeout=60.0)
-        print(f'x{rtf:g}: ready; settling {args.settle:g} s', flush=True)
+        print(f'x{rtf:g}{suffix}: ready; settling {args.settle:g} s', flush=True)
         time.sleep(args.settle)
-        stretches[f'idle_x{rtf:g}'] = measure(graph, clock, idle(args.seconds))
+        stretches[f'idle_x{rtf:g}{suffix}'] = measure(graph, clock, idle(args.seconds))
         if client is not None:
-            stretches[f'collect_x{rtf:g}'] = measure(graph, clock,
-                                                     collection(client, args.samples))
+            stretches[f'collect_x{rtf:g}{suffix}'] = measure(
+                graph, clock, collection(client, args.samples))
         dead = graph.check()
         if dead:
             raise RuntimeError(f'nodes died while measured: {", ".join(dead)}')
@@ -214,6 +227,8 @@ def main() -> None:
     parser.add_argument('--samples', type=int, default=20, help='samples of the collection')
     smoke = ', '.join(f'--{key} {value:g}' for key, value in SMOKE.items())
     parser.add_argument('--smoke', action='store_true', help=f'shortest run: {smoke}')
+    parser.add_argument('--no-record', action='store_true',
+                        help='leave out the graph with the recorder')
     parser.add_argument('--domain-id', type=int, help='ROS domain (default: a free one)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
@@ -221,15 +236,23 @@ def main() -> None:
         vars(args).update(SMOKE)
     print(f'load average before: {os.getloadavg()[0]:.2f}', flush=True)
     stretches: dict[str, tuple[dict[str, Any], dict[str, dict[str, float]]]] = {}
+    recorder: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp, reserved_domain(args.domain_id) as domain:
-        for rtf in (1.0, 10.0):
-            stretches.update(run_graph(domain, Path(tmp), rtf, args))
+        for rtf, record in ((1.0, False), (10.0, False), (10.0, True)):
+            if record and args.no_record:
+                continue
+            stretches.update(run_graph(domain, Path(tmp), rtf, args, record))
+        if not args.no_record:
+            info = bag_info(Path(tmp) / 'bags' / 'footprint')
+            recorder = {'cores': {key.removesuffix('_recorded'): nodes[RECORDER]['cores']
+                                  for key, (_, nodes) in stretches.items() if RECORDER in nodes},
+                        'messages': info['message_count'], 'bag_mb': info['size_bytes'] / 1e6}
     names = sorted({name for _, nodes in stretches.values() for name in nodes})
-    print(f'{"node":26}' + ''.join(f'{k:>22}' for k in stretches) + '   [cores / RSS MB]')
+    print(f'{"node":26}' + ''.join(f'{k:>24}' for k in stretches) + '   [cores / RSS MB]')
     for name in names:
         print(f'{name:26}' + ''.join(
-            f'{nodes[name]["cores"]:13.3f} / {nodes[name]["rss_mb"]:5.0f}'
-            for _, nodes in stretches.values()))
+            f'{nodes[name]["cores"]:15.3f} / {nodes[name]["rss_mb"]:5.0f}' if name in nodes
+            else f'{"-":>24}' for _, nodes in stretches.values()))
     for key, (figures, _) in stretches.items():
         extra = (f', {figures["s_per_sample_wall"]:.2f} s/sample wall '
                  f'({figures["collected"]} collected)' if 'collected' in figures else '')
@@ -237,10 +260,15 @@ def main() -> None:
               f'x{figures["achieved_rtf"]:.2f} real time over {figures["wall_s"]:.1f} s'
               f'{extra}; machine busy {100 * figures["machine_busy"]:.0f} %, load '
               f'{figures["load_1min"]:.2f}, benchmark {figures["benchmark_cores"]:.3f} cores')
+    if recorder:
+        print('recorder: ' + ', '.join(f'{cores:.3f} cores {key}'
+                                       for key, cores in recorder['cores'].items())
+              + f'; {recorder["messages"]} messages, bag {recorder["bag_mb"]:.1f} MB')
     if args.json:
         print(json.dumps({
             'settle_s': args.settle, 'seconds': args.seconds, 'samples': args.samples,
             **{key: figures for key, (figures, _) in stretches.items()},
+            **({'recorder': recorder} if recorder else {}),
             'rss_mb_total': max(figures['rss_mb'] for figures, _ in stretches.values()),
             'nodes': {name: {key: nodes[name] for key, (_, nodes) in stretches.items()
                              if name in nodes} for name in names}}))

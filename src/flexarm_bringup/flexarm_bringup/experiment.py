@@ -225,9 +225,13 @@ class SimTime:
             time.sleep(0.01)
 
 
+MIN_PHASE = 0.5     # [s, wall] the shortest phase given its real-time factor (/clock: 25 Hz)
+
+
 class Phases:
     """Where a run's time goes: per phase its wall seconds and the simulated seconds the graph
-    advanced meanwhile (``rtf``: their ratio), from :class:`SimTime` marks."""
+    advanced meanwhile (``rtf``: their ratio, for a phase of ``MIN_PHASE`` or more), from
+    :class:`SimTime` marks."""
 
     def __init__(self, sim: SimTime, started: float,
                  clock: Callable[[], float] = time.monotonic) -> None:
@@ -244,7 +248,8 @@ class Phases:
         row: dict[str, Any] = {'phase': phase, 'seconds': now[0] - self._last[0], **extra}
         if now[1] is not None and self._last[1] is not None:
             row['sim_seconds'] = now[1] - self._last[1]
-            row['rtf'] = row['sim_seconds'] / max(row['seconds'], 1e-9)
+            if row['seconds'] >= MIN_PHASE:         # else a /clock period or two: no ratio
+                row['rtf'] = row['sim_seconds'] / row['seconds']
         self.rows.append(row)
         self._last = now if now[1] is not None else (now[0], self._last[1])
 

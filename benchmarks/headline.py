@@ -89,7 +89,7 @@ FIGURES = [
            lambda f: f['collect_x10']['total_cores'], 2.0,
            note='the whole graph collecting at ×10'),
     Figure('recorder_collect_x10_cores', 'footprint', 'cores',
-           lambda f: f['nodes']['flexarm_recorder']['collect_x10']['cores'], 0.15,
+           lambda f: f['recorder']['cores']['collect_x10'], 0.15,
            note='the recorder while the graph collects at ×10'),
     Figure('suite_s', 'suite', 's', lambda s: s['median_s'], 300.0,
            note='pytest\'s own time, the README\'s test command in a fresh clone'),

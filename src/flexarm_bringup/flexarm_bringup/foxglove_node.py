@@ -43,9 +43,9 @@ from flexarm_bringup.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
     TopicSelection,
-    spin_until_signalled,
 )
 from flexarm_core import topics
+from flexarm_core.node_main import run
 from flexarm_core.node_params import declare
 
 SERVER_NAME = 'flexarm'
@@ -135,7 +135,7 @@ class FoxgloveNode(Node):
 
 def main(args: list[str] | None = None) -> None:
     """Serve until SIGINT/SIGTERM, then stop the server and shut rclpy down."""
-    spin_until_signalled(FoxgloveNode, args)
+    run(FoxgloveNode, args)
 
 
 if __name__ == '__main__':

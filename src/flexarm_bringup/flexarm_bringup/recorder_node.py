@@ -43,7 +43,7 @@ in one bag; a trial that wants a bag of its own starts (and stops) a recorder fo
 
 Chunks are flushed every ``flush_period`` (wall clock, also under sim time), so after a
 SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close the bag
-cleanly: the handlers only stop the spin loop (:func:`spin_until_signalled`); what already
+cleanly: the signal only stops the spin (:func:`flexarm_core.node_main.run`); what already
 arrived is taken and written (:func:`_drain`), then the bag is closed.
 
 Health on ``/diagnostics``: :func:`recorder_status`, stamped with the graph's time
@@ -78,11 +78,11 @@ from flexarm_bringup.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
     TopicSelection,
-    spin_until_signalled,
 )
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, WARN, Status, status
+from flexarm_core.node_main import run
 from flexarm_core.node_params import declare
 from flexarm_core.paths import BAGS_DIR
 from flexarm_core.stamps import GraphTime
@@ -278,7 +278,7 @@ def _drain(executor: SingleThreadedExecutor, node: RecorderNode) -> None:
 def main(args: list[str] | None = None) -> None:
     """Spin until SIGINT/SIGTERM, write what already arrived, then close the bag, destroy
     the node and shut rclpy down."""
-    spin_until_signalled(RecorderNode, args, finish=_drain)
+    run(RecorderNode, args, finish=_drain)
 
 
 if __name__ == '__main__':

@@ -11,27 +11,20 @@ all are, transient local if they all are (so latched topics such as /learner/mod
 Decisions: a pattern never takes /camera/image_raw (~9 MB/s at 30 Hz): the images come only
 when named or asked for; nor hidden topics (actions' ``_action/*``), as ``ros2 topic list``
 hides them. A topic whose type cannot be loaded (no Python class, no ``.msg`` file) is left
-out once, with an error in the log. :func:`spin_until_signalled` runs such a node: the signal
-handlers only set a flag, because shutting the context down from a handler while the
-executor is inside a wait or a raw take crashed the process (SIGSEGV) now and then.
+out once, with an error in the log.
 """
 from __future__ import annotations
 
 import importlib
-import signal
-import threading
 from collections.abc import Callable, Iterable, Sequence
 from dataclasses import dataclass
 from fnmatch import fnmatchcase
 from typing import Any
 
-import rclpy
 from rclpy.callback_groups import CallbackGroup
 from rclpy.clock import Clock, ClockType
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.qos import DurabilityPolicy, HistoryPolicy, QoSProfile, ReliabilityPolicy
-from rclpy.signals import SignalHandlerOptions
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 from flexarm_core import topics
@@ -155,33 +148,3 @@ class RawTopicSubscriber:
         self.subscriptions[topic] = self._node.create_subscription(
             message_type, topic, handler, request_qos(publishers, depth), raw=True,
             callback_group=self._group)
-
-
-def spin_until_signalled(make_node: Callable[[], Node], args: list[str] | None = None,
-                         finish: Callable[[SingleThreadedExecutor, Any], None] | None = None,
-                         ) -> None:
-    """Make the node, spin it until SIGINT/SIGTERM, call ``finish(executor, node)`` (still
-    spinnable), then destroy the node and shut rclpy down."""
-    rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    stop = threading.Event()
-    for sig in (signal.SIGINT, signal.SIGTERM):
-        signal.signal(sig, lambda *_: stop.set())
-    try:
-        node = make_node()
-    except BaseException:
-        rclpy.try_shutdown()
-        raise
-    executor = SingleThreadedExecutor()
-    executor.add_node(node)
-    try:
-        while not stop.is_set() and rclpy.ok():
-            executor.spin_once(timeout_sec=0.1)
-        if finish is not None:
-            finish(executor, node)
-    except (KeyboardInterrupt, ExternalShutdownException):
-        pass
-    finally:
-        executor.remove_node(node)
-        node.destroy_node()
-        executor.shutdown(timeout_sec=1.0)
-        rclpy.try_shutdown()

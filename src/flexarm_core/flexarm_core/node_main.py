@@ -30,6 +30,7 @@ from rclpy.task import Future
 from flexarm_core import liveness
 
 T = TypeVar('T')
+N = TypeVar('N', bound=Node)
 
 
 STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
@@ -39,10 +40,13 @@ STOP_SIGNALS = (signal.SIGINT, signal.SIGTERM)
 STOP_WAIT = 10.0
 
 
-def run(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
+def run(make_node: Callable[[], N], args: list[str] | None = None,
+        finish: Callable[[SingleThreadedExecutor, N], None] | None = None) -> None:
     """Init rclpy, build the node, spin until SIGINT / SIGTERM / shutdown, then tear down in
-    order, on this thread alone: stop the executor, shut the context down (work threads'
-    waits end), let the node end its work threads (its ``destroy_node``), destroy it.
+    order, on this thread alone: stop the executor, ``finish(executor, node)`` if given (the
+    node still up and spinnable on this thread: a recorder writes what already arrived), shut
+    the context down (work threads' waits end), let the node end its work threads (its
+    ``destroy_node``), destroy it.
 
     Why not rclpy's own signal handling: on SIGINT it raises KeyboardInterrupt wherever the
     main thread is — inside a callback half-way through creating or destroying an entity (the
@@ -61,30 +65,39 @@ def run(make_node: Callable[[], Node], args: list[str] | None = None) -> None:
     for sig in STOP_SIGNALS:
         signal.signal(sig, _asked_to_stop)
     rclpy.init(args=args, signal_handler_options=SignalHandlerOptions.NO)
-    node = executor = None
-    spin: Spin | None = None
     try:
         node = make_node()
-        executor = SingleThreadedExecutor()
-        executor.add_node(node)
-        spin = Spin(executor, lambda: os.write(wake, b'\0'))
+    except BaseException:
+        rclpy.try_shutdown()
+        raise
+    executor = SingleThreadedExecutor()
+    executor.add_node(node)
+    spin = Spin(executor, lambda: os.write(wake, b'\0'))
+    try:
         os.read(woken, 1)       # a signal, or the spin ended by itself
     finally:
-        if spin is not None and not spin.stop(liveness.limit(STOP_WAIT)):
-            # a callback that does not end: destroying the node under it would crash; the
-            # process exit frees what it holds
-            assert node is not None
-            node.get_logger().error(f'a callback still ran {liveness.limit(STOP_WAIT):g} s '
-                                    'after the stop '
-                                    'was asked for: exiting without destroying the node')
-            node = executor = None
-        if executor is not None:
-            executor.shutdown(timeout_sec=0.0)  # drops its wait set (it holds entities in use)
-        rclpy.try_shutdown()
-        if node is not None:
-            node.destroy_node()
-    if spin is not None and spin.error is not None:
+        _tear_down(node, executor, spin, finish)
+    if spin.error is not None:
         raise spin.error
+
+
+def _tear_down(node: N, executor: SingleThreadedExecutor, spin: Spin,
+               finish: Callable[[SingleThreadedExecutor, N], None] | None) -> None:
+    """:func:`run`'s teardown, in its order."""
+    if not spin.stop(liveness.limit(STOP_WAIT)):
+        # a callback that does not end: destroying the node under it would crash; the
+        # process exit frees what it holds
+        node.get_logger().error(f'a callback still ran {liveness.limit(STOP_WAIT):g} s after '
+                                'the stop was asked for: exiting without destroying the node')
+        rclpy.try_shutdown()
+        return
+    try:
+        if finish is not None and spin.error is None:
+            finish(executor, node)
+    finally:
+        executor.shutdown(timeout_sec=0.0)   # drops its wait set (it holds entities in use)
+        rclpy.try_shutdown()
+        node.destroy_node()
 
 
 def _asked_to_stop(signum: int, frame: Any) -> None:

@@ -98,7 +98,7 @@ NODE = [
                                       'nodes', 'recorder'),
           ('idle_x1.total_cores', 'idle_x10.total_cores', 'collect_x10.achieved_rtf',
            'collect_x10.s_per_sample_wall', 'rss_mb_total', 'recorder.cores.collect_x10'),
-          timeout=150.0,
+          timeout=240.0,
           domain='--domain-id', seconds=35),
     Smoke('faults', ('--only', 'sigterm_idle'), ('lost_samples', 'orphans', 'scenarios'),
           ('max_detect_s',), timeout=120.0, check=_faults_ran, seconds=14),

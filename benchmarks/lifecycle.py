@@ -14,10 +14,11 @@ fault, an abort). ``signal_exits``: exits by the very signal sent — the node d
 (killed while it was still importing; counted apart, not a crash). A node that did not end
 within ``--stop-wait`` seconds (liveness-scaled) is killed and counted in ``hung``.
 
-    python benchmarks/lifecycle.py [--cycles 100] [--nodes sim,vision,...] [--json]
+    python benchmarks/lifecycle.py [--cycles 100] [--minutes M] [--nodes sim,...] [--json]
     python benchmarks/lifecycle.py --cycles 1 --nodes state_publisher --json     (smoke)
 
-JSON (last line): ``crashes``, ``hung``, ``signal_exits``, ``stops``, ``per_node`` (per node
+JSON (last line): ``crashes``, ``hung``, ``signal_exits``, ``cycles`` (done within
+``--minutes``), ``stops``, ``per_node`` (per node
 ``stops``, ``crashes``, ``codes``: exit code -> count), ``crash_logs`` (the last lines of
 each crashed node's log, at most five), ``busy_goals`` (goals the client ran meanwhile),
 ``wall_s``.
@@ -131,6 +132,8 @@ def main() -> None:
                         help=f'roles to stop, comma-separated (of {", ".join(ROLES)})')
     parser.add_argument('--stop-wait', type=float, default=10.0,
                         help='[s, liveness-scaled] for a signalled node to end')
+    parser.add_argument('--minutes', type=float, default=0.0,
+                        help='wall-clock budget: no new cycle after it (0: none)')
     parser.add_argument('--seed', type=int, default=1)
     parser.add_argument('--domain-id', type=int)
     parser.add_argument('--json', action='store_true')
@@ -140,7 +143,7 @@ def main() -> None:
     per_node: dict[str, dict[str, Any]] = {n: {'stops': 0, 'crashes': 0, 'codes': Counter()}
                                            for n in names}
     crash_logs: list[str] = []
-    hung = signal_exits = 0
+    hung = signal_exits = cycles = 0
     start = time.monotonic()
     with tempfile.TemporaryDirectory(prefix='flexarm-lifecycle-') as tmp, \
             reserved_domain(args.domain_id) as domain:
@@ -160,6 +163,9 @@ def main() -> None:
             busy.start()
             with graph._probe() as probe:
                 for cycle in range(args.cycles):
+                    if args.minutes and time.monotonic() - start > 60 * args.minutes:
+                        break
+                    cycles += 1
                     sig = signal.SIGINT if cycle % 2 == 0 else signal.SIGTERM
                     for name in names:
                         node = graph.nodes[name]
@@ -191,7 +197,8 @@ def main() -> None:
             graph.stop(timeout=10.0)
         figures = {
             'crashes': sum(s['crashes'] for s in per_node.values()), 'hung': hung,
-            'signal_exits': signal_exits, 'stops': sum(s['stops'] for s in per_node.values()),
+            'signal_exits': signal_exits, 'cycles': cycles,
+            'stops': sum(s['stops'] for s in per_node.values()),
             'per_node': {n: {**s, 'codes': dict(s['codes'])} for n, s in per_node.items()},
             'crash_logs': crash_logs, 'busy_goals': busy.goals if busy else 0,
             'busy_failures': dict(busy.failures) if busy else {},

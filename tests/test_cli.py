@@ -62,10 +62,19 @@ class Cli:
         """Until a line of stdout or stderr (goal feedback) holds ``text``."""
         deadline = time.monotonic() + liveness.limit(timeout)
         while not any(text in line for line in self.out + self.err):
-            if time.monotonic() > deadline or self.process.poll() is not None:
+            ended = self.process.poll() is not None
+            if ended:          # its last lines may still be on their way to the readers
+                self._join_readers()
+            if ended and any(text in line for line in self.out + self.err):
+                return
+            if time.monotonic() > deadline or ended:
                 self.process.kill()
                 pytest.fail(f'no line with {text!r} within {timeout} s: {self.out} {self.err}')
             time.sleep(0.02)
+
+    def _join_readers(self) -> None:
+        for reader in self._readers:
+            reader.join(timeout=liveness.limit(5.0))
 
     def finish(self, timeout: float) -> tuple[int, str]:
         """Exit code and stderr, once the process has ended (killed after ``timeout``)."""
@@ -74,8 +83,7 @@ class Cli:
         except subprocess.TimeoutExpired:
             self.process.kill()
             pytest.fail(f'flexarm still ran after {timeout} s: {self.out} {self.err}')
-        for reader in self._readers:
-            reader.join(timeout=5.0)
+        self._join_readers()
         return code, '\n'.join(self.err)
 
 

@@ -51,7 +51,8 @@ class Process:
             text=True, start_new_session=True, preexec_fn=terminate_with_parent)
         self.lines: list[str] = []
         self._cond = threading.Condition()
-        threading.Thread(target=self._read, daemon=True).start()
+        self._reader = threading.Thread(target=self._read, daemon=True)
+        self._reader.start()
 
     def _read(self) -> None:
         for line in self.process.stdout:
@@ -70,19 +71,25 @@ class Process:
                 found = next((line for line in self.lines if regex.search(line)), None)
                 if found is not None:
                     return found
-                if time.monotonic() > deadline or self.process.poll() is not None:
+                if not self._reader.is_alive():            # it ended and said all it said
+                    pytest.fail(f'no line matching {pattern!r} before it ended: '
+                                + '\n'.join(self.lines[-30:]))
+                if time.monotonic() > deadline:
                     pytest.fail(f'no line matching {pattern!r}: ' + '\n'.join(self.lines[-30:]))
                 self._cond.wait(0.2)
 
     def stop(self, sig: int = signal.SIGTERM) -> int:
-        """Signal it and wait for its end (SIGKILL after ``GONE_S``); its exit code."""
+        """Signal it and wait for its end (SIGKILL after ``GONE_S``) and for its last lines
+        (read by a thread of their own, which a loaded machine may hold back); its exit code."""
         if self.process.poll() is None:
             self.process.send_signal(sig)
         try:
-            return self.process.wait(liveness.limit(GONE_S))
+            code = self.process.wait(liveness.limit(GONE_S))
         except subprocess.TimeoutExpired:
             self.process.kill()
             pytest.fail(f'{self.process.args[1:3]} did not end within {GONE_S} s of {sig!r}')
+        self._reader.join(liveness.limit(GONE_S))
+        return code
 
 
 def flexarm(*args: str) -> Process:

@@ -32,7 +32,7 @@ from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_control.ros.client import FlexarmClient, GoalFailed, GoalRejected
 from flexarm_control.ros.compensator_node import CompensatorNode
-from flexarm_core import topics
+from flexarm_core import liveness, topics
 from flexarm_core.health_report import ERROR, WARN
 from flexarm_core.kinematics import ArmGeometry, forward, inverse
 from flexarm_core.node_main import Spin
@@ -55,6 +55,16 @@ def spin_for(client: FlexarmClient, seconds: float) -> None:
     """Let the client's subscriptions run (the joint states update only while it spins)."""
     end = time.monotonic() + seconds
     while time.monotonic() < end:
+        client.spin_once(0.05)
+
+
+def spin_until(client: FlexarmClient, condition: Callable[[], bool], seconds: float,
+               what: str) -> None:
+    """Spin the client until ``condition()``; fail after ``seconds`` (liveness-scaled)."""
+    end = time.monotonic() + liveness.limit(seconds)
+    while not condition():
+        if time.monotonic() > end:
+            pytest.fail(f'{what} not within {seconds:g} s')
         client.spin_once(0.05)
 
 
@@ -243,6 +253,8 @@ def test_provenance_tolerances_and_dry_run(graph):
     client, joints = graph
     outcomes = []
     client.create_subscription(GoalOutcome, topics.OUTCOMES, outcomes.append, 10)
+    spin_until(client, lambda: client.count_publishers(topics.OUTCOMES) > 0, 10.0,
+               'the outcome publisher discovered')
     spin_for(client, 0.5)
     before = joints['q'].copy()
     plan = client.move_to(*TARGET, mode='predictive', dry_run=True, timeout=60)
@@ -263,7 +275,7 @@ def test_provenance_tolerances_and_dry_run(graph):
     assert loose.error_code == Result.SUCCESSFUL, loose.error_string
     rigid = client.move_to(*TARGET, mode='rigid', position_tolerance=1e-3, timeout=120)
     assert rigid.error_code == Result.TOLERANCE_NOT_MET and rigid.model_version == ''
-    spin_for(client, 0.5)
+    spin_until(client, lambda: len(outcomes) >= 4, 10.0, 'four outcomes')
     assert [o.model_version for o in outcomes] == [plan.model_version] * 3 + ['']
 
 

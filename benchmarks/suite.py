@@ -45,12 +45,27 @@ def test_command(readme: Path) -> str:
 
 
 def clean_env() -> dict[str, str]:
-    """The environment CI gives the command (.ci/run): no venv or ROS bootstrap of ours."""
+    """The environment CI gives the command (.ci/run): no venv or ROS bootstrap of ours, and
+    none of a venv's libraries on LD_LIBRARY_PATH (what the bootstrap of this checkout's venv
+    put there). Kept, the clone's processes loaded this checkout's message libraries or the
+    clone's own, each process at random (ros_wheels_bootstrapper orders LD_LIBRARY_PATH as a
+    set: by the process's string hashes): with a message changed in this working tree, the
+    scene node silently dropped every DeflectionSample of an older layout and
+    test_visibility waited 120 s for the sample on /scene/markers."""
     env = dict(os.environ)
     for name in ('VIRTUAL_ENV', '_ROS_WHEELS_BOOTSTRAP_COMPLETE', 'PYTHONPATH', 'PYTHONHOME',
                  'ROS_DOMAIN_ID', 'FLEXARM_STATE_DIR', 'FLEXARM_LIVENESS_SCALE'):
         env.pop(name, None)
+    kept = [part for part in env.pop('LD_LIBRARY_PATH', '').split(os.pathsep)
+            if part and not in_venv(Path(part))]
+    if kept:
+        env['LD_LIBRARY_PATH'] = os.pathsep.join(kept)
     return env
+
+
+def in_venv(path: Path) -> bool:
+    """Whether ``path`` lies in a Python virtual environment (a directory with pyvenv.cfg)."""
+    return any((folder / 'pyvenv.cfg').is_file() for folder in (path, *path.parents))
 
 
 def _die_with_parent(sig: int) -> None:

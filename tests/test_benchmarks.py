@@ -7,6 +7,7 @@ size. The figures themselves stay the benchmarks' job: nothing here judges a val
 """
 from __future__ import annotations
 
+import importlib.util
 import json
 import math
 import subprocess
@@ -175,6 +176,28 @@ def _tail(text: str | bytes | None) -> str:
     if isinstance(text, bytes):
         text = text.decode(errors='replace')
     return (text or '')[-TAIL:]
+
+
+def test_the_suite_runs_without_a_venvs_libraries(tmp_path: Path,
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    """benchmarks/suite.py's clone gets no LD_LIBRARY_PATH entry of a venv (this checkout's,
+    inherited from its bootstrap): its processes would load those message libraries or the
+    clone's own, each at random, and disagree on a message's layout."""
+    spec = importlib.util.spec_from_file_location('benchmark_suite', REPO / 'benchmarks/suite.py')
+    suite = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(suite)
+    venv = tmp_path / '.venv'
+    (venv / 'lib' / 'python3.11' / 'site-packages' / 'ros_rclpy.libs').mkdir(parents=True)
+    (venv / 'pyvenv.cfg').write_text('home = /usr/bin\n')
+    ours = [str(venv / 'lib' / 'python3.11' / 'site-packages' / 'ros_rclpy.libs'),
+            str(venv / 'lib')]
+    monkeypatch.setenv('_ROS_WHEELS_BOOTSTRAP_COMPLETE', '1')
+    monkeypatch.setenv('LD_LIBRARY_PATH', ':'.join([ours[0], '/opt/vendor/lib', ours[1]]))
+    env = suite.clean_env()
+    assert env['LD_LIBRARY_PATH'] == '/opt/vendor/lib'
+    assert '_ROS_WHEELS_BOOTSTRAP_COMPLETE' not in env
+    monkeypatch.setenv('LD_LIBRARY_PATH', ':'.join(ours))
+    assert 'LD_LIBRARY_PATH' not in suite.clean_env()
 
 
 def test_every_benchmark_has_a_smoke_run() -> None:

@@ -253,17 +253,25 @@ class Launcher:
     """``launcher(name, robot='sim', namespace='', **parameters)`` starts the node ``name`` of
     config/graph.yaml exactly as ``flexarm up`` does (``robot`` picks the controller entry,
     default ``sim``; ``namespace``: one arm of several); :meth:`stop_all` stops them (SIGINT,
-    then SIGKILL) and checks each was reaped."""
+    then SIGKILL) and checks each was reaped. A node that moves the arm (the learner, the
+    compensator) comes with its arm's owner, as in every graph, unless ``arm_owner=False``."""
+
+    MOVERS = frozenset({'learner', 'compensator'})
 
     def __init__(self, domain_id: int, folder: Path) -> None:
         self._domain_id, self._folder = domain_id, folder
         self.started: list[Any] = []
 
     def __call__(self, name: str, robot: str = 'sim', namespace: str = '',
-                 **parameters: Any) -> Any:
+                 arm_owner: bool = True, **parameters: Any) -> Any:
         from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env
 
         specs = {**load_optional(robot), **{s.name: s for s in load_graph(robot)}}
+        owner = next(s for s in specs.values() if s.role == 'arm_owner')
+        if arm_owner and specs[name].role in self.MOVERS and not any(
+                n.spec.name == owner.name and n.namespace == namespace.strip('/')
+                and n.returncode is None for n in self.started):
+            self(owner.name, robot, namespace)
         log = self._folder / (f'{namespace}_{name}.log' if namespace else f'{name}.log')
         node = NodeProcess(specs[name], ros_env(self._domain_id, self._folder / 'ros_log'),
                            log, parameters, namespace)

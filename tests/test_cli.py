@@ -165,7 +165,8 @@ def test_busy_and_interrupted_moves_say_so_and_where_the_arm_stopped(arm, domain
     first.wait_line('] moving', 60.0)
     code, err = Cli('move', *A1, '--mode', 'rigid', domain_id=domain_id).finish(60.0)
     assert code == Exit.BUSY, err
-    assert 'flexarm move: busy: another goal is running on /move_to_pose' in err
+    assert 'flexarm move: refused (ARM_BUSY; nothing moved): the arm is busy: ' in err
+    assert 'runs goal (no trial name) (rigid)' in err and 'flexarm cancel' in err
 
     arm.away_from(start, 0.01)
     said = interrupt(first, signal.SIGINT, arm)

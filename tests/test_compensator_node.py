@@ -30,7 +30,7 @@ from std_msgs.msg import Empty
 
 from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import sample_poses
-from flexarm_control.ros.client import FlexarmClient, GoalFailed, GoalRejected
+from flexarm_control.ros.client import FlexarmClient, GoalFailed
 from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import liveness, topics
 from flexarm_core.health_report import ERROR, WARN
@@ -120,10 +120,10 @@ def joint_states(client: FlexarmClient, wait_for: Callable[..., object]
 class SharedGraph:
     """What runs on the module's domain for the tests that share it, one kind at a time:
     ``'model'``: simulator (ideal, 10x real time), vision, compensator with the model, and a
-    client; ``'sim'``: the simulator alone (real time, realistic), for a compensator in the
-    test process. :meth:`use` starts a kind unless it runs (stopping another), ``use(None)``
-    stops whatever runs; a test that fails stops it, so the next one starts afresh (no goal of
-    a failed test still running)."""
+    client; ``'sim'``: the simulator (real time, realistic) and the arm's owner, for a
+    compensator in the test process. :meth:`use` starts a kind unless it runs (stopping
+    another), ``use(None)`` stops whatever runs; a test that fails stops it, so the next one
+    starts afresh (no goal of a failed test still running)."""
 
     def __init__(self, launch, domain_id: int, model_path) -> None:
         self._launch, self._domain_id, self._model_path = launch, domain_id, model_path
@@ -139,6 +139,7 @@ class SharedGraph:
                                               10.0)
                 elif kind == 'sim':
                     self._launch('flexarm_sim', real_time_factor=1.0)
+                    self._launch('flexarm_arm_owner')
             except BaseException:
                 self.down()
                 raise
@@ -320,7 +321,7 @@ def test_closed_loop_needs_no_model(no_model_graph):
     assert closed.iterations >= 2 and closed.compensation_iterations == 0
 
 
-def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(real_time_graph):
+def test_cancel_stops_the_arm_and_a_second_goal_is_refused(real_time_graph):
     client, joints = real_time_graph
     far = (1.0, -0.5, math.radians(-100))            # B4: a long move from the start pose
     context = Context()
@@ -328,15 +329,17 @@ def test_cancel_stops_the_arm_and_a_second_goal_is_rejected(real_time_graph):
     second = FlexarmClient('second_client', context=context)
     try:
         second.wait_until_ready(timeout=30.0, learner=False)   # ready before the move starts
-        run = client.move_async(*far, mode='rigid', timeout=120)   # no thread: polled here
+        run = client.move_async(*far, mode='rigid', timeout=120, trial='far')
         deadline = time.monotonic() + 20
         while (getattr(run.feedback(), 'phase', None) != MoveToPose.Feedback.PHASE_MOVING
                and not run.done() and time.monotonic() < deadline):
             time.sleep(0.02)
         spin_for(client, 0.5)                         # the arm is on its way
         assert not run.done()
-        with pytest.raises(GoalRejected, match='busy'):
-            second.move_to(*TARGET, mode='rigid', timeout=20)
+        refused = second.move_to(*TARGET, mode='rigid', timeout=20)
+        assert refused.error_code == Result.ARM_BUSY
+        assert '/flexarm_compensator runs goal far (rigid)' in refused.error_string
+        assert 'nothing moved' in refused.error_string and not refused.motion
     finally:
         second.destroy_node()
         rclpy.try_shutdown(context=context)
@@ -439,8 +442,6 @@ def in_process(shared, domain_id, client, request):
         '--params-file', str(config_path('learner.yaml')),
         '--params-file', str(config_path('compensator.yaml'))])
     node = CompensatorNode(context=context)
-    # Several threads: test_two_goals_passing_the_busy_check_together holds two goal checks
-    # at a barrier (the node itself spins single-threaded).
     executor = MultiThreadedExecutor(num_threads=4, context=context)
     executor.add_node(node)
     spin = Spin(executor, lambda: None)
@@ -521,17 +522,8 @@ def test_a_compensation_without_solution_is_aborted(in_process):
     assert 'no solution' in result.error_string and result.iterations == 0
 
 
-def test_two_goals_passing_the_busy_check_together(in_process, domain_id):
+def test_two_goals_sent_together_one_runs_and_the_other_is_refused(in_process, domain_id):
     node, first, _ = in_process
-    both_checked = threading.Barrier(2)
-    check = node._on_goal
-
-    def check_together(goal):
-        response = check(goal)
-        both_checked.wait(timeout=10.0)   # the second goal is checked before either runs
-        return response
-
-    node._server.register_goal_callback(check_together)
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     second = FlexarmClient('second_client', context=context)
@@ -540,7 +532,7 @@ def test_two_goals_passing_the_busy_check_together(in_process, domain_id):
 
     def send(name, client):
         try:
-            results[name] = client.move_to(*far, mode='rigid', timeout=60)
+            results[name] = client.move_to(*far, mode='rigid', timeout=60, trial=name)
         except Exception as exc:
             results[name] = exc
 
@@ -555,13 +547,15 @@ def test_two_goals_passing_the_busy_check_together(in_process, domain_id):
             time.sleep(0.05)
         assert results, 'neither goal ended'
         loser = next(iter(results))
-        assert results[loser].error_code == Result.INVALID_GOAL
-        assert 'busy' in results[loser].error_string
+        winner = 'first' if loser == 'second' else 'second'
+        assert results[loser].error_code == Result.ARM_BUSY, results[loser]
+        assert f'runs goal {winner} (rigid)' in results[loser].error_string
         (first if loser == 'second' else second).cancel()
         for t in threads:
             t.join(timeout=30)
-        winner = results['first' if loser == 'second' else 'second']
-        assert winner.error_code in (Result.CANCELED, Result.SUCCESSFUL), winner.error_string
+        assert results[winner].error_code in (Result.CANCELED, Result.SUCCESSFUL), \
+            results[winner].error_string
+        assert results[winner].motion and not results[loser].motion
     finally:
         second.destroy_node()
         rclpy.try_shutdown(context=context)

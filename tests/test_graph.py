@@ -30,7 +30,8 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
     graph.start()
     try:
         graph.wait_ready(liveness.limit(60.0))
-        assert set(graph.nodes) == {'flexarm_sim', 'flexarm_vision', 'flexarm_learner',
+        assert set(graph.nodes) == {'flexarm_sim', 'flexarm_arm_owner', 'flexarm_vision',
+                                    'flexarm_learner',
                                     'flexarm_compensator', 'flexarm_state_publisher',
                                     'flexarm_scene', 'flexarm_recorder'}
         assert all((tmp_path / 'run' / f'{name}.log').exists() for name in graph.nodes)

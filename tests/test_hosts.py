@@ -1,10 +1,11 @@
 """Node-level: one graph over two hosts. Two Linux network namespaces joined by a veth pair
 (10.200.20.0/30, only inside them) play two computers: the robot's host runs
 ``flexarm up --only sim,vision,state_publisher``, the other
-``flexarm up --only learner,compensator,scene``, both ``--discovery subnet``; a client on the
-second host collects 8 samples (the fewest 5-fold cross-validation takes), trains and reaches
-a PREDICTIVE goal across them. Then ``flexarm status`` on the robot's host sees both parts and
-says which one runs there, and stopping the second host's ``up`` stops only its part.
+``flexarm up --only arm_owner,learner,compensator,scene``, both ``--discovery subnet``; a
+client on the second host collects 8 samples (the fewest 5-fold cross-validation takes), trains
+and reaches a PREDICTIVE goal across them. Then ``flexarm status`` on the robot's host sees both
+parts and says which one runs there, and stopping the second host's ``up`` stops only its
+part.
 
 Each host has its own FLEXARM_HOME (``config/`` linked; its own data, models and runs) and
 TMPDIR (``up``'s domain lock is per machine), as two computers have. The namespaces share
@@ -32,7 +33,7 @@ from flexarm_core.paths import CONFIG_DIR
 pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(50)]
 SUBNET = '10.200.20.{}/30'
 ROBOT_SIDE = 'sim,vision,state_publisher'
-LEARNING_SIDE = 'learner,compensator,scene'
+LEARNING_SIDE = 'arm_owner,learner,compensator,scene'
 CLIENT = '''
 import json, math
 from flexarm_control.ros.client import init_client
@@ -165,7 +166,8 @@ def test_one_graph_over_two_hosts(domain_id, tmp_path):
                 Up(hosts.ns[1], learning_env, LEARNING_SIDE, domain_id)]
         for up in ups:
             up.wait_ready(90.0)
-        assert 'the rest of the graph must run on other hosts: flexarm_learner' in ups[0].text()
+        assert ('the rest of the graph must run on other hosts: flexarm_arm_owner, '
+                'flexarm_learner') in ups[0].text()
 
         result = json.loads(run_in(hosts.ns[1], learning_env, ['-c', CLIENT], 240.0)
                             .splitlines()[-1])
@@ -182,14 +184,16 @@ def test_one_graph_over_two_hosts(domain_id, tmp_path):
         status = json.loads(run_in(hosts.ns[0], robot_env, [
             '-m', 'flexarm_bringup.cli', 'status', '--json', '--domain-id', str(domain_id)],
             60.0).splitlines()[-1])
-        assert all(status['nodes'][n] for n in ('flexarm_sim', 'flexarm_learner',
-                                                'flexarm_compensator', 'flexarm_scene'))
+        assert all(status['nodes'][n] for n in ('flexarm_sim', 'flexarm_arm_owner',
+                                                'flexarm_learner', 'flexarm_compensator',
+                                                'flexarm_scene'))
         assert set(status['supervisor']['nodes']) == {
             'flexarm_sim', 'flexarm_vision', 'flexarm_state_publisher'}
         assert status['supervisor']['remote'] == [
-            'flexarm_learner', 'flexarm_compensator', 'flexarm_scene']
+            'flexarm_arm_owner', 'flexarm_learner', 'flexarm_compensator', 'flexarm_scene']
 
-        assert ups[1].stop() == 0 and 'stopped: flexarm_learner (0)' in ups[1].text()
+        assert ups[1].stop() == 0
+        assert 'stopped: flexarm_arm_owner (0), flexarm_learner (0)' in ups[1].text()
         time.sleep(1.0)
         assert ups[0].process.poll() is None            # the robot's host runs on
     finally:

@@ -21,6 +21,11 @@ stored atomically and set on the running vision node (``tool_correction``), whic
 every pose through it from then on. Its goals are named ``calibration/<target>/rigid``, so a
 bag tells them from the operator's goals. The measurements are taken through the vision node's
 current correction, so the new one is the old one plus what is left.
+
+Both hold the arm for their whole run (a claim of kind ``calibrate``; each pose's goal runs
+within it): no other motion moves the arm between a pose's move and its measurement, and a
+pose measured after the claim ended (``flexarm cancel``) is refused and nothing is stored. The
+stored details name the claim (``motion``).
 """
 from __future__ import annotations
 
@@ -39,6 +44,7 @@ from flexarm_control.execution.tool_calibration import (
     ReferenceCalibration,
     calibrate_against_reference,
 )
+from flexarm_control.ros.arm_claim import ArmBusy
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.paper import TABLE_10
@@ -75,7 +81,7 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
         done += 1
         say(f'calibration pose {done}/{len(targets)}: x {target[0] * 1e3:.1f} mm, '
             f'y {target[1] * 1e3:.1f} mm, phi {np.degrees(target[2]):.2f} deg')
-        result = client.move_to(*target, mode='rigid', timeout=timeout,
+        result = client.move_to(*target, mode='rigid', timeout=timeout, motion=motion,
                                 trial=trial_name('calibration', TABLE_10[done - 1].name, 'rigid'))
         if result.error_code != 0 or not result.measured:
             problem = result.error_string
@@ -83,15 +89,21 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
             return None
         m = result.measured_pose
         reference = client.poses_from(reference_topic, 3, timeout).mean(axis=0)
+        lost = client.arm_held()
+        if lost:
+            raise ArmBusy(f'calibration pose {done} refused: the arm was not held by this '
+                          f'calibration alone ({lost}); nothing stored')
         return np.array([m.x, m.y, m.phi]), reference
 
-    try:
-        found = calibrate_against_reference(targets, measure)
-    except ValueError as exc:          # too few poses measured: say why the camera did not
-        raise ValueError(f'{exc}; the last pose without one: {problem}' if problem
-                         else str(exc)) from None
+    with client.claimed_arm('calibrate', f'tool calibration against {reference_topic} at '
+                            f'the {len(targets)} Table 10 poses') as motion:
+        try:
+            found = calibrate_against_reference(targets, measure)
+        except ValueError as exc:          # too few poses measured: say why the camera did not
+            raise ValueError(f'{exc}; the last pose without one: {problem}' if problem
+                             else str(exc)) from None
     correction = current + found.correction
-    details = {'reference': reference_topic, 'poses': found.poses,
+    details = {'reference': reference_topic, 'poses': found.poses, 'motion': motion,
                'spread': list(found.spread), 'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
     write_calibration(path, correction, **details)
     client.set_node_parameter(vision, 'tool_correction', correction.as_list())
@@ -107,16 +119,22 @@ def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
     say('calibrating the camera from the plate: the arm moves RIGID (uncompensated) to the '
         f'{len(TABLE_10)} Table 10 poses, one image at each')
     images, problems = [], []
-    for n, target in enumerate(TABLE_10, 1):
-        result = client.move_to(*target.pose, mode='rigid', timeout=timeout,
-                                trial=trial_name('calibration', target.name, 'camera'))
-        if result.error_code != 0:
-            problems.append(result.error_string)
-            say(f'camera pose {n}/{len(TABLE_10)}: the move failed ({result.error_string})')
-            continue
-        image = client.messages_from(topics.CAMERA_IMAGE, Image, 1, timeout,
-                                     qos=qos_profile_sensor_data, what='images')[0]
-        images.append((image, target.pose[2]))
+    with client.claimed_arm('calibrate', 'camera calibration from the plate at the '
+                            f'{len(TABLE_10)} Table 10 poses') as motion:
+        for n, target in enumerate(TABLE_10, 1):
+            result = client.move_to(*target.pose, mode='rigid', timeout=timeout, motion=motion,
+                                    trial=trial_name('calibration', target.name, 'camera'))
+            if result.error_code != 0:
+                problems.append(result.error_string)
+                say(f'camera pose {n}/{len(TABLE_10)}: the move failed ({result.error_string})')
+                continue
+            image = client.messages_from(topics.CAMERA_IMAGE, Image, 1, timeout,
+                                         qos=qos_profile_sensor_data, what='images')[0]
+            lost = client.arm_held()
+            if lost:
+                raise ArmBusy(f'camera pose {n} refused: the arm was not held by this '
+                              f'calibration alone ({lost}); nothing stored')
+            images.append((image, target.pose[2]))
     # what the vision node measures through: the camera's camera_info and its correction
     vision = node_name('vision')
     current = CameraCorrection.from_list(client.node_parameter(vision, 'camera_correction'))
@@ -142,7 +160,7 @@ def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
         last = f'; the last pose without one: {problems[-1]}' if problems else ''
         raise ValueError(f'{exc}{last}') from None
     correction = current + found.correction
-    details = {'views': found.views, 'holes': found.holes,
+    details = {'views': found.views, 'holes': found.holes, 'motion': motion,
                'rms_before_px': found.rms_before_px, 'rms_after_px': found.rms_after_px,
                'determined': found.determined, 'not_determined': found.not_determined,
                'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}

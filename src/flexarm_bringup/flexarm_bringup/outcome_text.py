@@ -29,14 +29,17 @@ EXIT_MEANINGS = {
     Exit.USAGE: 'usage error: bad arguments, refused before connecting',
     Exit.NO_GRAPH: 'no graph answered within --wait, a server was lost mid-goal, or the goal '
                    'outlasted --timeout (it was cancelled)',
-    Exit.BUSY: 'busy: another goal or collection runs; try again when it has ended (or end it '
-               'with flexarm cancel)',
+    Exit.BUSY: 'busy: another motion holds the arm (a goal, collection, refresh or '
+               'calibration, named); try again when it has ended (or end it with flexarm cancel)',
     Exit.DEGRADED: 'status: a node of the graph is down, or one reports an ERROR (e.g. a '
                    'damaged calibration file or model record: named, with the reason)',
-    Exit.NOTHING_TO_CANCEL: 'cancel: no goal was running, nothing was cancelled',
+    Exit.NOTHING_TO_CANCEL: 'cancel: no goal was running and no motion held the arm, nothing '
+                            'was cancelled',
     Exit.INTERRUPTED: 'interrupted (Ctrl-C or SIGTERM): a running goal was cancelled',
 }
 
+ARM_BUSY_HINT = ('wait until the motion named has ended, or end it with `flexarm cancel`, then '
+                 'try again')
 MOVE_HINTS = {
     'INVALID_GOAL': 'give finite numbers, phi within -180..180 deg, tolerances 0 (the '
                     'default) or within the bounds the reason names, and at most as many '
@@ -55,11 +58,13 @@ MOVE_HINTS = {
                 'reason says why); the arm stopped where it was',
     'OUTSIDE_LEARNED_DATA': 'collect samples around this target and train again, or pass '
                             '--allow-extrapolation to run it with a warning',
+    'ARM_BUSY': ARM_BUSY_HINT,
 }
 COLLECT_HINTS = {
     'INVALID_GOAL': 'check the count, --region, --strategy and --dataset (flexarm collect -h)',
     'CANCELED': 'another client cancelled it; the samples collected before are kept',
     'FAILED': "see the learner's log in runs/<name>/ (the samples collected before are kept)",
+    'ARM_BUSY': ARM_BUSY_HINT,
 }
 TRAIN_HINT = ('do what the reason asks (e.g. collect more samples, other --settings); the '
               'previous model stays active')
@@ -105,6 +110,12 @@ def busy_text(server: str) -> str:
     """What a busy server means for the operator."""
     return (f'busy: another goal is running on {server} (one at a time); wait until it has '
             'ended, or end it with `flexarm cancel`, then try again')
+
+
+def arm_busy_text(reason: str) -> str:
+    """A goal refused because another motion holds the arm: the server names that motion."""
+    return (f'refused (ARM_BUSY; nothing moved): {reason or "another motion holds the arm"}'
+            f'\n  what to do: {ARM_BUSY_HINT}')
 
 
 def failure_text(name: str, reason: str, hints: Mapping[str, str], moved: bool) -> str:

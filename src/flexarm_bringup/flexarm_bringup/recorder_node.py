@@ -94,7 +94,8 @@ DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.JOINT_TRAJE
                   topics.CLOCK, topics.CAMERA_INFO,
                   topics.TIP_POSE, topics.TIP_POSE_TRUTH, topics.SAMPLES, topics.MODEL,
                   topics.ACTIVE_MODEL, topics.MODEL_HEALTH, topics.PAYLOAD, topics.OUTCOMES,
-                  topics.DIAGNOSTICS, topics.ROBOT_DESCRIPTION, topics.TF, topics.TF_STATIC,
+                  topics.ARM_MOTION, topics.DIAGNOSTICS, topics.ROBOT_DESCRIPTION, topics.TF,
+                  topics.TF_STATIC,
                   topics.TARGET_POSE, topics.COMMANDED_POSE, topics.MEASURED_TIP,
                   topics.TRUE_TIP, topics.SCENE_MARKERS]
 

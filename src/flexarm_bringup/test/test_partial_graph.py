@@ -31,7 +31,7 @@ def test_only_picks_nodes_by_short_or_full_name_in_graph_order():
 def test_a_host_starts_its_part_and_expects_the_rest_of_the_graph(tmp_path):
     robot_side = Graph(0, tmp_path, only=('sim', 'vision', 'recorder'))
     assert list(robot_side.nodes) == ['flexarm_sim', 'flexarm_vision', 'flexarm_recorder']
-    assert robot_side.remote == ('flexarm_learner', 'flexarm_compensator',
+    assert robot_side.remote == ('flexarm_arm_owner', 'flexarm_learner', 'flexarm_compensator',
                                  'flexarm_state_publisher', 'flexarm_scene')
     learning_side = Graph(0, tmp_path, only=('flexarm_learner',), optional=('flexarm_foxglove',))
     assert list(learning_side.nodes) == ['flexarm_learner', 'flexarm_foxglove']
@@ -79,7 +79,7 @@ def discovering(monkeypatch):
 
 def test_a_partial_graph_is_ready_only_with_the_remote_nodes_and_names_what_lacks(
         tmp_path, discovering):
-    graph = Graph(17, tmp_path, only=('learner', 'compensator', 'scene'))
+    graph = Graph(17, tmp_path, only=('arm_owner', 'learner', 'compensator', 'scene'))
     everything = [*graph.nodes, *graph.remote]
     discovering(Probe(list(graph.nodes)))                       # the other host is not up
     with pytest.raises(TimeoutError) as refused:

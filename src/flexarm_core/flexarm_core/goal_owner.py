@@ -89,14 +89,14 @@ class ProcTable:
         except (OSError, ValueError):
             pid_max = 1 << 22      # the kernel's largest
         found = {(pid, start) for pid in range(bits, pid_max + 1, 1 << 16)
-                 if (start := _start_time(pid)) is not None}
+                 if (start := start_time(pid)) is not None}
         return frozenset(found)
 
     def alive(self, process: Process) -> bool:
-        return _start_time(process[0]) == process[1]
+        return start_time(process[0]) == process[1]
 
 
-def _start_time(pid: int) -> int | None:
+def start_time(pid: int) -> int | None:
     """Start time of a live process, None if there is none (or only a zombie)."""
     try:
         fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()

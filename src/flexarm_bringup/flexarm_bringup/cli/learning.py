@@ -27,7 +27,7 @@ from flexarm_bringup.outcome_text import (
     COLLECT_HINTS,
     TRAIN_HINT,
     Exit,
-    busy_text,
+    arm_busy_text,
     code_name,
     failure_text,
     human_units,
@@ -88,8 +88,8 @@ def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
         print(_collect_kept(result) + (
             f' ({human_units(result.error_string)})' if result.error_string else ''))
         return out
-    if is_busy(result.error_string):
-        raise Outcome(busy_text(_full(args, topics.COLLECT_SAMPLES)), Exit.BUSY, **out)
+    if name == 'ARM_BUSY':
+        raise Outcome(arm_busy_text(result.error_string), Exit.BUSY, **out)
     moved = name != 'INVALID_GOAL'
     raise Outcome(failure_text(name, result.error_string, COLLECT_HINTS, moved) + (
         f'\n  dataset: {_collect_kept(result)}' if moved else ''), Exit.FAILED, **out)
@@ -125,8 +125,8 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
            'dataset_path': result.dataset_path, 'model_version': result.model.version,
            'residual_before': result.residual_before, 'residual_after': result.residual_after}
     if not out['ok']:
-        if is_busy(result.error_string):
-            raise Outcome(busy_text(_full(args, topics.REFRESH_MODEL)), Exit.BUSY, **out)
+        if name == 'ARM_BUSY':
+            raise Outcome(arm_busy_text(result.error_string), Exit.BUSY, **out)
         raise Outcome(f'{name}: {human_units(result.error_string)}', Exit.FAILED, **out)
     print(f'model v{result.model.version} announced: the previous one corrected from '
           f'{result.collected} new samples (in {result.dataset_path}); their median residual '

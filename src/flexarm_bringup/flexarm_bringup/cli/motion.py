@@ -22,11 +22,10 @@ from flexarm_bringup.cli.learning import _collect_interrupted
 from flexarm_bringup.outcome_text import (
     MOVE_HINTS,
     Exit,
-    busy_text,
+    arm_busy_text,
     code_name,
     failure_text,
     human_units,
-    is_busy,
     pose_text,
 )
 from flexarm_core import topics
@@ -147,8 +146,8 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'data_distance': result.data_distance, 'prediction_std': result.prediction_std,
            'model_version': result.model_version, 'dry_run': args.dry_run}
     if not out['ok']:
-        if is_busy(result.error_string):      # lost the race of two goals sent together
-            raise Outcome(busy_text(_full(args, topics.MOVE_TO_POSE)), Exit.BUSY, **out)
+        if out['error_name'] == 'ARM_BUSY':
+            raise Outcome(arm_busy_text(result.error_string), Exit.BUSY, **out)
         raise Outcome(_move_text(result), Exit.FAILED, **out)
     print(_move_text(result))
     return out
@@ -171,18 +170,22 @@ def _cancelled_text(goal: Any) -> str:
 
 
 def cmd_cancel(args: argparse.Namespace) -> dict[str, Any]:
-    """Cancel whatever goal runs on the arm (move, collect, refresh), whoever sent it."""
+    """Cancel whatever goal runs on the arm (move, collect, refresh), whoever sent it, then
+    end the motion that still holds the arm (e.g. a calibration between its poses)."""
     with _session(args, learner=False) as client:
         with _elapsed('cancelling', args):
             goals = client.cancel_all(timeout=args.wait)
+            ended = client.end_motion()
     rows = [{'action': g.action, 'goal_id': g.goal_id, 'sender': g.sender,
              'clients': g.clients, 'error_code': None if g.result is None else
              g.result.result.error_code, 'error_string': None if g.result is None else
              g.result.result.error_string} for g in goals]
-    if not goals:
+    if not goals and not ended:
         raise Outcome('nothing to cancel: no goal runs on '
-                      f'{_full(args, topics.MOVE_TO_POSE)} or the learner', Exit.NOTHING_TO_CANCEL,
-                      cancelled=rows)
+                      f'{_full(args, topics.MOVE_TO_POSE)} or the learner, and no motion holds '
+                      'the arm', Exit.NOTHING_TO_CANCEL, cancelled=rows, motion='')
     for goal in goals:
         print(_cancelled_text(goal))
-    return {'ok': True, 'cancelled': rows}
+    if ended:
+        print(f'arm motion {ended}')
+    return {'ok': True, 'cancelled': rows, 'motion': ended}

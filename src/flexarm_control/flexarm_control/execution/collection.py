@@ -7,7 +7,9 @@ deflection sample from the joints the controller reports and the measured pose
 the pose is skipped and counted, never stored; the warning of a failed measurement gives the
 vision node's reason. Each sample is handed to ``store`` (the dataset writer: on disk before
 the next move) as soon as it is taken. Cancel ends the loop with the arm held and every stored
-sample kept. A controller that fell silent ends it too: no later pose could be reached. So do
+sample kept. A sample is stored only while the arm is held by the collection's own motion
+(its claim, recorded in the sample): one measured after the claim ended is refused, with the
+reason. A controller that fell silent ends it too: no later pose could be reached. So do
 ``BLIND_POSES`` poses in a row without a valid measurement: a camera that measures nothing at
 three poses will not at the next ones, and a campaign that skips through all of them would
 only spend its time (the collection fails with the vision node's reason).
@@ -28,14 +30,15 @@ BLIND_POSES = 3     # poses in a row skipped for want of a valid measurement: th
 
 
 def deflection_sample(geometry: ArmGeometry, joints: np.ndarray, measurement: Measurement,
-                      payload: float, stamp: float) -> Sample:
+                      payload: float, stamp: float, motion: str = '') -> Sample:
     """The learning pair at reported ``joints``: measured minus rigid tip pose, φ wrapped."""
     rigid = forward(geometry, joints)
     deflection = measurement.pose - rigid
     deflection[2] = wrap_angle(deflection[2])
     return Sample(stamp=stamp, joints=joints, payload=payload, rigid_pose=rigid,
                   measured_pose=measurement.pose, deflection=deflection,
-                  holes_used=measurement.holes_used, residual=measurement.residual)
+                  holes_used=measurement.holes_used, residual=measurement.residual,
+                  motion=motion)
 
 
 @dataclass
@@ -63,8 +66,8 @@ class Collector:
         self.warn = warn
         self.blind = ''           # why the last pose's measurements failed ('' if they did not)
 
-    def sample_at(self, joints: np.ndarray, payload: float, abort: Abort = never
-                  ) -> Sample | None:
+    def sample_at(self, joints: np.ndarray, payload: float, abort: Abort = never,
+                  motion: str = '') -> Sample | None:
         """Move to ``joints`` and measure; the sample, or None after the retries failed.
         Raises :class:`Canceled`, and :class:`MoveFailed` when the controller is lost."""
         self.blind = ''
@@ -85,25 +88,31 @@ class Collector:
             self.blind = ''
             reported = self.motion.arm.positions()
             return deflection_sample(self.geometry, reported, measurement, payload,
-                                     self.clock())
+                                     self.clock(), motion)
         return None
 
     def collect(self, poses: Iterable[np.ndarray], payload: float,
                 store: Callable[[Sample], None], abort: Abort = never,
                 progress: Callable[[int, Collected, Sample | None], None] = lambda *_: None,
-                ) -> Collected:
+                motion: str = '', lost: Callable[[], str] = lambda: '') -> Collected:
         """Take a sample at every pose (module docstring); ``progress(k, counts, sample)``
-        after the k-th pose (sample None if it was skipped)."""
+        after the k-th pose (sample None if it was skipped). Each sample records ``motion``,
+        the claim of the arm it was taken in; once ``lost()`` gives a reason (the arm is no
+        longer held by that motion alone) no sample is stored any more and the loop ends."""
         counts = Collected()
         blind = 0        # poses in a row without a valid measurement
         for k, joints in enumerate(poses, start=1):
             try:
-                sample = self.sample_at(np.asarray(joints, dtype=float), payload, abort)
+                sample = self.sample_at(np.asarray(joints, dtype=float), payload, abort, motion)
             except Canceled:
                 counts.canceled = True
                 return counts
             except MoveFailed as exc:
                 counts.stopped = str(exc)
+                return counts
+            if (reason := lost()):
+                counts.stopped = (f'sample {k} refused: the arm was not held by this motion '
+                                  f'alone ({reason})')
                 return counts
             if sample is None:
                 counts.skipped += 1

@@ -46,7 +46,8 @@ VERSION = 1
 SCHEMA = {
     'stamp': 's', 'joints': 'rad, m, rad, rad', 'payload': 'kg', 'rigid_pose': 'm, m, rad',
     'measured_pose': 'm, m, rad', 'deflection': 'm, m, rad (measured - rigid)',
-    'holes_used': 'count', 'residual': 'm'}
+    'holes_used': 'count', 'residual': 'm', 'motion': 'id of the arm claim it was taken in'}
+OPTIONAL = {'motion'}      # absent from records written before it was kept
 _HEADER_START = json.dumps({'format': FORMAT})[:-1].encode()
 
 
@@ -62,6 +63,7 @@ class Sample:
     deflection: tuple[float, float, float]
     holes_used: int
     residual: float
+    motion: str = ''       # the arm's claim it was taken in: the arm held by it alone
 
     def __post_init__(self) -> None:
         for name, size in (('joints', 4), ('rigid_pose', 3), ('measured_pose', 3),
@@ -81,12 +83,14 @@ class Sample:
                 *self.deflection, self.residual)
 
     def as_dict(self) -> dict[str, Any]:
+        """The record's fields; ``motion`` only when known (a record of before it was kept
+        keeps its CRC and hash)."""
         return {name: list(value) if isinstance(value, tuple) else value
-                for name, value in self.__dict__.items()}
+                for name, value in self.__dict__.items() if name != 'motion' or value}
 
     @classmethod
     def from_dict(cls, d: dict[str, Any]) -> Sample:
-        return cls(**{name: d[name] for name in SCHEMA})
+        return cls(**{name: d[name] for name in SCHEMA if name in d or name not in OPTIONAL})
 
 
 def _canonical(sample: Sample) -> bytes:

@@ -12,6 +12,11 @@ capped in wall time, so a stopped clock can never hang a goal. A wait also ends 
 ``/joint_states`` stop (the controller died or its link is down: nothing the arm does can be
 seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can then exit).
 
+Commands are sent only under a claim of the arm that holds (:class:`~flexarm_control.ros.
+arm_claim.ArmClaim`, one motion at a time per arm): a command without one is a programming error
+(:class:`NotHeld`), and a hold after the claim ended is sent only while no other motion holds
+the arm.
+
 Inputs are subscribed only while they are used: ``/joint_states`` while a goal drives the arm
 (:meth:`ArmInterface.attached`), ``/tip_pose`` while a measurement waits for it; nobody asking
 for tip poses lets the vision node and the camera rest (:mod:`flexarm_core.demand`). And
@@ -37,6 +42,7 @@ from rclpy.subscription import Subscription
 from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
+from flexarm_control.ros.arm_claim import ArmClaim
 from flexarm_control.ros.joint_commands import ForwardCommands, JointCommands
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import JOINT_NAMES
@@ -96,12 +102,17 @@ def measurement_problem(frames: list[TipPose], wanted: int) -> str:
             + (f' (the others: {last})' if last else ''))
 
 
+class NotHeld(RuntimeError):
+    """A command without a claim of the arm that holds: every motion claims the arm first."""
+
+
 class ArmInterface:
     """Joint commands, joint states and tip poses of one node, with bounded waits."""
 
     def __init__(self, node: Node, frames_kept: int = 50,
-                 commands: JointCommands | None = None) -> None:
+                 commands: JointCommands | None = None, claim: ArmClaim | None = None) -> None:
         self._node = node
+        self.claim = claim or ArmClaim(node)
         self._lock = threading.Lock()
         self._taken = Taken()
         self._joint_input: Subscription | None = None     # while attached
@@ -170,15 +181,19 @@ class ArmInterface:
 
     # --- commands ---------------------------------------------------------------------------
     def command(self, q: np.ndarray) -> None:
-        """Send the arm to ``q`` from where it is now."""
+        """Send the arm to ``q`` from where it is now (:class:`NotHeld` without a claim)."""
+        if not self.claim.holds():
+            raise NotHeld(self.claim.lost or 'the arm is commanded only under a claim '
+                          '(ArmClaim.claimed)')
         if self._node.context.ok():       # a node that shuts down sends nothing any more
             self._commands.send(self.positions(), np.asarray(q, dtype=float))
 
     def hold(self) -> np.ndarray | None:
-        """Stop the arm where it is (the joints now)."""
+        """Stop the arm where it is (the joints now); after the claim ended, only while no
+        other motion holds the arm."""
         snapshot = self.joints
         if snapshot is not None:
-            if self._node.context.ok():
+            if self._node.context.ok() and not self.claim.others_hold():
                 self._commands.stop(snapshot.positions)
             return snapshot.positions
         return None

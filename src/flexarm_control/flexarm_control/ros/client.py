@@ -60,6 +60,7 @@ from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from flexarm_control.execution.modes import Mode
+from flexarm_control.ros.arm_claim import ArmClaim
 from flexarm_core import liveness, topics
 from flexarm_core.goal_owner import own_participant, participant, send_goal_writers, sender_of
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
@@ -288,6 +289,7 @@ class FlexarmClient(Node):
         self._move = ActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
         self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
         self._refresh = ActionClient(self, RefreshModel, topics.REFRESH_MODEL)
+        self._arm = ArmClaim(self, self._waited)
         self._executor = SingleThreadedExecutor(context=self.context)
         # One per node, made on first use; its service clients go with destroy_node.
         self._parameter_clients: dict[str, AsyncParameterClient] = {}
@@ -332,18 +334,19 @@ class FlexarmClient(Node):
                    max_corrections: int = 0, trial: str = '', timeout: float = 300.0,
                    allow_extrapolation: bool = False, dry_run: bool = False,
                    feedback: Callable[[MoveToPose.Feedback], None] | None = None,
-                   ) -> GoalRun:
+                   motion: str = '') -> GoalRun:
         """Send a MoveToPose goal and return at once: poll the :class:`GoalRun` (``done``,
         ``feedback``), ``cancel`` it, take its ``result`` (``allow_extrapolation``: run a
         PREDICTIVE goal beyond the learned data with a warning instead of its refusal;
-        ``dry_run``: only plan, the result holds the plan and nothing moves)."""
+        ``dry_run``: only plan, the result holds the plan and nothing moves; ``motion``: run
+        within this client's claim of the arm, :meth:`claimed_arm`)."""
         goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
                                mode=int(Mode.of(mode)),
                                position_tolerance=float(position_tolerance),
                                angle_tolerance=float(angle_tolerance),
                                max_corrections=int(max_corrections), trial=trial,
                                allow_extrapolation=bool(allow_extrapolation),
-                               dry_run=bool(dry_run))
+                               dry_run=bool(dry_run), motion=motion)
         return GoalRun(self, self._move, goal, timeout, feedback)
 
     def move_to(self, x: float, y: float, phi: float, mode: str = 'predictive',
@@ -471,6 +474,23 @@ class FlexarmClient(Node):
                     raise TimeoutError(f'timed out after {timeout:.1f} s waiting for '
                                        f'{what}') from None
 
+    def claimed_arm(self, kind: str, description: str) -> contextlib.AbstractContextManager[str]:
+        """Hold the arm across several goals (a calibration): the motion id to send them
+        ``within`` (``move_async(..., motion=id)``); :class:`ArmBusy` naming the motion that
+        holds it. While held, no other motion moves the arm; :meth:`arm_held` tells whether
+        the claim still holds (``flexarm cancel`` ends it)."""
+        return self._arm.claimed(kind, description)
+
+    def arm_held(self) -> str:
+        """'' while this client's claim holds the arm, else why not."""
+        return '' if self._arm.holds() else (self._arm.lost or 'this client holds no claim')
+
+    def end_motion(self) -> str:
+        """End whichever motion holds the arm (force: ``flexarm cancel``); what was ended, ''
+        if the arm was free."""
+        released = self._arm.release(force=True)
+        return released if released.startswith('ended') else ''
+
     def spin_once(self, timeout: float) -> None:
         """Process this client's pending callbacks for up to ``timeout`` seconds."""
         self._executor.spin_once(timeout_sec=timeout)
@@ -542,6 +562,13 @@ class FlexarmClient(Node):
             self._executor.spin_until_future_complete(future, timeout_sec=min(1.0, remaining))
             if future.done():
                 return
+
+    def _waited(self, future: Future, timeout: float) -> bool:
+        try:
+            self._spin_until(future, timeout, 'the arm owner')
+        except TimeoutError:
+            return False
+        return True
 
     def _spin_until(self, future: Future, timeout: float, what: str,
                     lost: Callable[[], str | None] = lambda: None) -> Any:

@@ -19,9 +19,12 @@ reports feedback and results, and hot-reloads the predictor the learner announce
 in use is ignored: DDS may hand a late joiner the latched older announcement after a newer live
 one, and a roll back (``/learner/use_model``) is a new announcement with a new stamp.
 
-Goal policy: one goal at a time; a goal arriving while another executes is rejected. Two goals
-arriving together can both pass that check: execution decides, and the one that finds the
-other executing is aborted (INVALID_GOAL, "busy") before anything moves. Every accepted goal
+Goal policy: one motion at a time per arm. A goal that is to move claims the arm from its owner
+(:mod:`flexarm_control.ros.arm_claim`) once it is valid and planned, before anything moves;
+while another motion holds the arm (this server's other goal, a collection, a calibration, any
+node's) it is aborted with ARM_BUSY, the running motion named, nothing moved. A goal may run
+within a motion its sender holds (``motion``: a calibration's poses). A claim ended by someone
+else (``flexarm cancel``) ends the goal like a cancel, the arm held. Every accepted goal
 is validated before anything moves, against the bounds of
 :mod:`flexarm_control.execution.goal_bounds` too, and aborted with an error code and reason if
 invalid; an unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never
@@ -69,12 +72,13 @@ from __future__ import annotations
 import math
 import threading
 import traceback
+from contextlib import ExitStack
 from dataclasses import replace
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from geometry_msgs.msg import PoseStamped
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
@@ -107,6 +111,7 @@ from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.model_health import HealthSettings, ModelHealth
 from flexarm_control.learning.model_store import payload_warning
 from flexarm_control.learning.predictors import Predictor, load_predictor
+from flexarm_control.ros.arm_claim import ArmBusy
 from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
@@ -134,6 +139,12 @@ OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
             CONTROLLER_TIMEOUT: Result.CONTROLLER_TIMEOUT,
             MEASUREMENT_FAILED: Result.MEASUREMENT_FAILED,
             TOLERANCE_NOT_MET: Result.TOLERANCE_NOT_MET, UNREACHABLE: Result.UNREACHABLE}
+
+
+def describe(goal: Goal) -> str:
+    """A goal as logs and refusals name it: its trial name and mode."""
+    mode = Mode(goal.mode).label if goal.mode < len(Mode) else f'mode {goal.mode}'
+    return f'{goal.trial or "(no trial name)"} ({mode})'
 
 
 class CompensatorNode(Node):
@@ -188,6 +199,7 @@ class CompensatorNode(Node):
         self._goal_model_version = ''  # of the executing goal's plan (one goal at a time)
         self._load_error = ''          # why the last announced model was not loaded
         self._busy = threading.Lock()
+        self._busy_state = threading.Lock()     # _busy taken and _executing set together
         self._goal_counts = {'succeeded': 0, 'failed': 0, 'canceled': 0}
         self._executing = ''           # the goal in progress: trial name, mode and sender
         self._action = topics.absolute(topics.MOVE_TO_POSE, self.get_namespace())
@@ -210,7 +222,7 @@ class CompensatorNode(Node):
         self._server = ActionServer(
             self, MoveToPose, topics.MOVE_TO_POSE,
             execute_callback=self._goals.wrap(self._execute),
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT,
+            cancel_callback=lambda _: CancelResponse.ACCEPT,
             handle_accepted_callback=self._on_accepted, callback_group=self._group)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses)
 
@@ -289,12 +301,6 @@ class CompensatorNode(Node):
                 for r in report]))
 
     # --- goal policy ------------------------------------------------------------------------
-    def _on_goal(self, goal: Goal) -> GoalResponse:
-        if self._busy.locked():
-            self.get_logger().warn('goal rejected: another goal is executing')
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
-
     def _on_accepted(self, handle: ServerGoalHandle) -> None:
         """Note who may have sent the goal (:mod:`flexarm_core.goal_owner`), then run it."""
         if self._host is None:
@@ -312,15 +318,21 @@ class CompensatorNode(Node):
     def _execute(self, handle: ServerGoalHandle) -> Result:
         goal: Goal = handle.request
         owner = self._owners.pop(bytes(handle.goal_id.uuid), Owner())
-        if not self._busy.acquire(blocking=False):   # lost a race past _on_goal
-            result = Result(error_code=Result.INVALID_GOAL,
-                            error_string='busy: another goal is executing (one at a time)')
+        with self._busy_state:         # the goal that runs is named to the one refused
+            won = self._busy.acquire(blocking=False)
+            if won:
+                self._executing = f'{describe(goal)}, {owner.text()}'
+            running = self._executing
+        if not won:                    # this server's other goal runs
+            result = Result(error_code=Result.ARM_BUSY, error_string=(
+                f'the arm is busy: {self.get_fully_qualified_name()} runs goal {running}; '
+                'nothing moved'))
         else:
-            mode = Mode(goal.mode).label if goal.mode < len(Mode) else f'mode {goal.mode}'
-            self._executing = f'{goal.trial or "(no trial name)"} ({mode}), {owner.text()}'
             try:
-                with self._arm.attached():
-                    result = self._run(handle, goal, owner)
+                with self._arm.attached(), ExitStack() as arm:
+                    result = self._run(handle, goal, owner, arm)
+            except ArmBusy as exc:
+                result = Result(error_code=Result.ARM_BUSY, error_string=str(exc))
             except Exception as exc:   # last resort: a reason for the client, never empty
                 self.get_logger().error(f'goal failed: {traceback.format_exc()}')
                 result = Result(error_code=Result.INVALID_GOAL,
@@ -339,7 +351,9 @@ class CompensatorNode(Node):
         self._publish_outcome(goal, result)
         return result
 
-    def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner) -> Result:
+    def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack
+             ) -> Result:
+        """Validate, plan and (unless a dry run) claim the arm in ``arm`` and move."""
         result = Result()
         target = np.array([goal.target.x, goal.target.y, goal.target.phi])
 
@@ -406,6 +420,10 @@ class CompensatorNode(Node):
         if any(notes):
             self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: '
                                    f'{"; ".join(filter(None, notes))}')
+        result.motion = arm.enter_context(self._arm.claim.claimed(
+            'move', f'MoveToPose {describe(goal)} to x {target[0] * 1e3:.1f} mm, '
+            f'y {target[1] * 1e3:.1f} mm, phi {math.degrees(target[2]):.2f} deg', owner.text(),
+            within=goal.motion))
         started = self._arm.arm_time()
         watch = GoalWatch(
             time_limit(spec.max_moves, self._geometry, self._motion.settings),
@@ -413,12 +431,13 @@ class CompensatorNode(Node):
             lambda: self._sender_left(owner))
 
         def stop() -> bool:
-            return handle.is_cancel_requested or watch()
+            return handle.is_cancel_requested or watch() or not self._arm.claim.holds()
 
         def ended_by(reason: str) -> str:
             named = owner.named(send_goal_writers(self, self._action))
-            return (f'canceled by the server: {watch.reason}' if watch.reason else 'canceled'
-                    ) + f'; {reason}; {named.text()}'
+            lost = self._arm.claim.lost
+            return (f'canceled by the server: {watch.reason}' if watch.reason else
+                    f'canceled: {lost}' if lost else 'canceled') + f'; {reason}; {named.text()}'
 
         if stop():
             result.joint_positions = self._arm.positions().tolist()

@@ -42,8 +42,12 @@ samples are taken where the largest residuals were and across the region, into t
 usual. The refresh moves the arm: like a collection, only on request (`flexarm refresh`), never on
 its own — an arm in a vessel moves when its operator says so.
 
-Policy: one collection or refresh at a time; a goal arriving while another runs is rejected
-(one that wins the race past that check is aborted with FAILED, "busy"). A training request
+Policy: one motion at a time per arm. A collection or refresh claims the arm from its owner
+(:mod:`flexarm_control.ros.arm_claim`) once its goal is valid, before anything moves; while
+another motion holds the arm — this learner's own, or any other node's — the goal is aborted
+with ARM_BUSY and the running motion named, nothing moved. Each sample records the claim it was
+taken in; a claim ended by someone else (``flexarm cancel``) ends the collection, the arm held,
+no later sample stored. A training request
 while a collection runs is refused (it would slow the collection down; train on the finished
 dataset), as is one while a timed-out training job still occupies the worker. Every failure
 gives an error code or message; nothing escapes a callback. A collection or refresh runs in a
@@ -64,12 +68,13 @@ import threading
 import traceback
 from collections.abc import Callable, Iterable
 from concurrent.futures import Future, ThreadPoolExecutor
+from contextlib import ExitStack
 from pathlib import Path
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
 from rcl_interfaces.msg import SetParametersResult
-from rclpy.action import ActionServer, CancelResponse, GoalResponse
+from rclpy.action import ActionServer, CancelResponse
 from rclpy.action.server import ServerGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.node import Node
@@ -102,11 +107,13 @@ from flexarm_control.learning.refresh import refresh_poses, refresh_regions, ref
 from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
 from flexarm_control.learning.training import Screening, TrainingWorker
 from flexarm_control.learning.training_job import train_and_save, warm_up
+from flexarm_control.ros.arm_claim import ArmBusy
 from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
 from flexarm_core.diagnostics import DiagnosticsPublisher
+from flexarm_core.goal_owner import ProcTable, owner_at_acceptance, send_goal_writers
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.node_main import Offload, finish_goal, run
 from flexarm_core.node_params import declare, declare_tree
@@ -121,7 +128,7 @@ from flexarm_msgs.msg import (
 )
 from flexarm_msgs.srv import Train, UseModel
 
-GOAL_THREADS = 2   # the collection or refresh running and a goal that lost the race past the check
+GOAL_THREADS = 2   # the collection or refresh running and one refused meanwhile
 CHOICE_TIMEOUT = 60.0    # [s, wall] for the choice of an active learning pose
 Goal = CollectSamples.Goal
 Result = CollectSamples.Result
@@ -191,11 +198,11 @@ class LearnerNode(Node):
         self._collect_server = ActionServer(
             self, CollectSamples, topics.COLLECT_SAMPLES,
             execute_callback=self._goals.wrap(self._collect),
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+            cancel_callback=lambda _: CancelResponse.ACCEPT)
         self._refresh_server = ActionServer(
             self, RefreshModel, topics.REFRESH_MODEL,
             execute_callback=self._goals.wrap(self._refresh),
-            goal_callback=self._on_goal, cancel_callback=lambda _: CancelResponse.ACCEPT)
+            cancel_callback=lambda _: CancelResponse.ACCEPT)
         # One model change at a time: a service awaiting its call holds its callback group.
         models, self._models = MutuallyExclusiveCallbackGroup(), Offload(self, 1)
         self.create_service(Train, topics.TRAIN, self._models.wrap(self._train),
@@ -232,11 +239,14 @@ class LearnerNode(Node):
         return self._data_dir / f'{name or self._default_dataset}.jsonl'
 
     # --- collection -------------------------------------------------------------------------
-    def _on_goal(self, goal: Goal | RefreshModel.Goal) -> GoalResponse:
-        if self._collecting.locked():
-            self.get_logger().warn('goal rejected: a collection or refresh is running')
-            return GoalResponse.REJECT
-        return GoalResponse.ACCEPT
+    def _sender(self, action: str) -> str:
+        """Who may have sent a goal of ``action`` ("goal sent by /node"; several: one of)."""
+        return owner_at_acceptance(send_goal_writers(self, topics.absolute(
+            action, self.get_namespace())), None, ProcTable()).text()
+
+    def _busy(self) -> str:
+        return (f'the arm is busy: {self.get_fully_qualified_name()} is '
+                f'{self._progress or "starting a collection or refresh"}; nothing moved')
 
     def _goal_error(self, goal: Goal) -> str | None:
         if not 1 <= goal.count <= self._max_count:
@@ -250,13 +260,14 @@ class LearnerNode(Node):
     def _collect(self, handle: ServerGoalHandle) -> Result:
         goal: Goal = handle.request
         result = Result(dataset_path=str(self.dataset_path(goal.dataset)))
-        if not self._collecting.acquire(blocking=False):   # lost a race past _on_goal
-            result.error_code = Result.FAILED
-            result.error_string = 'busy: another collection is running'
+        if not self._collecting.acquire(blocking=False):   # this learner's other motion runs
+            result.error_code, result.error_string = Result.ARM_BUSY, self._busy()
         else:
             try:
-                with self._arm.attached():
-                    self._run_collection(handle, goal, result)
+                with self._arm.attached(), ExitStack() as arm:
+                    self._run_collection(handle, goal, result, arm)
+            except ArmBusy as exc:
+                result.error_code, result.error_string = Result.ARM_BUSY, str(exc)
             except Exception as exc:   # last resort: a reason for the client, never a crash
                 self.get_logger().error(f'collection failed: {traceback.format_exc()}')
                 result.error_code = Result.FAILED
@@ -270,8 +281,10 @@ class LearnerNode(Node):
                                f'{result.dataset_path} {result.error_string}')
         return result
 
-    def _run_collection(self, handle: ServerGoalHandle, goal: Goal, result: Result) -> None:
-        """Collect into ``result`` (counts, error code and reason)."""
+    def _run_collection(self, handle: ServerGoalHandle, goal: Goal, result: Result,
+                        arm: ExitStack) -> None:
+        """Collect into ``result`` (counts, error code and reason), the arm claimed in ``arm``
+        once the goal is valid (:class:`ArmBusy` if another motion holds it)."""
         path = self.dataset_path(goal.dataset)
         reason = self._goal_error(goal)
         if reason is None and not self._arm.wait_for_joints(5.0):
@@ -286,12 +299,16 @@ class LearnerNode(Node):
             return
         region = self._regions[goal.region or self._default_region].grown(self._coverage)
         strategy = goal.strategy or self._default_strategy
+        motion = arm.enter_context(self._arm.claim.claimed(
+            'collect', f'{goal.count} samples ({strategy}) in region '
+            f'{goal.region or self._default_region} into {path.stem}',
+            self._sender(topics.COLLECT_SAMPLES)))
         taken: list[Sample] = []
         plan = self._plan(region, goal.count, strategy, goal.seed, taken)
         self.get_logger().info(f'collecting {goal.count} samples ({strategy}) in region '
                                f'{region.describe()} (grown by the coverage margin)'
                                f' into {path}')
-        cancel = lambda: handle.is_cancel_requested  # noqa: E731
+        cancel = lambda: handle.is_cancel_requested or not self._arm.claim.holds()  # noqa: E731
 
         def progress(k: int, counts: Collected, sample: Sample | None) -> None:
             self._progress = f'collecting {k} of {goal.count} into {path.stem}'
@@ -308,10 +325,13 @@ class LearnerNode(Node):
                 writer.append(sample)
                 taken.append(sample)
 
-            counts = self._collector.collect(plan, self._payload, store, cancel, progress)
+            counts = self._collector.collect(plan, self._payload, store, cancel, progress,
+                                             motion, lambda: self._arm.claim.lost)
         result.collected, result.skipped = counts.collected, counts.skipped
         result.total += counts.collected
-        if counts.canceled:
+        if self._arm.claim.lost:
+            result.error_code, result.error_string = Result.CANCELED, self._arm.claim.lost
+        elif counts.canceled:
             result.error_code, result.error_string = Result.CANCELED, 'canceled'
         elif counts.stopped:
             result.error_code, result.error_string = Result.FAILED, counts.stopped
@@ -339,13 +359,16 @@ class LearnerNode(Node):
     # --- refresh ----------------------------------------------------------------------------
     def _refresh(self, handle: ServerGoalHandle) -> RefreshModel.Result:
         result = RefreshModel.Result()
-        if not self._collecting.acquire(blocking=False):   # lost a race past _on_goal
-            result.error_code = RefreshModel.Result.FAILED
-            result.error_string = 'busy: a collection or refresh is running'
+        if not self._collecting.acquire(blocking=False):   # this learner's other motion runs
+            result.error_code = RefreshModel.Result.ARM_BUSY
+            result.error_string = self._busy()
         else:
             try:
-                with self._arm.attached():
-                    self._run_refresh(handle, handle.request, result)
+                with self._arm.attached(), ExitStack() as arm:
+                    self._run_refresh(handle, handle.request, result, arm)
+            except ArmBusy as exc:
+                result.error_code = RefreshModel.Result.ARM_BUSY
+                result.error_string = str(exc)
             except Exception as exc:   # last resort: a reason for the client, never a crash
                 self.get_logger().error(f'refresh failed: {traceback.format_exc()}')
                 result.error_code = RefreshModel.Result.FAILED
@@ -376,7 +399,7 @@ class LearnerNode(Node):
             ', '.join(names)
 
     def _run_refresh(self, handle: ServerGoalHandle, goal: RefreshModel.Goal,
-                     result: RefreshModel.Result) -> None:
+                     result: RefreshModel.Result, arm: ExitStack) -> None:
         codes = RefreshModel.Result
         try:
             current = read_current(self._model_dir)
@@ -395,6 +418,9 @@ class LearnerNode(Node):
         result.dataset_path = str(path)
         self.get_logger().info(f'refreshing model v{current["version"]} with {len(plan)} '
                                f'samples in region {regions} into {path}')
+        motion = arm.enter_context(self._arm.claim.claimed(
+            'refresh', f'{len(plan)} samples in region {regions} to refresh model '
+            f'v{current["version"]}', self._sender(topics.REFRESH_MODEL)))
         samples: list[Sample] = []
 
         def store(sample: Sample) -> None:
@@ -407,12 +433,16 @@ class LearnerNode(Node):
             handle.publish_feedback(RefreshModel.Feedback(k=k, n=len(plan)))
 
         with DatasetWriter(path) as writer:
-            counts = self._collector.collect(plan, self._payload, store,
-                                             lambda: handle.is_cancel_requested, progress)
+            counts = self._collector.collect(
+                plan, self._payload, store,
+                lambda: handle.is_cancel_requested or not self._arm.claim.holds(), progress,
+                motion, lambda: self._arm.claim.lost)
         result.collected = counts.collected
         if counts.canceled or counts.stopped or not samples:
-            result.error_code = codes.CANCELED if counts.canceled else codes.FAILED
-            result.error_string = ('canceled; the model is unchanged' if counts.canceled else
+            lost = self._arm.claim.lost
+            result.error_code = codes.CANCELED if counts.canceled or lost else codes.FAILED
+            result.error_string = (f'{lost}; the model is unchanged' if lost else
+                                   'canceled; the model is unchanged' if counts.canceled else
                                    counts.stopped or 'no valid measurement')
             return
         version = next_version(self._model_dir)
@@ -442,7 +472,7 @@ class LearnerNode(Node):
             joint_positions=[float(v) for v in sample.joints], payload=float(sample.payload),
             rigid_pose=planar(sample.rigid_pose), measured_pose=planar(sample.measured_pose),
             deflection=planar(sample.deflection), holes_used=int(sample.holes_used),
-            residual=float(sample.residual))
+            residual=float(sample.residual), motion=sample.motion)
 
     # --- training ---------------------------------------------------------------------------
     def _train(self, request: Train.Request, response: Train.Response) -> Train.Response:

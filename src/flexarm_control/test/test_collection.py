@@ -95,3 +95,17 @@ def test_a_blind_camera_ends_the_collection_after_a_few_poses_with_its_reason(wo
                                      'no valid pose in 25 frame(s): fit residual 0.155 mm')
     assert all(w.endswith('fit residual 0.155 mm RMS too large') for w in warnings), warnings
     assert len(progress) == BLIND_POSES
+
+
+def test_samples_record_their_motion_and_none_is_stored_once_the_arm_was_taken(world):
+    geometry, plant, settings, poses = world
+    arm = FakeArm(plant, START)
+    stored = []
+    lost = iter(['', '', 'motion m1 no longer holds the arm: canceled by /op'])
+    counts = Collector(ArmMotion(arm, geometry, settings), geometry, 2,
+                       clock=lambda: 0.0).collect(poses, 0.0, stored.append, arm.abort,
+                                                  motion='m1', lost=lambda: next(lost))
+    assert [s.motion for s in stored] == ['m1', 'm1']
+    assert counts.collected == 2 and counts.stopped == (
+        'sample 3 refused: the arm was not held by this motion alone (motion m1 no longer '
+        'holds the arm: canceled by /op)')

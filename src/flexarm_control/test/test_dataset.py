@@ -1,6 +1,7 @@
 """Crash-safe deflection dataset: round trip, kill -9 while writing, damaged records."""
 from __future__ import annotations
 
+import dataclasses
 import json
 import math
 import signal
@@ -188,3 +189,15 @@ def test_bad_samples_are_rejected() -> None:
     with pytest.raises(ValueError, match='NaN'):
         Sample(**{**good.as_dict(), 'deflection': [0.0, math.nan, 0.0]})
     assert Sample.from_dict(good.as_dict()) == good
+
+
+def test_a_sample_keeps_its_motion_and_a_record_without_one_still_loads(tmp_path):
+    plain = Sample(1.0, [0.0, 0.6, 0.0, 0.0], 0.0, [1, 0, 0], [1, 0, 0], [0, 0, 0], 7, 1e-5)
+    held = dataclasses.replace(plain, motion='3f0c')
+    assert 'motion' not in plain.as_dict() and held.as_dict()['motion'] == '3f0c'
+    path = tmp_path / 'd.jsonl'
+    with DatasetWriter(path) as writer:
+        writer.append(plain)
+        writer.append(held)
+    loaded = load_dataset(path)
+    assert [s.motion for s in loaded.samples] == ['', '3f0c'] and loaded.skipped == 0

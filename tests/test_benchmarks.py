@@ -118,6 +118,13 @@ NODE = [
     Smoke('lifecycle', ('--cycles', '1', '--nodes', 'state_publisher'),
           ('crashes', 'hung', 'signal_exits', 'stops', 'per_node'), ('crashes', 'stops'),
           timeout=150.0, domain='--domain-id', seconds=25),
+    Smoke('soak', ('--smoke',),
+          ('goals', 'succeeded', 'unfinished_goals', 'false_success', 'concurrent_motion',
+           'crashes', 'rss_growth_mb', 'fd_growth', 'lost_samples', 'arm_hours', 'wall_s',
+           'restarts', 'refused_busy', 'achieved_rtf'),
+          ('goals.total', 'unfinished_goals', 'false_success', 'concurrent_motion', 'crashes',
+           'lost_samples', 'arm_hours', 'achieved_rtf'),
+          timeout=360.0, domain='--domain-id', seconds=60),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id', seconds=13),
 ]

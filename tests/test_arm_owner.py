@@ -96,7 +96,9 @@ def test_a_move_during_a_collection_is_refused_and_the_collection_stays_undistur
                  '/flexarm_learner', motion.motion_id, 'nothing moved'):
         assert part in refused.error_string, refused.error_string
     assert refused.motion == '' and refused.iterations == 0
+    deadline = time.monotonic() + liveness.limit(60.0)
     while run.feedback() is None and not run.done():       # a sample after the refusal
+        assert time.monotonic() < deadline, 'no sample of the collection after the refusal'
         run.done(0.1)
     run.cancel()
     result = run.result()

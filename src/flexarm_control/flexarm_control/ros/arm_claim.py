@@ -100,10 +100,11 @@ class ArmClaim:
             self._others = msg.motion_id if msg.motion_id != self.motion_id else ''
         return not self.lost
 
-    def others_hold(self) -> bool:
-        """Whether another motion holds the arm now (after this node's claim ended)."""
+    def may_stop(self) -> bool:
+        """Whether this node may stop the arm: under its claim, or after that ended while no
+        other motion holds the arm; never without one."""
         self.holds()
-        return bool(self._others)
+        return bool(self.motion_id) and not self._others
 
     @contextmanager
     def claimed(self, kind: str, description: str, sender: str = '', within: str = ''

@@ -14,8 +14,8 @@ seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can the
 
 Commands are sent only under a claim of the arm that holds (:class:`~flexarm_control.ros.
 arm_claim.ArmClaim`, one motion at a time per arm): a command without one is a programming error
-(:class:`NotHeld`), and a hold after the claim ended is sent only while no other motion holds
-the arm.
+(:class:`NotHeld`), and a hold is sent only under a claim, or after it ended while no other
+motion holds the arm.
 
 Inputs are subscribed only while they are used: ``/joint_states`` while a goal drives the arm
 (:meth:`ArmInterface.attached`), ``/tip_pose`` while a measurement waits for it; nobody asking
@@ -189,11 +189,11 @@ class ArmInterface:
             self._commands.send(self.positions(), np.asarray(q, dtype=float))
 
     def hold(self) -> np.ndarray | None:
-        """Stop the arm where it is (the joints now); after the claim ended, only while no
-        other motion holds the arm."""
+        """Stop the arm where it is (the joints now): under a claim, or after it ended while
+        no other motion holds the arm."""
         snapshot = self.joints
         if snapshot is not None:
-            if self._node.context.ok() and not self.claim.others_hold():
+            if self._node.context.ok() and self.claim.may_stop():
                 self._commands.stop(snapshot.positions)
             return snapshot.positions
         return None

@@ -79,7 +79,7 @@ JSON (last line):
   ``camera_error_mm`` (|measured - true| of measured successes).
 
     python benchmarks/soak.py [--arm-hours 2] [--goals 500] [--seed 1] [--json]
-    python benchmarks/soak.py --smoke --json          (1-2 minutes: 0.05 h, 3 goals a mode)
+    python benchmarks/soak.py --smoke --json          (about 30 s: 0.02 h, a goal a mode)
 """
 from __future__ import annotations
 
@@ -154,7 +154,7 @@ KILLS = ((VISION,), (LEARNER,), (VISION, LEARNER))     # in turn
 STOP_EXITS = (0, -signal.SIGINT, -signal.SIGTERM, -signal.SIGKILL)   # Graph.stop's signals
 # What an operator does next, by weight
 STEPS = (('goal', 70), ('pair', 12), ('collect', 7), ('payload', 5), ('refresh', 4))
-SMOKE = {'arm_hours': 0.05, 'goals': 3, 'samples': 8, 'kill_every': 1.0, 'blind_every': 0.25,
+SMOKE = {'arm_hours': 0.02, 'goals': 1, 'samples': 8, 'kill_every': 1.0, 'blind_every': 0.25,
          'sample_every': 2.0, 'max_minutes': 6.0}
 LATCHED = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 

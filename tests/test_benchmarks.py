@@ -124,7 +124,7 @@ NODE = [
            'restarts', 'refused_busy', 'achieved_rtf'),
           ('goals.total', 'unfinished_goals', 'false_success', 'concurrent_motion', 'crashes',
            'lost_samples', 'arm_hours', 'achieved_rtf'),
-          timeout=360.0, domain='--domain-id', seconds=60),
+          timeout=360.0, domain='--domain-id', seconds=30),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id', seconds=13),
 ]

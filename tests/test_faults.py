@@ -4,6 +4,8 @@ The module's tests share its ROS domain (conftest.py), one graph at a time, with
 The tests that train share one simulator and learner (:class:`LearnerGraph`), the one that
 kills the learner last; every other test starts the nodes it needs, in a domain without them.
 """
+import contextlib
+import json
 import os
 import signal
 import socket
@@ -118,6 +120,30 @@ def test_a_learner_killed_after_training_leaves_no_worker(learner, wait_for):
     os.kill(pid, signal.SIGKILL)                  # the learner only, not its process group
     wait_for(lambda: not any(alive(w) for w in workers), 5.0,
              f'the learner\'s children {sorted(workers)} to die with it')
+
+
+def test_a_restarted_learner_keeps_the_declared_payload(learner, learner_graph, module_launch,
+                                                        wait_for):
+    """The arm keeps its tool when the learner dies: the learner that comes back announces
+    the payload last declared, not its configured 0 kg, and the simulator keeps carrying it."""
+    node, client, data, models = learner
+    client.set_payload(3.5)
+    wait_for(lambda: client.node_parameter('flexarm_sim', 'plant.payload') == 3.5, 10.0,
+             'the simulator to take the tool')
+    node.killed_shm += owned_shm(node.process.pid)     # removed when the graph stops
+    node.signal(signal.SIGKILL)
+    learner_graph.node = module_launch('flexarm_learner', data_directory=str(data),
+                                       model_directory=str(models))
+
+    def declared() -> float | None:
+        with contextlib.suppress(TimeoutError, RuntimeError):   # until it is discovered
+            return client.node_parameter('flexarm_learner', 'payload', timeout=2.0)
+        return None
+
+    wait_for(lambda: declared() == 3.5, 20.0, 'the restarted learner to declare 3.5 kg')
+    assert client.node_parameter('flexarm_sim', 'plant.payload') == 3.5
+    client.set_payload(0.0)
+    assert json.loads((models / 'payload.json').read_text()) == {'payload': 0.0}
 
 
 def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_path):

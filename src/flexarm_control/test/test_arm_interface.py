@@ -1,6 +1,7 @@
 """ArmInterface waits under use_sim_time: they count sim time, starting at the first /clock."""
 import threading
 import time
+from collections.abc import Iterator
 
 import pytest
 import rclpy
@@ -14,13 +15,13 @@ pytestmark = pytest.mark.node
 START = 1000.0      # [s] sim time of the first /clock
 
 
-@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}], indirect=True)
-def test_a_wait_begun_before_the_first_clock_lasts_its_timeout_in_sim_time(ros_node):
-    arm = ArmInterface(ros_node)
+@pytest.fixture
+def sim_clock(ros_node) -> Iterator[None]:
+    """/clock from START at 10x, after 0.3 s of silence, while the test runs."""
     clock = ros_node.create_publisher(Clock, topics.CLOCK, 10)
     running = threading.Event()
 
-    def publish_clock() -> None:               # 0.3 s of silence, then sim time at 10x
+    def publish_clock() -> None:
         time.sleep(0.3)
         begin = time.monotonic()
         while not running.is_set():
@@ -32,11 +33,34 @@ def test_a_wait_begun_before_the_first_clock_lasts_its_timeout_in_sim_time(ros_n
     thread = threading.Thread(target=publish_clock, daemon=True)
     assert ros_node.get_clock().now().nanoseconds == 0          # no /clock yet
     thread.start()
-    try:
-        assert not arm.wait_until(lambda: False, timeout=2.0)
-        ended = ros_node.get_clock().now().nanoseconds * 1e-9
-    finally:
-        running.set()
-        thread.join(timeout=2.0)
-    assert ended >= START + 2.0               # not cut short by the jump from 0 to START
+    yield
+    running.set()
+    thread.join(timeout=2.0)
 
+
+def sim_now(node) -> float:
+    return node.get_clock().now().nanoseconds * 1e-9
+
+
+@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}], indirect=True)
+def test_a_wait_begun_before_the_first_clock_lasts_its_timeout_in_sim_time(ros_node, sim_clock):
+    arm = ArmInterface(ros_node)
+    assert not arm.wait_until(lambda: False, timeout=2.0)
+    assert sim_now(ros_node) >= START + 2.0       # not cut short by the jump from 0 to START
+
+
+@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}], indirect=True)
+def test_a_wait_counts_its_timeout_from_when_counting_begins(ros_node, sim_clock):
+    """A sensor just subscribed (its discovery takes wall time) is not timed out meanwhile."""
+    arm = ArmInterface(ros_node)
+    opens, began = time.monotonic() + 1.0, []
+
+    def counting() -> bool:
+        if time.monotonic() < opens:
+            return False
+        began.append(sim_now(ros_node))
+        return True
+
+    assert not arm.wait_until(lambda: False, timeout=2.0, counting=counting)
+    assert began and began[0] > START and sim_now(ros_node) >= began[0] + 2.0
+    assert len(began) == 1                       # asked until it first holds, then no more

@@ -34,9 +34,10 @@ watches (about half a core at 10x real time: rendering and measuring 50 frames a
 a recorder's subscription asks only for the frames that cost little (the joints and the true
 tip, from streams the recorder takes anyway) and records the measured tip whenever the graph
 measures for someone else (flexarm_bringup.recorder_node: a recording does not make the graph
-measure). A recorder's node name may be known a moment after its subscription matched (Fast
-DDS); until then it counts as a viewer, and the decision is taken again every
-``RECHECK`` s until every subscriber is known.
+measure). A subscriber's node name may be known a moment after its subscription matched (Fast
+DDS); until then it does not count as a viewer (were it a recorder, the graph would measure for
+nothing meanwhile), and the decision is taken again every ``RECHECK`` s until every subscriber
+is known: a viewer's measured tip starts that much later.
 
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second): ``/tf`` and the
 tips carry the stamp of their message, ``/diagnostics`` the graph's time (the newest ``/clock``
@@ -110,6 +111,14 @@ def wanted_inputs(subscribers: dict[str, int], recording: dict[str, int]) -> dic
             'measured': viewers(topics.TF) + viewers(topics.MEASURED_TIP) > 0}
 
 
+def not_viewers(count: int, names: list[str], recorders: set[str]) -> int:
+    """How many of an output's ``count`` subscribers (of node ``names``, as the graph knows
+    them so far) are not viewers: recorders, and those whose node is not known yet (module
+    docstring)."""
+    known = [name for name in names if name != UNKNOWN_NODE]
+    return sum(name in recorders for name in known) + max(0, count - len(known))
+
+
 def transform_msg(t: Transform, header: Header) -> TransformStamped:
     msg = TransformStamped(header=Header(stamp=header.stamp, frame_id=t.parent),
                            child_frame_id=t.child)
@@ -181,9 +190,9 @@ class StatePublisher(Node):
         for output, count in self._subscribers.items():
             if output == topics.TRUE_TIP or not count:
                 continue
-            nodes = [info.node_name for info in self.get_subscriptions_info_by_topic(output)]
-            recording[output] = sum(name in self._recorders for name in nodes)
-            unknown |= len(nodes) < count or UNKNOWN_NODE in nodes
+            names = [info.node_name for info in self.get_subscriptions_info_by_topic(output)]
+            recording[output] = not_viewers(count, names, self._recorders)
+            unknown |= len(names) < count or UNKNOWN_NODE in names
         for name, wanted in wanted_inputs(self._subscribers, recording).items():
             if wanted and name not in self._inputs:
                 message_type, topic, qos = self._sources[name]

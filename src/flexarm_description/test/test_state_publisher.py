@@ -2,7 +2,7 @@
 from __future__ import annotations
 
 from flexarm_core import topics
-from flexarm_description.state_publisher_node import wanted_inputs
+from flexarm_description.state_publisher_node import UNKNOWN_NODE, not_viewers, wanted_inputs
 
 NOTHING = {'joints': False, 'true': False, 'measured': False}
 
@@ -37,3 +37,15 @@ def test_each_tip_alone_asks_for_its_own_input_only() -> None:
         'joints': False, 'true': True, 'measured': False}
     assert wanted_inputs({topics.MEASURED_TIP: 1}, {}) == {
         'joints': False, 'true': False, 'measured': True}
+
+
+def test_a_subscriber_whose_node_is_not_known_yet_is_no_viewer_until_it_is() -> None:
+    """A recorder's subscription is matched a moment before its node's name is known: it must
+    not make the graph measure meanwhile."""
+    recorders = {'flexarm_recorder'}
+    assert not_viewers(1, [UNKNOWN_NODE], recorders) == 1
+    assert not_viewers(2, ['rviz'], recorders) == 1            # one not in the graph yet
+    assert not_viewers(1, ['flexarm_recorder'], recorders) == 1
+    assert not_viewers(2, ['flexarm_recorder', 'rviz'], recorders) == 1
+    assert not wanted_inputs({topics.TF: 1}, {topics.TF: not_viewers(
+        1, [UNKNOWN_NODE], recorders)})['measured']

@@ -63,6 +63,11 @@ _POLL = 0.02   # [s] waits take the inputs that arrived this often
 JOINT_SILENCE = 3.0
 NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # /joint_states
 TIP_POSES = 10   # queue of /tip_pose: a measurement's frames, between two looks at most a few
+# [s, wall] a measurement waits for a known camera's first frame before its sim-time timeout
+# counts (times the liveness factor): the camera renders only for a subscriber, and it learns
+# of a new one through discovery, a wall-clock matter: at x10 the 30 s of sim time are 3 s of
+# wall time, less than a starved vision node has taken to start on a busy 2-core machine.
+FIRST_FRAME = 2.0
 
 
 @dataclass(frozen=True)
@@ -201,9 +206,11 @@ class ArmInterface:
     # --- waits ------------------------------------------------------------------------------
     def wait_until(self, predicate: Callable[[], bool], timeout: float,
                    abort: Callable[[], bool] = lambda: False,
-                   clock: Callable[[], Time] | None = None) -> bool:
+                   clock: Callable[[], Time] | None = None,
+                   counting: Callable[[], bool] = lambda: True) -> bool:
         """Wait until ``predicate()`` (evaluated under the lock, on the inputs just taken) or
-        ``timeout`` s of ``clock`` (default: the node's).
+        ``timeout`` s of ``clock`` (default: the node's), counted from when ``counting()``
+        (under the lock) first holds.
 
         Returns False on timeout, when ``abort()`` becomes true (e.g. a cancel request), when
         ``/joint_states`` stopped (:attr:`controller_silent`) or when the node shuts down.
@@ -211,21 +218,26 @@ class ArmInterface:
         jumps to the simulator's time: the wait starts counting at the first non-zero time.
         """
         clock = clock or self.now
-        start = clock()
-        wall_deadline = time.monotonic() + _WALL_FACTOR * timeout + _WALL_SLACK
+        start: Time | None = None
+        wall_deadline = float('inf')
         while True:
             with self._lock:
                 self._take_inputs()
                 if predicate():
                     return True
+                began = start is None and counting()
+            if began:
+                start = clock()
+                wall_deadline = time.monotonic() + _WALL_FACTOR * timeout + _WALL_SLACK
             if (abort() or time.monotonic() > wall_deadline or self.controller_silent
                     or not self._node.context.ok()):
                 return False
-            now = clock()
-            if start.nanoseconds == 0:
-                start = now
-            elif (now - start).nanoseconds * 1e-9 > timeout:
-                return False
+            if start is not None:
+                now = clock()
+                if start.nanoseconds == 0:
+                    start = now
+                elif (now - start).nanoseconds * 1e-9 > timeout:
+                    return False
             time.sleep(_POLL)
 
     def wait_for_joints(self, timeout: float) -> bool:
@@ -254,7 +266,9 @@ class ArmInterface:
     def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,
                 ) -> Measurement | None:
         """Average ``frames`` valid, settled tip poses captured after now in the arm's time (the
-        node's clock can be a few /clock periods behind it, or ahead); None on timeout.
+        node's clock can be a few /clock periods behind it, or ahead); None on timeout, which
+        counts from the first frame (or :data:`FIRST_FRAME` wall seconds without one, or at once
+        when the graph knows no camera).
         ``/tip_pose`` is subscribed for the measurement only."""
         with self._lock:
             self._take_inputs()
@@ -266,9 +280,16 @@ class ArmInterface:
                     if f.valid and f.settled and Time.from_msg(f.header.stamp) >= since]
 
         self._tip_input = self._subscribe(TipPose, topics.TIP_POSE, TIP_POSES)
+        first_frame = time.monotonic() + liveness.limit(FIRST_FRAME)
+
+        def counting() -> bool:
+            """Once a frame came, or no camera is known to the graph, or it never sent one."""
+            return (bool(self._frames) or time.monotonic() > first_frame
+                    or not self._node.count_publishers(topics.TIP_POSE))
+
         try:
             if not self.wait_until(lambda: len(usable()) >= frames, timeout, abort,
-                                   self.arm_time):
+                                   self.arm_time, counting=counting):
                 with self._lock:
                     self.measurement_problem = measurement_problem(
                         [f for f in self._frames if Time.from_msg(f.header.stamp) >= since],

@@ -30,7 +30,9 @@ another arm configuration than the learner's now.
 Payload: the learner's ``payload`` parameter [kg] is what the arm carries now; it is stored
 with every sample and published latched on ``/payload`` (std_msgs/Float64) at start and on
 every change (``flexarm payload KG``, ``flexarm collect --payload KG``), for the compensator and
-the simulator (which follows it: the tool really was picked up). A dataset holding samples at
+the simulator (which follows it: the tool really was picked up). Each declaration is kept in the
+model directory, and a restarted learner starts from it rather than from its configured value
+(:mod:`flexarm_control.learning.payload_record`). A dataset holding samples at
 more than one payload is trained with the payload as a model input (``payload_input``) unless
 the request's settings say otherwise.
 
@@ -102,6 +104,7 @@ from flexarm_control.learning.model_store import (
     unloadable_text,
     write_current,
 )
+from flexarm_control.learning.payload_record import payload_path, read_payload, write_payload
 from flexarm_control.learning.predictors import KINDS, load_predictor, make_predictor
 from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
@@ -187,6 +190,7 @@ class LearnerNode(Node):
             warn=self.get_logger().warn)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._model_pub = self.create_publisher(ModelInfo, topics.MODEL, latched)
+        self._restore_payload()
         self._payload_pub = self.create_publisher(Float64, topics.PAYLOAD, latched)
         self._payload_pub.publish(Float64(data=float(self._payload)))
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -230,10 +234,32 @@ class LearnerNode(Node):
                     or not 0 <= float(value) < float('inf')):
                 return SetParametersResult(successful=False,
                                            reason='payload: a finite number >= 0 [kg]')
+            try:
+                write_payload(self._model_dir, float(value))
+            except OSError as exc:
+                return SetParametersResult(successful=False, reason=(
+                    f'payload not declared: {payload_path(self._model_dir)} could not be '
+                    f'written ({exc})'))
             self._payload = float(value)
             self._payload_pub.publish(Float64(data=self._payload))
             self.get_logger().info(f'payload now {self._payload:g} kg')
         return SetParametersResult(successful=True)
+
+    def _restore_payload(self) -> None:
+        """Take the last declared payload over the configured one: the arm still carries it
+        (:mod:`flexarm_control.learning.payload_record`)."""
+        try:
+            stored = read_payload(self._model_dir)
+        except ValueError as exc:
+            self.get_logger().warn(f'{exc}: the configured payload {self._payload:g} kg holds')
+            return
+        if stored is None or stored == self._payload:
+            return
+        self.get_logger().info(
+            f'payload {stored:g} kg, as last declared ({payload_path(self._model_dir)}; '
+            f'configured {self._payload:g} kg): `flexarm payload KG` declares another')
+        self._payload = stored
+        self.set_parameters([Parameter('payload', value=stored)])
 
     def dataset_path(self, name: str) -> Path:
         return self._data_dir / f'{name or self._default_dataset}.jsonl'

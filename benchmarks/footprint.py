@@ -24,6 +24,7 @@ the machine disturbs the figures, read them with it.
     python benchmarks/footprint.py [--settle 10] [--seconds 30] [--samples 20]
         [--domain-id N] [--json]
     python benchmarks/footprint.py --smoke --json        # shortest stretches, 2 samples
+        [--graphs x1,x10,x10_recorded]                   # which of the three graphs
 
 JSON (last line): ``idle_x1``, ``idle_x10``, ``collect_x10`` (and ``idle_x10_recorded``,
 ``collect_x10_recorded``), each with ``total_cores``, ``achieved_rtf``, ``wall_s``, ``rss_mb``,
@@ -60,6 +61,7 @@ TICK = os.sysconf('SC_CLK_TCK')
 PAGE = os.sysconf('SC_PAGE_SIZE')
 READY_S = 120.0        # [s] bound of the graph's bring-up
 SMOKE = {'settle': 1.0, 'seconds': 3.0, 'samples': 2}
+GRAPHS = {'x1': (1.0, False), 'x10': (10.0, False), 'x10_recorded': (10.0, True)}  # rtf, bag
 RECORDER = 'flexarm_recorder'
 
 
@@ -229,20 +231,28 @@ def main() -> None:
     parser.add_argument('--smoke', action='store_true', help=f'shortest run: {smoke}')
     parser.add_argument('--no-record', action='store_true',
                         help='leave out the graph with the recorder')
+    parser.add_argument('--graphs', default=','.join(GRAPHS),
+                        help=f'the graphs to run, of {",".join(GRAPHS)} (a smoke run of the '
+                        'suite needs one: each starts the whole graph)')
     parser.add_argument('--domain-id', type=int, help='ROS domain (default: a free one)')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
+    unknown = set(args.graphs.split(',')) - set(GRAPHS)
+    if unknown:
+        parser.error(f'--graphs: no graph {", ".join(sorted(unknown))}; of {",".join(GRAPHS)}')
     if args.smoke:
         vars(args).update(SMOKE)
     print(f'load average before: {os.getloadavg()[0]:.2f}', flush=True)
     stretches: dict[str, tuple[dict[str, Any], dict[str, dict[str, float]]]] = {}
     recorder: dict[str, Any] = {}
     with tempfile.TemporaryDirectory() as tmp, reserved_domain(args.domain_id) as domain:
-        for rtf, record in ((1.0, False), (10.0, False), (10.0, True)):
+        for name in args.graphs.split(','):
+            rtf, record = GRAPHS[name]
             if record and args.no_record:
                 continue
             stretches.update(run_graph(domain, Path(tmp), rtf, args, record))
-        if not args.no_record:
+        if any(record for _, record in map(GRAPHS.get, args.graphs.split(','))) and (
+                not args.no_record):
             info = bag_info(Path(tmp) / 'bags' / 'footprint')
             recorder = {'cores': {key.removesuffix('_recorded'): nodes[RECORDER]['cores']
                                   for key, (_, nodes) in stretches.items() if RECORDER in nodes},

@@ -11,7 +11,6 @@ behaviour must not hang on noise.
 from __future__ import annotations
 
 import threading
-import time
 from collections.abc import Callable
 from pathlib import Path
 from typing import Any
@@ -166,7 +165,12 @@ def test_two_arms_learn_and_move_each_with_its_own_data_only(arms, ros_node, wai
         for ns, result in moved.items():
             assert result.error_code == MoveToPose.Result.SUCCESSFUL, result.error_string
             assert result.model_version == trained[ns].model_version
-        time.sleep(1.0)                  # the last outcomes, samples and statuses
+        wait_for(lambda: all(
+            heard[ns]['outcomes'] and heard[ns]['active']
+            and heard[ns]['active'][-1].path == trained[ns].model_path
+            and len(heard[ns]['samples']) >= len(datasets[ns].samples)
+            and any(name.startswith(f'{ns}/flexarm_sim: ') for name in statuses)
+            for ns in ARMS), 20.0, "each arm's outcome, samples, model and status heard")
         foreign.update(foreign_publishers(ros_node, tuple(ARMS)))
         checked = {ns: published_topics(ros_node, ns) for ns in ARMS}
         clocks = [(p.node_namespace, p.node_name)

@@ -36,9 +36,10 @@ JSON (last line):
   rejection) within a liveness-scaled bound (moves 180 s, collections 60 s + 30 s a sample), or
   whose server went silent although nobody killed it. One whose learner was killed under it is
   ``lost_to_kills``, not unfinished. Must be 0.
-- ``false_success``: SUCCESSFUL goals whose true final tip (``sim/tip_pose_truth``, the newest
-  message once the result came, or, if the next motion already moves the arm, the newest one
-  before it) misses the target by more than the goal's bound plus ``camera_margin_mm``:
+- ``false_success``: SUCCESSFUL goals whose true final tip (``sim/tip_pose_truth``: the newest
+  settled one stamped at or before the goal's outcome on compensator/outcomes, found by its
+  unique trial name — the next motion may already move the arm when the result is read)
+  misses the target by more than the goal's bound plus ``camera_margin_mm``:
   CLOSED_LOOP, the compensator's ``position_tolerance``; PREDICTIVE (no tolerance given, never
   extrapolating), the server's sanity bound max(``sanity_floor``, ``sanity_factor`` x
   hypot(max_error_x, max_error_y) of the model the goal ran, as announced on
@@ -63,7 +64,8 @@ JSON (last line):
   Like with like: each sample counts as its growth over its own process's base, its first
   sample after the warm-up (a restarted node's process: 20 s into its life), so a restarted
   node's fresh process is neither a leak nor a saving; for a node never restarted this is
-  simply last minus first. Must be <= 20.
+  simply last minus first. Must be <= 20. ``rss_mb_series``: per node, [arm hour, MB] over
+  the run (40 points), to tell a leak (climbing) from a warm-up (levelling off).
 - ``fd_growth``: per node never restarted, open descriptors (/proc/PID/fd) at the end (after the
   clients stopped and 5 s) minus after the warm-up. Must be 0.
 - ``lost_samples``: samples collections reported (result.collected, else the last feedback's
@@ -96,7 +98,7 @@ import threading
 import time
 import traceback
 import uuid
-from collections import Counter, defaultdict
+from collections import Counter, defaultdict, deque
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -127,7 +129,7 @@ from flexarm_core.kinematics import ArmGeometry, UnreachableError, inverse
 from flexarm_core.params import load_config
 from flexarm_core.taken import Taken, take
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
-from flexarm_msgs.msg import ModelInfo, TipPose
+from flexarm_msgs.msg import GoalOutcome, ModelInfo, TipPose
 
 READY_S = 120.0          # [s, wall] bound of the graph's bring-up
 BACK_S = 120.0           # [s, wall] bound of a killed node's return
@@ -157,6 +159,12 @@ STEPS = (('goal', 70), ('pair', 12), ('collect', 7), ('payload', 5), ('refresh',
 SMOKE = {'arm_hours': 0.02, 'goals': 1, 'samples': 8, 'kill_every': 1.0, 'blind_every': 0.25,
          'sample_every': 2.0, 'max_minutes': 6.0}
 LATCHED = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+TRUTH_QUEUE = 2000      # sim/tip_pose_truth messages between two looks (1000 a wall second)
+TRUTH_KEPT = 60000      # settled true tips kept to judge a goal by (a minute of wall time)
+
+
+def stamp_ns(stamp: Any) -> int:
+    return stamp.sec * 10**9 + stamp.nanosec
 
 
 def code_names(result: type) -> dict[int, str]:
@@ -185,6 +193,7 @@ class Outcome:
     motion: str = ''
     reported: int = 0             # samples the feedback reported collected
     target: tuple[float, float, float] = (0.0, 0.0, 0.0)
+    trial: str = ''                     # of a move: unique, to find its outcome
     truth_error: float | None = None    # [m] of a success
     bound: float | None = None          # [m] its bound (None: none)
 
@@ -243,9 +252,13 @@ class Observer:
         group = Taken()
         sub = self.node.create_subscription
         self._clock = sub(Clock, topics.CLOCK, lambda _: None, 1, callback_group=group)
-        self._truth = sub(TipPose, topics.TIP_POSE_TRUTH, lambda _: None, 300,
+        self._truth = sub(TipPose, topics.TIP_POSE_TRUTH, lambda _: None, TRUTH_QUEUE,
                           callback_group=group)
-        self._tip = sub(TipPose, topics.TIP_POSE, lambda _: None, 50, callback_group=group)
+        self._outcomes = sub(GoalOutcome, topics.OUTCOMES, lambda _: None, 100,
+                             callback_group=group)
+        self.settled: deque[tuple[int, TipPose]] = deque(maxlen=TRUTH_KEPT)   # (stamp ns, msg)
+        self.ended: dict[str, int] = {}      # trial -> its outcome's stamp [ns, sim]
+        self._group = group
         self._models = [sub(ModelInfo, name, lambda _: None, QoSProfile(
             depth=20, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL), callback_group=group)
             for name in (topics.MODEL, topics.ACTIVE_MODEL)]
@@ -277,36 +290,64 @@ class Observer:
         self.poll()
         return self.models.get(version)
 
-    def truth(self) -> TipPose | None:
-        """The true tip now: the newest message, or if the arm already moves again the newest
-        one before it moved; None if none settled is at hand."""
+    def take_truth(self) -> None:
+        """Keep the settled true tips and the goals' end stamps that came since the last look
+        (called every main-loop pass and by every judge: the queue holds 2 s of the truth)."""
         with self.lock:
-            heard = []
             while (msg := take(self._truth)) is not None:
-                heard.append(msg)
-        for msg in reversed(heard):
-            if msg.settled:
-                return msg
-        return None
+                if msg.settled:
+                    self.settled.append((stamp_ns(msg.header.stamp), msg))
+            while (outcome := take(self._outcomes)) is not None:
+                self.ended[outcome.trial] = stamp_ns(outcome.stamp)
+
+    def truth(self) -> TipPose | None:
+        """The newest settled true tip; None if none is at hand."""
+        self.take_truth()
+        with self.lock:
+            return self.settled[-1][1] if self.settled else None
+
+    def truth_at_end(self, trial: str, timeout: float) -> TipPose | None:
+        """The true tip where the goal ``trial`` ended: the newest settled one stamped at or
+        before its outcome (the next motion may already move the arm when the result is
+        read); None if its outcome does not come within ``timeout`` s or the kept truth does
+        not reach back to it."""
+        deadline = time.monotonic() + timeout
+        while True:
+            self.take_truth()
+            with self.lock:
+                end = self.ended.pop(trial, None)
+                if end is not None:
+                    if not self.settled or self.settled[0][0] > end:
+                        return None
+                    return next(msg for stamp, msg in reversed(self.settled) if stamp <= end)
+            if time.monotonic() > deadline:
+                return None
+            time.sleep(0.05)
 
     def camera_error(self, frames: int, timeout: float) -> float:
-        """[m] The largest |vision - truth| of ``frames`` valid, settled frames at rest."""
+        """[m] The largest |vision - truth| of ``frames`` valid, settled frames at rest.
+        ``/tip_pose`` is subscribed for this alone: the graph measures only for a subscriber,
+        and the soak's operators' own measurements are what it is to run."""
         with self.lock:
-            while take(self._tip) is not None:
-                pass
+            tips = self.node.create_subscription(TipPose, topics.TIP_POSE, lambda _: None, 50,
+                                                 callback_group=self._group)
         errors: list[float] = []
         deadline = time.monotonic() + timeout
-        while len(errors) < frames:
-            if time.monotonic() > deadline:
-                raise TimeoutError(f'{len(errors)} of {frames} settled tip poses in '
-                                   f'{timeout:.0f} s')
+        try:
+            while len(errors) < frames:
+                if time.monotonic() > deadline:
+                    raise TimeoutError(f'{len(errors)} of {frames} settled tip poses in '
+                                       f'{timeout:.0f} s')
+                with self.lock:
+                    msg = take(tips)
+                truth = self.truth() if msg is not None and msg.valid and msg.settled else None
+                if truth is None:
+                    time.sleep(0.02)
+                    continue
+                errors.append(math.hypot(msg.pose.x - truth.pose.x, msg.pose.y - truth.pose.y))
+        finally:
             with self.lock:
-                msg = take(self._tip)
-            truth = self.truth() if msg is not None and msg.valid and msg.settled else None
-            if truth is None:
-                time.sleep(0.02)
-                continue
-            errors.append(math.hypot(msg.pose.x - truth.pose.x, msg.pose.y - truth.pose.y))
+                self.node.destroy_subscription(tips)
         return max(errors)
 
     def publishers(self, topic: str) -> set[bytes]:
@@ -381,7 +422,7 @@ class Soak:
     def judge(self, outcome: Outcome) -> None:
         """A successful move's true error and bound (module docstring)."""
         result = outcome.result
-        truth = self.observer.truth()
+        truth = self.observer.truth_at_end(outcome.trial, liveness.limit(10.0))
         self.at = outcome.target
         if truth is not None:
             x, y, _ = outcome.target
@@ -585,10 +626,10 @@ class Operator:
         return outcome
 
     def move(self, mode: str, target: tuple[float, float, float]) -> Outcome:
-        outcome = Outcome('move', mode, target=target)
+        outcome = Outcome('move', mode, target=target, trial=f'soak {mode} {uuid.uuid4().hex}')
         bound = liveness.limit(MOVE_S)
         self.run_goal(outcome, lambda feedback: self.client.move_async(
-            *target, mode, trial=f'soak {mode}', timeout=bound, feedback=feedback), bound,
+            *target, mode, trial=outcome.trial, timeout=bound, feedback=feedback), bound,
             lambda fb: fb.phase != MoveToPose.Feedback.PHASE_PLANNING)
         if outcome.result is not None:
             outcome.motion = outcome.result.motion
@@ -728,6 +769,18 @@ class Watch:
                              - sum(first[name]) / len(first[name]), 2)
                        if first[name] and last[name] else None)
                 for name in self.graph.nodes}
+
+    def rss_series(self, start: float, points: int = 40) -> dict[str, list[list[float]]]:
+        """Per node, its processes' RSS over the run: at most ``points`` [arm hour, MB] pairs
+        (a restarted node's processes one after the other): a leak climbs, a warm-up levels."""
+        out: dict[str, list[list[float]]] = {}
+        for name in self.graph.nodes:
+            samples = sorted((sim, rss) for proc in self.procs.values() if proc.name == name
+                             for sim, _, rss in proc.samples)
+            step = max(1, len(samples) // points)
+            out[name] = [[round((sim - start) / HOUR, 3), round(rss, 1)]
+                         for sim, rss in samples[::step]]
+        return out
 
     def fd_growth(self) -> dict[str, int]:
         out = {}
@@ -951,6 +1004,7 @@ def figures(soak: Soak, watch: Watch, faults: Faults, graph: Graph, clock: dict[
         'concurrent_motion': round(overlap, 3),
         'crashes': len(watch.crashes),
         'rss_growth_mb': watch.rss_growth(clock['warm'], clock['end']),
+        'rss_mb_series': watch.rss_series(clock['start']),
         'fd_growth': fd,
         'lost_samples': lost,
         'arm_hours': round(arm_s / HOUR, 4),
@@ -1037,6 +1091,7 @@ def run(args: argparse.Namespace, say: Callable[[str], None]) -> dict[str, Any]:
                 sim = observer.clock()
                 watch.check()
                 observer.poll()
+                observer.take_truth()
                 watch.sample(sim)
                 if not warm and soak.model_ready.is_set():
                     warm = True

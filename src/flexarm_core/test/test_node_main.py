@@ -31,3 +31,41 @@ def test_a_signal_mid_callback_ends_the_node_in_order(sig: str, domain_id: int,
     assert done.returncode == 0, (done.returncode, seen, done.stderr[-2000:])
     assert seen == ['callback entered', 'callback completed', 'job ended before destroy',
                     'destroyed'], (seen, done.stderr[-2000:])
+
+
+@pytest.mark.node
+def test_a_long_spin_keeps_nothing_per_wake_up(domain_id: int) -> None:
+    """A node spins for its whole life: its stop future must not collect a done callback at
+    every wake-up, as Jazzy's ``spin_until_future_complete`` makes it do (the nodes' memory
+    grew with every message they were woken for)."""
+    import threading
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.executors import SingleThreadedExecutor
+
+    from flexarm_core.node_main import Spin
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = rclpy.create_node('spinner', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    ticks, enough, ended = [0], threading.Event(), threading.Event()
+
+    def tick() -> None:
+        ticks[0] += 1
+        if ticks[0] >= 500:
+            enough.set()
+
+    node.create_timer(0.001, tick)
+    spin = Spin(executor, ended.set)
+    try:
+        assert enough.wait(TIMEOUT), f'{ticks[0]} wake-ups'
+        assert len(spin._stopped._callbacks) <= 1    # rclpy's Future keeps them in a list
+    finally:
+        stopped = spin.stop(TIMEOUT)
+        executor.shutdown(timeout_sec=0.0)
+        node.destroy_node()
+        rclpy.try_shutdown(context=context)
+    assert stopped and ended.is_set()

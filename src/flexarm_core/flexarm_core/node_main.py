@@ -22,7 +22,7 @@ from typing import Any, TypeVar
 
 import rclpy
 from rclpy.action.server import ServerGoalHandle
-from rclpy.executors import ExternalShutdownException, SingleThreadedExecutor
+from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
 from rclpy.task import Future
@@ -109,7 +109,7 @@ class Spin:
     shutdown, or a callback's exception, which it keeps in :attr:`error`); ``ended()`` is
     called when it ends."""
 
-    def __init__(self, executor: SingleThreadedExecutor, ended: Callable[[], object]) -> None:
+    def __init__(self, executor: Executor, ended: Callable[[], object]) -> None:
         self._executor = executor
         self._stopped: Future = Future()
         self._ended = ended
@@ -118,13 +118,17 @@ class Spin:
         self._thread.start()
 
     def _spin(self) -> None:
-        """``spin_once`` until stopped: Jazzy's ``spin_until_future_complete`` adds a done
-        callback to the future at every wake-up (ros2/rclpy#1374), and a future that stays
-        pending for the node's life grew by ~140 bytes a wake-up: 50 MB an hour of arm time
-        for a measuring vision node at x10. :meth:`stop` wakes the executor."""
+        """Run ready callbacks until stopped, as ``spin_until_future_complete`` would without
+        its leak: Jazzy's adds a done callback to the future at every wake-up
+        (ros2/rclpy#1374), and a future pending for the node's life grew by ~140 bytes a
+        wake-up: 50 MB an hour of arm time for a measuring vision node at x10. The loop is the
+        fix of #1374 (rclpy's own ``_spin_once_impl`` with the stop as its wait condition:
+        each executor kind runs the callback its own way); its wait ends once :meth:`stop`
+        wakes the executor (``spin_once`` would wait on for a callback)."""
+        executor, stopped = self._executor, self._stopped.done
         try:
-            while self._executor.context.ok() and not self._stopped.done():
-                self._executor.spin_once()
+            while executor.context.ok() and not stopped() and not executor._is_shutdown:
+                executor._spin_once_impl(None, stopped)
         except ExternalShutdownException:
             pass
         except BaseException as exc:   # noqa: BLE001 - re-raised by the main thread

@@ -37,8 +37,9 @@ JSON (last line):
   whose server went silent although nobody killed it. One whose learner was killed under it is
   ``lost_to_kills``, not unfinished. Must be 0.
 - ``false_success``: SUCCESSFUL goals whose true final tip (``sim/tip_pose_truth``: the newest
-  settled one stamped at or before the goal's outcome on compensator/outcomes, found by its
-  unique trial name — the next motion may already move the arm when the result is read)
+  one stamped at or before the goal's outcome on compensator/outcomes, found by its unique
+  trial name — the next motion may already move the arm when the result is read; a gap of more
+  than ``TRUTH_GAP`` in the kept truth before that stamp leaves the goal unjudged)
   misses the target by more than the goal's bound plus ``camera_margin_mm``:
   CLOSED_LOOP, the compensator's ``position_tolerance``; PREDICTIVE (no tolerance given, never
   extrapolating), the server's sanity bound max(``sanity_floor``, ``sanity_factor`` x
@@ -159,8 +160,10 @@ STEPS = (('goal', 70), ('pair', 12), ('collect', 7), ('payload', 5), ('refresh',
 SMOKE = {'arm_hours': 0.02, 'goals': 1, 'samples': 8, 'kill_every': 1.0, 'blind_every': 0.25,
          'sample_every': 2.0, 'max_minutes': 6.0}
 LATCHED = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-TRUTH_QUEUE = 2000      # sim/tip_pose_truth messages between two looks (1000 a wall second)
-TRUTH_KEPT = 60000      # settled true tips kept to judge a goal by (a minute of wall time)
+TRUTH_QUEUE = 10000     # sim/tip_pose_truth messages between two looks (1000 a wall second)
+TRUTH_KEPT = 60000      # true tips kept to judge a goal by (a minute of wall time)
+TRUTH_EVERY = 0.1       # [s, wall] between two looks at the truth (its own thread)
+TRUTH_GAP = 0.1         # [s, sim] the newest truth before a goal's end may be older by this
 
 
 def stamp_ns(stamp: Any) -> int:
@@ -256,7 +259,7 @@ class Observer:
                           callback_group=group)
         self._outcomes = sub(GoalOutcome, topics.OUTCOMES, lambda _: None, 100,
                              callback_group=group)
-        self.settled: deque[tuple[int, TipPose]] = deque(maxlen=TRUTH_KEPT)   # (stamp ns, msg)
+        self.truths: deque[tuple[int, TipPose]] = deque(maxlen=TRUTH_KEPT)   # (stamp ns, msg)
         self.ended: dict[str, int] = {}      # trial -> its outcome's stamp [ns, sim]
         self._group = group
         self._models = [sub(ModelInfo, name, lambda _: None, QoSProfile(
@@ -268,6 +271,10 @@ class Observer:
         self.sim = 0.0
         self.models: dict[str, ModelInfo] = {}
         self.payloads: list[tuple[float, float]] = []     # (monotonic, kg) heard on /payload
+        self._stop = threading.Event()
+        self._taker = threading.Thread(target=self._keep_taking, name='flexarm_soak_truth',
+                                       daemon=True)
+        self._taker.start()
 
     def clock(self) -> float:
         """The newest sim time [s] heard."""
@@ -291,35 +298,39 @@ class Observer:
         return self.models.get(version)
 
     def take_truth(self) -> None:
-        """Keep the settled true tips and the goals' end stamps that came since the last look
-        (called every main-loop pass and by every judge: the queue holds 2 s of the truth)."""
+        """Keep the true tips and the goals' end stamps that came since the last look (by its
+        own thread every ``TRUTH_EVERY``, and by every judge: the queue
+        holds 10 s of the truth, so a stalled main loop loses none of it)."""
         with self.lock:
             while (msg := take(self._truth)) is not None:
-                if msg.settled:
-                    self.settled.append((stamp_ns(msg.header.stamp), msg))
+                self.truths.append((stamp_ns(msg.header.stamp), msg))
             while (outcome := take(self._outcomes)) is not None:
                 self.ended[outcome.trial] = stamp_ns(outcome.stamp)
+
+    def _keep_taking(self) -> None:
+        while not self._stop.wait(TRUTH_EVERY):
+            self.take_truth()
 
     def truth(self) -> TipPose | None:
         """The newest settled true tip; None if none is at hand."""
         self.take_truth()
         with self.lock:
-            return self.settled[-1][1] if self.settled else None
+            return next((msg for _, msg in reversed(self.truths) if msg.settled), None)
 
     def truth_at_end(self, trial: str, timeout: float) -> TipPose | None:
-        """The true tip where the goal ``trial`` ended: the newest settled one stamped at or
-        before its outcome (the next motion may already move the arm when the result is
-        read); None if its outcome does not come within ``timeout`` s or the kept truth does
-        not reach back to it."""
+        """The true tip where the goal ``trial`` ended: the newest one stamped at or before
+        its outcome (the next motion may already move the arm when the result is read); None
+        if its outcome does not come within ``timeout`` s, or the kept truth has a gap of more
+        than ``TRUTH_GAP`` before it (a truth from before the gap may be the last target's)."""
         deadline = time.monotonic() + timeout
         while True:
             self.take_truth()
             with self.lock:
                 end = self.ended.pop(trial, None)
                 if end is not None:
-                    if not self.settled or self.settled[0][0] > end:
-                        return None
-                    return next(msg for stamp, msg in reversed(self.settled) if stamp <= end)
+                    stamp, msg = next(((stamp, msg) for stamp, msg in reversed(self.truths)
+                                       if stamp <= end), (None, None))
+                    return msg if stamp is not None and end - stamp <= TRUTH_GAP * 1e9 else None
             if time.monotonic() > deadline:
                 return None
             time.sleep(0.05)
@@ -355,6 +366,8 @@ class Observer:
                 for info in self.node.get_publishers_info_by_topic(topic)}
 
     def close(self) -> None:
+        self._stop.set()
+        self._taker.join()
         self.node.destroy_node()
         rclpy.try_shutdown(context=self._context)
 
@@ -1091,7 +1104,6 @@ def run(args: argparse.Namespace, say: Callable[[str], None]) -> dict[str, Any]:
                 sim = observer.clock()
                 watch.check()
                 observer.poll()
-                observer.take_truth()
                 watch.sample(sim)
                 if not warm and soak.model_ready.is_set():
                     warm = True

@@ -65,7 +65,7 @@ class ExperimentSettings:
     real_time_factor: float = 10.0
     record: bool = True               # write bags/<name>/<name>.mcap
     seed: int = 1
-    modes: tuple[str, ...] = MODE_LABELS
+    modes: tuple[str, ...] = MODE_LABELS[:3]   # the paper's comparison: no AUTO
     ready_timeout: float = 120.0
     extra_parameters: dict = field(default_factory=dict)
     world: dict = field(default_factory=dict)   # simulator parameters, e.g. the ideal world

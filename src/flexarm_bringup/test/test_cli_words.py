@@ -159,34 +159,33 @@ def _result(**fields) -> MoveToPose.Result:
 
 
 def test_a_rigid_move_is_said_uncompensated_not_reached():
-    text = motion._move_text(_result())
+    text = motion._move_text(_result(position_error_bound=0.016, angle_error_bound=0.07))
     assert text.startswith('moved (uncompensated) in 1 move(s): measured x=1450.00 mm'), text
     assert 'error 23.000 mm, 0.1000 deg' in text and 'reached' not in text
-    assert motion._move_text(_result(measured=False)) == (
-        'moved (uncompensated) in 1 move(s), not measured')
+    assert motion._move_text(_result(measured=False)).startswith(
+        'moved (uncompensated) in 1 move(s), not measured; expected within')
 
 
 @pytest.mark.parametrize('fields', [
-    {'error_string': f'no trained model: {motion.RIGID_START}'},    # CLOSED_LOOP, no model
-    {'iterations': 3},                                             # CLOSED_LOOP corrected
-    {'model_version': '4', 'compensation_iterations': 3}])         # PREDICTIVE
+    {'mode_run': MoveToPose.Goal.MODE_CLOSED_LOOP},                   # CLOSED_LOOP, no model
+    {'mode_run': MoveToPose.Goal.MODE_CLOSED_LOOP, 'iterations': 3},  # CLOSED_LOOP corrected
+    {'mode_run': MoveToPose.Goal.MODE_PREDICTIVE, 'model_version': '4',
+     'compensation_iterations': 3}])
 def test_a_compensated_move_is_reached(fields):
     text = motion._move_text(_result(**fields))
     assert text.startswith('reached in '), text
     assert motion._move_text(_result(measured=False, **fields)).startswith('moved in ')
 
 
-def test_the_closed_loop_planners_note_is_what_tells_it_from_rigid():
-    from flexarm_control.execution.compensator import Compensator
-    from flexarm_control.execution.planning import DataLimits, plan_goal
-    from flexarm_core.kinematics import ArmGeometry
-
-    config = load_config('arm.yaml', 'compensator.yaml', node_name='flexarm_compensator')
-    compensator = Compensator(ArmGeometry.from_dict(config['arm']), config['compensation'])
-    target = [1.30, -0.20, math.radians(-61)]
-    planned = plan_goal(compensator, 'closed_loop', target, None, DataLimits(3.0, 0.3e-3))
-    assert motion.RIGID_START in planned.note and not planned.uses_model
-    assert not plan_goal(compensator, 'rigid', target, None, DataLimits(3.0, 0.3e-3)).note
+def test_the_plans_bound_is_said_beside_the_error():
+    text = motion._move_text(_result(mode_run=MoveToPose.Goal.MODE_PREDICTIVE,
+                                     position_error_bound=7e-5,
+                                     angle_error_bound=math.radians(0.002)))
+    assert 'error 23.000 mm, 0.1000 deg' in text
+    assert 'expected within 0.070 mm, 0.0020 deg (95 %)' in text
+    unknown = motion._move_text(_result(position_error_bound=math.nan,
+                                        angle_error_bound=math.nan))
+    assert 'no error bound stated' in unknown
 
 
 @pytest.mark.parametrize('std, says', [(0.0, None), (1e-4, ', model std 0.100 mm')])

@@ -29,8 +29,8 @@ def test_grid_holds_the_paper_tables_then_the_extended_grid_without_repeats():
 
 
 def test_predictor_settings_merge_per_kind_and_bad_ones_are_refused():
-    s = study_settings({'predictors': {'mlp': {'restarts': 2}}})
-    assert s['predictors']['mlp']['restarts'] == 2
+    s = study_settings({'predictors': {'mlp': {'members': 2}}})
+    assert s['predictors']['mlp']['members'] == 2
     assert s['predictors']['mlp']['max_iterations'] == 1000   # the study's own, kept
     for bad in ({'colour': 1}, {'predictors': {'mlp': {'units': 3}}}, {'kinds': ['svm']},
                 {'seeds': 0}):

@@ -82,6 +82,21 @@ def test_noisy_samples_give_a_close_calibration() -> None:
     assert np.abs(model.predict(query) - deflection(query)).max() < 5e-5
 
 
+def test_its_std_grows_with_the_noise_and_the_distance_and_matches_the_miss() -> None:
+    """The identified parameters' covariance: noisier samples, or a query far from them,
+    state a larger std; on noisy samples it is the size of the true miss."""
+    joints, query = random_joints(40, seed=4), random_joints(200, seed=6)
+    rng = np.random.default_rng(5)
+    fits = {sigma: make_predictor('kinematic').fit(
+        joints, deflection(joints) + rng.normal(0.0, sigma, (40, 3))) for sigma in (1e-6, 2e-5)}
+    quiet, noisy = (np.hypot(*m.deflection_std(query)[:, :2].T) for m in fits.values())
+    assert np.all(noisy > 5 * quiet)
+    miss = np.hypot(*(fits[2e-5].predict(query) - deflection(query))[:, :2].T)
+    assert 0.3 < np.median(miss) / np.median(noisy) < 3
+    far = fits[2e-5].deflection_std(UPPER + 0.5 * (UPPER - LOWER))
+    assert np.hypot(far[0], far[1]) > np.median(noisy) and far.shape == (3,)
+
+
 def test_saved_model_is_self_contained(fitted: kinematic.KinematicPredictor, tmp_path: Path,
                                       monkeypatch: pytest.MonkeyPatch) -> None:
     path = tmp_path / 'kinematic.npz'
@@ -98,6 +113,7 @@ def test_saved_model_is_self_contained(fitted: kinematic.KinematicPredictor, tmp
                                                        'offset': 0.015}
     query = random_joints(50, seed=7)
     np.testing.assert_allclose(loaded.predict(query), fitted.predict(query), rtol=0, atol=1e-15)
+    np.testing.assert_allclose(loaded.deflection_std(query), fitted.deflection_std(query))
     assert loaded.data_distance(query[0]) < loaded.data_distance(UPPER + (UPPER - LOWER))
 
 

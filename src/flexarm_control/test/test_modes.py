@@ -9,7 +9,7 @@ def test_modes_are_the_goal_constants():
     assert {m.name: int(m) for m in Mode} == {
         name[len('MODE_'):]: getattr(MoveToPose.Goal, name)
         for name in dir(MoveToPose.Goal) if name.startswith('MODE_')}
-    assert MODE_LABELS == ('rigid', 'predictive', 'closed_loop')
+    assert MODE_LABELS == ('rigid', 'predictive', 'closed_loop', 'auto')
 
 
 def test_labels_and_numbers_parse_and_unknown_ones_are_named():

@@ -7,6 +7,8 @@ import numpy as np
 import pytest
 
 from flexarm_control.execution.compensator import Compensator
+from flexarm_control.execution.modes import Mode
+from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors
 from flexarm_control.execution.planning import DataLimits, Planned, Refusal, plan_goal
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.predictors import Predictor, make_predictor
@@ -32,10 +34,14 @@ def world():
         {**config['plant'], **config['arm']['inertia']}, geometry)
 
 
-def model(plant: Plant, distance: float = 0.5, std: float = 0.0, predict=None):
-    """A stand-in predictor: the plant's deflection, a fixed distance and std."""
+def model(plant: Plant, distance: float = 0.5, std: float = 0.0, predict=None,
+          bound: tuple[float, float] = (1e-5, 1e-5), prior: float = 0.0):
+    """A stand-in predictor: the plant's deflection, a fixed distance, std, 95 % bound and
+    prior std (of x)."""
     return SimpleNamespace(predict=predict or plant.deflection,
-                           data_distance=lambda q: distance, position_std=lambda q: std)
+                           data_distance=lambda q: distance, position_std=lambda q: std,
+                           error_bound=lambda q: np.array(bound),
+                           prior_std=lambda q: np.array([prior, 0.0, 0.0]))
 
 
 def test_rigid_uses_no_model(world):
@@ -153,3 +159,64 @@ def test_the_greybox_trained_at_0_kg_reaches_a_goal_at_5_kg(world, at_0_kg, targ
     assert isinstance(planned, Planned) and not planned.note
     reached = plant.with_payload(5.0).pose(planned.plan.joints)
     assert np.hypot(*(reached - target.pose)[:2]) < 0.5e-3
+
+
+SITE = SiteErrors(np.array([2.9e-5, 5e-6, 2.9e-5, 2.9e-5]), (2e-5, 3.5e-5), (5e-6, 1.3e-5))
+TOLERANCE = (5e-4, 1e-2)
+
+
+def test_every_plan_states_its_bound(world):
+    """PREDICTIVE: the model's and the site's in quadrature; CLOSED_LOOP: the tolerance and the
+    camera; RIGID: what it leaves of the sag besides, or the paper's rigid error unmodelled."""
+    compensator, plant = world
+    predictor = model(plant, bound=(3e-4, 2e-4))
+    predictive = plan_goal(compensator, 'predictive', TARGET, predictor, LIMITS, site=SITE)
+    site = SITE.at(compensator.geometry, predictive.plan.joints)
+    assert predictive.bound == pytest.approx(tuple(np.hypot((3e-4, 2e-4), site)))
+    assert site[0] > 1.731 * 2.9e-5 * 1.6 and predictive.mode == Mode.PREDICTIVE
+    closed = plan_goal(compensator, 'closed_loop', TARGET, predictor, LIMITS, site=SITE,
+                       tolerance=TOLERANCE)
+    assert TOLERANCE[0] < closed.bound[0] < TOLERANCE[0] + 1e-4
+    rigid = plan_goal(compensator, 'rigid', TARGET, predictor, LIMITS, site=SITE)
+    sag = plant.deflection(rigid.plan.joints)
+    model_there = np.hypot((3e-4, 2e-4), SITE.at(compensator.geometry, rigid.plan.joints))
+    assert rigid.bound[0] == pytest.approx(model_there[0] + np.hypot(sag[0], sag[1]))
+    assert rigid.bound[0] > 5e-3          # the sag it leaves: millimetres
+    assert plan_goal(compensator, 'rigid', TARGET, None, LIMITS).bound == RIGID_ERROR
+
+
+def test_a_predictive_goal_its_bound_exceeds_is_refused_with_what_would_help(world):
+    compensator, plant = world
+    payload = model(plant, bound=(2e-3, 1e-4), prior=8e-4)
+    refused = plan_goal(compensator, 'predictive', TARGET, payload, LIMITS, site=SITE,
+                        tolerance=TOLERANCE)
+    assert isinstance(refused, Refusal) and refused.code == 'bound'
+    assert '2.00' in refused.reason and 'exceeds the tolerance 0.500 mm' in refused.reason
+    assert 'collect samples carrying it' in refused.reason
+    unsure = plan_goal(compensator, 'predictive', TARGET, model(plant, bound=(2e-3, 1e-4)),
+                       LIMITS, site=SITE, tolerance=TOLERANCE)
+    assert 'collect more samples here' in unsure.reason
+    allowed = plan_goal(compensator, 'predictive', TARGET, payload, LIMITS, True, site=SITE,
+                        tolerance=TOLERANCE)
+    assert isinstance(allowed, Planned) and allowed.bound[0] > 2e-3
+    unknown = plan_goal(compensator, 'predictive', TARGET, model(plant, bound=(math.nan,) * 2),
+                        LIMITS, site=SITE, tolerance=TOLERANCE)
+    assert isinstance(unknown, Refusal) and 'states no error bound' in unknown.reason
+    assert isinstance(plan_goal(compensator, 'predictive', TARGET, payload, LIMITS, site=SITE),
+                      Planned)       # no tolerance: nothing to check
+
+
+def test_auto_runs_predictive_within_the_tolerance_and_closed_loop_beyond_it(world):
+    compensator, plant = world
+    tight = plan_goal(compensator, 'auto', TARGET, model(plant), LIMITS, site=SITE,
+                      tolerance=TOLERANCE)
+    assert tight.mode == Mode.PREDICTIVE and tight.note.startswith('AUTO ran PREDICTIVE')
+    assert tight.plan.iterations >= 1
+    loose = plan_goal(compensator, 'auto', TARGET, model(plant, bound=(2e-3, 1e-4)), LIMITS,
+                      site=SITE, tolerance=TOLERANCE)
+    assert loose.mode == Mode.CLOSED_LOOP and loose.note.startswith('AUTO ran CLOSED_LOOP')
+    assert 'exceeds the tolerance' in loose.note and loose.bound[0] < 6e-4
+    alone = plan_goal(compensator, 'auto', TARGET, None, LIMITS, site=SITE, tolerance=TOLERANCE)
+    assert alone.mode == Mode.CLOSED_LOOP and 'no trained predictor' in alone.note
+    with pytest.raises(ValueError, match='AUTO needs'):
+        plan_goal(compensator, 'auto', TARGET, model(plant), LIMITS)

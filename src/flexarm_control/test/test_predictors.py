@@ -63,33 +63,59 @@ def test_deterministic_for_a_seed(fitted: dict[str, Predictor], kind: str) -> No
     np.testing.assert_array_equal(again.predict(query), fitted[kind].predict(query))
 
 
-def test_mlp_seed_changes_the_initialisation() -> None:
-    joints = random_joints(30, seed=1)
-    settings = {'restarts': 1, 'max_iterations': 20}
-    a = make_predictor('mlp', {**settings, 'seed': 1}).fit(joints, sag(joints))
-    b = make_predictor('mlp', {**settings, 'seed': 2}).fit(joints, sag(joints))
-    assert not np.array_equal(a.predict(joints), b.predict(joints))
+def test_mlp_fit_is_deterministic_for_a_seed_and_the_seed_changes_it() -> None:
+    joints, query = random_joints(30, seed=1), random_joints(20, seed=3)
+    settings = {'members': 3, 'max_iterations': 50}
+    a, again, b = (make_predictor('mlp', {**settings, 'seed': seed}).fit(joints, sag(joints))
+                   for seed in (1, 1, 2))
+    np.testing.assert_array_equal(again.predict(query), a.predict(query))
+    np.testing.assert_array_equal(again.deflection_std(query), a.deflection_std(query))
+    assert not np.array_equal(a.predict(query), b.predict(query))
+    assert not np.array_equal(a.deflection_std(query), b.deflection_std(query))
 
 
 @pytest.mark.parametrize('activation', ['tanh', 'sigmoid', 'relu', 'softplus'])
-def test_mlp_trains_on_the_gradient_of_the_network_it_predicts_with(activation: str) -> None:
-    from scipy.optimize import approx_fprime
+def test_mlp_predicts_with_the_network_it_trains(activation: str) -> None:
+    """The numpy ensemble the model predicts with is the torch one training optimised."""
+    import torch
 
     from flexarm_control.learning.predictors import mlp
 
     rng = np.random.default_rng(0)
-    x, y, sizes = rng.normal(size=(20, 4)), rng.normal(size=(20, 3)), [4, 6, 5, 3]
-    flat = rng.normal(0.0, 0.5, sum(n_out * (n_in + 1) for n_in, n_out in
-                                    zip(sizes[:-1], sizes[1:])))
-    loss, gradient = mlp.objective(flat, x, y, sizes, activation, 1e-3)
-    model = make_predictor('mlp', {'hidden': sizes[1:-1], 'activation': activation})
-    model._layers = mlp.unflatten(flat, sizes)
-    weights = sum(np.sum(w ** 2) for w, _ in model._layers)
-    assert loss == pytest.approx(np.mean((model._predict_normalised(x) - y) ** 2)
-                                 + 1e-3 * weights, rel=1e-12)
-    numeric = approx_fprime(flat, lambda p: mlp.objective(p, x, y, sizes, activation, 1e-3)[0],
-                            1e-7)
-    np.testing.assert_allclose(gradient, numeric, rtol=0, atol=1e-6)
+    x = rng.normal(size=(20, 4))
+    layers = [(w * 3.0, rng.normal(size=b.shape))       # weights large enough to saturate
+              for w, b in mlp.initial_layers([4, 6, 5, 3], 3, rng)]
+    parameters = [torch.tensor(array) for layer in layers for array in layer]
+    trained = mlp.torch_forward(parameters, activation, torch.tensor(x)).numpy()
+    assert trained.shape == (3, 20, 3)
+    np.testing.assert_allclose(mlp.forward(layers, activation, x), trained, rtol=0, atol=1e-12)
+
+
+def test_mlp_ensemble_spread_grows_away_from_the_data(fitted: dict[str, Predictor]) -> None:
+    model, train = fitted['mlp'], random_joints(60, seed=1)
+    near = model.deflection_std(train)
+    far = model.deflection_std(train + np.array([2.0, 0.5, 2.0, 2.0]))
+    assert near.shape == far.shape == (60, 3) and model.deflection_std(train[0]).shape == (3,)
+    np.testing.assert_allclose(model.deflection_std(train[0]), near[0], rtol=1e-12)
+    assert np.all(near > 0)                 # the members disagree even where they were trained
+    assert np.all(far.mean(axis=0) > 10 * near.mean(axis=0))
+    assert np.all(far.min(axis=0) > near.max(axis=0))
+
+
+def test_every_mlp_member_learns_the_function(fitted: dict[str, Predictor]) -> None:
+    """The members are trained networks in their own right, and differ."""
+    from flexarm_control.learning.predictors import mlp
+
+    model, joints = fitted['mlp'], random_joints(300, seed=2)
+    normalisation = model._normalisation
+    members = normalisation.outputs_back(mlp.forward(
+        model._layers, 'tanh', normalisation.inputs(base.model_inputs(joints))))
+    assert members.shape == (5, 300, 3)
+    truth = sag(joints)
+    errors = np.abs(members - truth).max(axis=1) / (truth.max(axis=0) - truth.min(axis=0))
+    assert np.all(errors < 0.3), errors
+    np.testing.assert_allclose(members.mean(axis=0), model.predict(joints), rtol=0, atol=1e-15)
+    assert all(not np.allclose(members[0], other, rtol=0, atol=1e-6) for other in members[1:])
 
 
 def _scikit_learn_kernel(kernel: str, inputs: int) -> Kernel:
@@ -132,7 +158,7 @@ def test_gp_is_scikit_learns(kernel: str) -> None:
         mean, std = sklearn_gp.predict(inputs, return_std=True)
         np.testing.assert_allclose(gp._predict_normalised(inputs)[:, k], mean, rtol=0,
                                    atol=1e-9)
-        np.testing.assert_allclose(gp.predict_std(query)[:, k],
+        np.testing.assert_allclose(gp.deflection_std(query)[:, k],
                                    std * gp._normalisation.output_std[k], rtol=1e-6)
 
 
@@ -146,6 +172,8 @@ def test_save_load_round_trip(fitted: dict[str, Predictor], kind: str, tmp_path:
     assert loaded.metadata['kind'] == kind and loaded.metadata['samples'] == 60
     query = random_joints(50, seed=4)
     np.testing.assert_allclose(loaded.predict(query), fitted[kind].predict(query),
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(loaded.deflection_std(query), fitted[kind].deflection_std(query),
                                rtol=0, atol=1e-12)
     assert os.listdir(path.parent) == [path.name]
 
@@ -186,6 +214,8 @@ DAMAGES = {
     'missing weights': lambda path: _rewrite(path, lambda e: e.pop('mlp.bias1')),
     'weights of the wrong shape': lambda path: _rewrite(
         path, lambda e: e.update({'mlp.weight0': np.zeros((10, 3))})),
+    'fewer members than its settings': lambda path: _rewrite(
+        path, lambda e: e.update({k: v[:-1] for k, v in e.items() if k.startswith('mlp.')})),
 }
 
 
@@ -203,10 +233,10 @@ def test_gp_predictive_std(fitted: dict[str, Predictor]) -> None:
     gp = fitted['gp']
     train = random_joints(60, seed=1)
     far = train + np.array([2.0, 0.5, 2.0, 2.0])
-    near_std, far_std = gp.predict_std(train), gp.predict_std(far)
+    near_std, far_std = gp.deflection_std(train), gp.deflection_std(far)
     assert near_std.shape == far_std.shape == (60, 3)
     assert np.all(near_std > 0) and np.all(far_std.mean(axis=0) > 10 * near_std.mean(axis=0))
-    assert gp.predict_std(train[0]).shape == (3,)
+    assert gp.deflection_std(train[0]).shape == (3,)
 
 
 def test_payload_as_input() -> None:
@@ -253,7 +283,8 @@ def test_unknown_kind_lists_the_kinds() -> None:
     ('mlp', {'hidden': [0]}, 'hidden'),
     ('mlp', {'hidden': 10}, 'must be a list'),
     ('mlp', {'activation': 'step'}, 'activation'),
-    ('mlp', {'restarts': 1.5}, 'restarts'),
+    ('mlp', {'members': 1.5}, 'members'),
+    ('mlp', {'members': 1}, 'members'),
     ('mlp', {'payload_input': 1}, 'payload_input'),
     ('mlp', {'learning_rate': 0.1}, 'unknown mlp settings'),
     ('rbf', {'kernel': 'bessel'}, 'kernel'),
@@ -317,7 +348,7 @@ def test_only_the_gp_knows_its_position_std(fitted: dict[str, Predictor]) -> Non
     inside, far = random_joints(50, seed=21), UPPER + (UPPER - LOWER)
     gp = fitted['gp']
     assert gp.position_std(inside).max() < 0.3 * gp.position_std(far)
-    std = gp.predict_std(far)
+    std = gp.deflection_std(far)
     assert gp.position_std(far) == pytest.approx(np.hypot(std[0], std[1]))
     for kind in ('mlp', 'rbf'):
         assert fitted[kind].position_std(far) == 0.0

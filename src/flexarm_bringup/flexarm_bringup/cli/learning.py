@@ -2,6 +2,7 @@
 from __future__ import annotations
 
 import argparse
+import math
 from pathlib import Path
 from typing import Any
 
@@ -137,12 +138,14 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
     """Show the payload the arm carries, or declare a new one [kg] (a tool picked up)."""
+    note = ''
     with _session(args, learner=True) as client:
         if args.kg is not None:
-            client.set_payload(args.kg)
+            note = client.set_payload(args.kg)
         kg = float(client.node_parameter(node_name('learner'), 'payload'))
-    print(f'payload: {kg:g} kg' + (' (declared now)' if args.kg is not None else ''))
-    return {'ok': True, 'payload_kg': kg}
+    print(f'payload: {kg:g} kg' + (' (declared now)' if args.kg is not None else '')
+          + (f'\n  {note}' if note else ''))
+    return {'ok': True, 'payload_kg': kg, 'note': note}
 
 
 def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
@@ -165,7 +168,8 @@ def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
            'metrics': {k: getattr(m, k) for k in (
                'validation', 'samples', 'max_error_x', 'max_error_y', 'max_error_phi',
                'mean_error_x', 'mean_error_y', 'mean_error_phi', 'selected_settings',
-               'max_slope')} | {'excluded_samples': list(m.excluded_samples)}}
+               'max_slope', 'bound_coverage', 'angle_bound_coverage')} | {
+                   'excluded_samples': list(m.excluded_samples)}}
     if not response.success:
         if is_busy(response.message):
             raise Outcome(response.message, Exit.BUSY, **out)
@@ -176,13 +180,20 @@ def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
           f'{m.validation}, {m.samples} samples: max |error| x {mm(m.max_error_x):.3f} mm, '
           f'y {mm(m.max_error_y):.3f} mm, phi {deg(m.max_error_phi):.4f} deg; mean '
           f'{mm(m.mean_error_x):.3f} mm, {mm(m.mean_error_y):.3f} mm, '
-          f'{deg(m.mean_error_phi):.4f} deg')
+          f'{deg(m.mean_error_phi):.4f} deg\n'
+          f'95 % error bounds calibrated on the held-out samples: they covered '
+          f'{_share(m.bound_coverage)} of the positions and {_share(m.angle_bound_coverage)} '
+          'of the angles of the other half of them')
     if len(m.excluded_samples):
         print(f'excluded as outliers: {len(m.excluded_samples)} sample(s), dataset '
               f'indices {list(m.excluded_samples)}')
     if response.message:
         print(human_units(response.message))
     return out
+
+
+def _share(value: float) -> str:
+    return 'an unknown share (too few poses)' if math.isnan(value) else f'{100 * value:.0f} %'
 
 
 def cmd_model(args: argparse.Namespace) -> dict[str, Any]:

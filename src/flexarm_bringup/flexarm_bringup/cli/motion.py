@@ -28,10 +28,8 @@ from flexarm_bringup.outcome_text import (
     human_units,
     pose_text,
 )
+from flexarm_control.execution.modes import Mode
 from flexarm_core import topics
-
-RIGID_START = 'CLOSED_LOOP started from the rigid solution'   # plan_goal's note: no model
-
 
 def _measured_text(pose: Any, position_error: float, angle_error: float) -> str:
     return (f'measured {pose_text((pose.x, pose.y, pose.phi))}; error '
@@ -45,14 +43,13 @@ def _show_feedback(fb: Any) -> None:
     print(f'  [{fb.iteration}] {fb.phase}{measured}', file=sys.stderr, flush=True)
 
 
-def _is_rigid(result: Any) -> bool:
-    """Whether a successful MoveToPose result is of a RIGID goal. The result does not carry
-    the mode. Only RIGID and CLOSED_LOOP without a model to trust plan with neither a model
-    (``model_version`` '') nor compensation steps; that CLOSED_LOOP goal notes ``RIGID_START``
-    in ``error_string`` (:func:`flexarm_control.execution.planning.plan_goal`) and may make
-    corrective moves, where RIGID makes one."""
-    return (not result.model_version and result.compensation_iterations == 0
-            and result.iterations <= 1 and RIGID_START not in result.error_string)
+def _bound_text(result: Any) -> str:
+    """The plan's 95 % error bound, stated before it moved."""
+    if math.isnan(result.position_error_bound):
+        return ('; no error bound stated (the model was fitted without the learner\'s '
+                'held-out calibration)')
+    return (f'; expected within {mm(result.position_error_bound):.3f} mm, '
+            f'{deg(result.angle_error_bound):.4f} deg (95 %)')
 
 
 def _move_text(result: Any) -> str:
@@ -65,11 +62,12 @@ def _move_text(result: Any) -> str:
                             result.error_string, MOVE_HINTS, moved=result.iterations > 0)
     if result.iterations == 0:                  # a dry run: the plan, nothing moved
         return _plan_text(result)
-    rigid = _is_rigid(result)
+    rigid = result.mode_run == Mode.RIGID
     verb = 'moved (uncompensated)' if rigid else 'reached' if result.measured else 'moved'
     reached = f'{verb} in {result.iterations} move(s)' + (': ' + _measured_text(
         result.measured_pose, result.position_error, result.angle_error) if result.measured
-        else ', not measured') + ('' if rigid else f' ({_model_text(result.model_version)})')
+        else ', not measured') + ('' if rigid else f' ({_model_text(result.model_version)})'
+                                  ) + _bound_text(result)
     learned = (_learned_text(result.data_distance, result.prediction_std)
                if result.data_distance or result.prediction_std else '')
     notes = f'; {human_units(result.error_string)}' if result.error_string else ''
@@ -97,7 +95,7 @@ def _plan_text(result: Any) -> str:
             f'{pose_text((c.x, c.y, c.phi))} to the rigid model, joints {deg(q[0]):.3f} deg, '
             f'{mm(q[1]):.2f} mm, {deg(q[2]):.3f} deg, {deg(q[3]):.3f} deg; predicted '
             f'deflection {mm(d.x):.3f} mm, {mm(d.y):.3f} mm, {deg(d.phi):.4f} deg'
-            + learned + (f'; {notes}' if notes else ''))
+            + _bound_text(result) + learned + (f'; {notes}' if notes else ''))
 
 
 def _move_interrupted(result: Any) -> str:
@@ -144,6 +142,9 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
            'iterations': result.iterations,
            'compensation_iterations': result.compensation_iterations,
            'data_distance': result.data_distance, 'prediction_std': result.prediction_std,
+           'position_error_bound': result.position_error_bound,
+           'angle_error_bound': result.angle_error_bound,
+           'mode_run': Mode(result.mode_run).label,
            'model_version': result.model_version, 'dry_run': args.dry_run}
     if not out['ok']:
         if out['error_name'] == 'ARM_BUSY':

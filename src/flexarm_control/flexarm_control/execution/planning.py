@@ -22,27 +22,32 @@ goal runs, and when the model is not trusted.
 * CLOSED_LOOP: the PREDICTIVE plan when there is one to trust; without a model, when the
   prediction cannot be planned or lies beyond the learned data, it starts from the rigid
   plan — it measures the tip and corrects, so it needs no model to converge, only more moves.
+* AUTO: PREDICTIVE where its plan's bound is within the goal's tolerance, else CLOSED_LOOP
+  (:attr:`Planned.mode` says which, :attr:`Planned.note` why).
+
+Every plan states the 95 % bound of the goal's true error before anything moves
+(:attr:`Planned.bound`, :mod:`.plan_bound`). A PREDICTIVE goal with a tolerance its bound
+exceeds is refused (``BOUND_EXCEEDS_TOLERANCE``) with the bound and what would help, unless it
+allows extrapolation: moving to learn it missed is what the bound is there to prevent.
 
 :class:`~flexarm_core.kinematics.UnreachableError` escapes for a target the rigid arm
 cannot reach at all.
 """
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 
 import numpy as np
 
 from flexarm_control.execution.compensator import CompensationError, Compensator, Plan
 from flexarm_control.execution.modes import Mode
+from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors, combined
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.predictors import Predictor
+from flexarm_control.learning.predictors.base import PAYLOAD_TOLERANCE
 from flexarm_core.kinematics import inverse
-
-# [kg] a payload this close to a trained one counts as that one: the tip sags at most 3.6 mm
-# per kg over the learner's regions (simulated arm), so 10 g is <= 0.04 mm, the joints'
-# repeatability at the tip; payloads are declared to a gram or two.
-PAYLOAD_TOLERANCE = 0.01
 
 
 @dataclass(frozen=True)
@@ -59,11 +64,13 @@ class Planned:
     note: str              # warning or fallback for the operator ('' if none)
     uses_model: bool = False   # whether the plan came from the predictor (not the rigid one)
     extrapolated: bool = False  # the model predicts beyond its learned data (goal allowed it)
+    bound: tuple[float, float] = (math.nan, math.nan)   # [m, rad] 95 % of the true error
+    mode: Mode = Mode.RIGID    # the mode that runs (AUTO: the one it chose)
 
 
 @dataclass(frozen=True)
 class Refusal:
-    code: str              # 'no_model', 'unreachable' or 'outside_learned_data'
+    code: str              # 'no_model', 'unreachable', 'outside_learned_data', 'bound'
     reason: str
 
 
@@ -96,14 +103,94 @@ def payload_beyond(predictor: AtPayload, trained: Sequence[float]) -> str:
 
 def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
               predictor: Predictor | AtPayload | None, limits: DataLimits,
-              allow_extrapolation: bool = False,
-              trained_payloads: Sequence[float] = ()) -> Planned | Refusal:
-    """The plan for a goal in ``mode`` (module docstring), or why it is refused.
+              allow_extrapolation: bool = False, trained_payloads: Sequence[float] = (),
+              site: SiteErrors | None = None, tolerance: tuple[float, float] = (0.0, 0.0),
+              ) -> Planned | Refusal:
+    """The plan for a goal in ``mode`` (module docstring) with its bound, or why it is refused.
 
     ``trained_payloads``: the payloads [kg] of the model's samples; with them, ``predictor``
     is the model :class:`AtPayload` the arm carries now, checked by :func:`payload_beyond`
-    (empty: not checked)."""
+    (empty: not checked). ``site``: what no model sees (None: nothing). ``tolerance`` [m, rad]:
+    the goal's (0: none; CLOSED_LOOP and AUTO need one)."""
     mode = Mode.of(mode)
+    if mode == Mode.AUTO:
+        return _auto(compensator, target, predictor, limits, trained_payloads, site, tolerance)
+    planned = _plan(compensator, mode, target, predictor, limits, allow_extrapolation,
+                    trained_payloads)
+    if isinstance(planned, Refusal):
+        return planned
+    planned = replace(planned, mode=mode,
+                      bound=_bound(compensator, mode, planned, predictor, site, tolerance))
+    if (mode == Mode.PREDICTIVE and not allow_extrapolation and max(tolerance) > 0
+            and not all(b <= t for b, t in zip(planned.bound, tolerance) if t > 0)):
+        if any(math.isnan(b) for b in planned.bound):
+            return Refusal('bound', 'the model states no error bound (it was fitted without '
+                                    "the learner's held-out calibration): train it again, or "
+                                    'run CLOSED_LOOP or AUTO')
+        return Refusal('bound', f"the plan's 95 % error bound, {_text(planned.bound)}, exceeds "
+                                f'the tolerance {_text(tolerance)}{_help(predictor, planned)}')
+    return planned
+
+
+def _text(values: tuple[float, float]) -> str:
+    position, angle = values
+    return f'{position * 1e3:.3f} mm, {math.degrees(angle):.4f} deg'
+
+
+def _help(predictor: Predictor | AtPayload | None, planned: Planned) -> str:
+    """What would bring the bound within a tolerance: the payload's samples where the masses'
+    prior makes most of it, more samples where the model is unsure."""
+    joints = planned.plan.joints
+    prior = np.asarray(predictor.prior_std(joints)) if predictor is not None else np.zeros(3)
+    if np.hypot(prior[0], prior[1]) * 1.96 > 0.5 * planned.bound[0]:
+        return ('; most of it is the payload, which the samples do not show: collect samples '
+                'carrying it (`flexarm refresh` or `flexarm collect`), or run CLOSED_LOOP or AUTO')
+    return '; collect more samples here, or run CLOSED_LOOP or AUTO (they measure and correct)'
+
+
+def _bound(compensator: Compensator, mode: Mode, planned: Planned,
+           predictor: Predictor | AtPayload | None, site: SiteErrors | None,
+           tolerance: tuple[float, float]) -> tuple[float, float]:
+    """The plan's 95 % bound (:mod:`.plan_bound`)."""
+    if mode == Mode.CLOSED_LOOP:
+        position, angle = (site.closed_loop(tolerance) if site is not None
+                           else np.asarray(tolerance))
+        return float(position), float(angle)
+    joints = planned.plan.joints
+    site_bound = site.at(compensator.geometry, joints) if site is not None else np.zeros(2)
+    if predictor is None:
+        return RIGID_ERROR
+    model = combined(np.asarray(predictor.error_bound(joints)), site_bound)
+    if mode == Mode.PREDICTIVE:
+        return model
+    sag = np.asarray(predictor.predict(joints))        # RIGID: what the rigid plan leaves
+    return model[0] + math.hypot(sag[0], sag[1]), model[1] + abs(sag[2])
+
+
+def _auto(compensator: Compensator, target: np.ndarray, predictor: Predictor | AtPayload | None,
+          limits: DataLimits, trained_payloads: Sequence[float], site: SiteErrors | None,
+          tolerance: tuple[float, float]) -> Planned | Refusal:
+    """PREDICTIVE where it is bound within ``tolerance``, else CLOSED_LOOP, saying why."""
+    if not min(tolerance) > 0:
+        raise ValueError(f'AUTO needs a position and an angle tolerance, got {tolerance}')
+    predictive = plan_goal(compensator, Mode.PREDICTIVE, target, predictor, limits,
+                           trained_payloads=trained_payloads, site=site, tolerance=tolerance)
+    if isinstance(predictive, Planned):
+        return replace(predictive, note='; '.join(filter(None, [
+            f'AUTO ran PREDICTIVE: its 95 % bound {_text(predictive.bound)} is within the '
+            f'tolerance', predictive.note])))
+    closed = plan_goal(compensator, Mode.CLOSED_LOOP, target, predictor, limits,
+                       trained_payloads=trained_payloads, site=site, tolerance=tolerance)
+    if isinstance(closed, Refusal):
+        return closed
+    return replace(closed, note='; '.join(filter(None, [
+        f'AUTO ran CLOSED_LOOP: {predictive.reason}', closed.note])))
+
+
+def _plan(compensator: Compensator, mode: Mode, target: np.ndarray,
+          predictor: Predictor | AtPayload | None, limits: DataLimits,
+          allow_extrapolation: bool, trained_payloads: Sequence[float]) -> Planned | Refusal:
+    """The plan of a RIGID, PREDICTIVE or CLOSED_LOOP goal without its bound."""
     if mode == Mode.RIGID:
         return Planned(compensator.rigid(target), 0.0, 0.0, '')
     closed = mode == Mode.CLOSED_LOOP

@@ -32,3 +32,9 @@ class AtPayload:
 
     def position_std(self, joints: np.ndarray) -> np.ndarray | float:
         return self.predictor.position_std(joints, self._given)
+
+    def prior_std(self, joints: np.ndarray) -> np.ndarray:
+        return self.predictor.prior_std(joints, self._given)
+
+    def error_bound(self, joints: np.ndarray) -> np.ndarray:
+        return self.predictor.error_bound(joints, self._given)

@@ -12,7 +12,7 @@ rigid pose), in N·m; it is linear in the payload.
 from __future__ import annotations
 
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -75,3 +75,38 @@ class ArmMasses:
                 + m['third_axis'] * x3 + beyond3)
         return -GRAVITY * np.stack([arm2 + m['second_axis'] * self.second_axis_position * c1,
                                     arm2, beyond3 - mass3 * x3, beyond4 - mass4 * x4], axis=-1)
+
+
+@dataclass(frozen=True)
+class InertiaUncertainty:
+    """One standard deviation of the nominal inertia (config/arm.yaml
+    ``arm.inertia_uncertainty``)."""
+
+    common: float              # relative, every part's mass together
+    part: float                # relative, each part's mass on its own
+    end_effector_com: float    # [m]
+
+    @classmethod
+    def from_dict(cls, d: Mapping[str, Any]) -> InertiaUncertainty:
+        u = cls(float(d['common']), float(d['part']), float(d['end_effector_com']))
+        if min(u.common, u.part, u.end_effector_com) < 0:
+            raise ValueError(f'inertia uncertainties must be >= 0, got {u}')
+        return u
+
+
+def moment_spread(arm: ArmMasses, uncertainty: InertiaUncertainty, joints: np.ndarray
+                  ) -> np.ndarray:
+    """Std [N·m] (..., 4) of the parts' moments about ``ELEMENTS`` at joints (..., 4) that
+    the inertia's uncertainty leaves (the payload's moment is exact: it is declared). The
+    moments are linear in the masses: each part's own moment is the derivative; the CoM's by
+    a central difference."""
+    zero = {name: 0.0 for name in PARTS}
+    own = np.stack([replace(arm, masses={**zero, name: arm.masses[name]}).moments(joints, 0.0)
+                    for name in PARTS])                  # (parts, ..., 4)
+    step = 1e-3
+    com = (replace(arm, end_effector_com=arm.end_effector_com + step).moments(joints, 0.0)
+           - replace(arm, end_effector_com=arm.end_effector_com - step).moments(joints, 0.0)
+           ) / (2 * step)
+    return np.sqrt((uncertainty.part ** 2) * (own ** 2).sum(axis=0)
+                   + (uncertainty.common * own.sum(axis=0)) ** 2
+                   + (uncertainty.end_effector_com * com) ** 2)

@@ -33,6 +33,7 @@ from __future__ import annotations
 
 import itertools
 import json
+import math
 import multiprocessing
 import os
 import signal
@@ -46,6 +47,7 @@ import numpy as np
 
 from flexarm_control.execution.compensator import deflection_slope
 from flexarm_control.learning.dataset import Dataset
+from flexarm_control.learning.error_bound import calibrate
 from flexarm_control.learning.predictors import Predictor, make_predictor
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.parent_death import signal_on_parent_death
@@ -98,6 +100,8 @@ class Metrics:
     excluded_samples: tuple[int, ...] = ()   # dataset indices screened out as outliers
     selected_settings: str = ''              # JSON of the settings chosen by validation
     max_slope: float = 0.0                   # of the final model over the training poses
+    bound_coverage: float = math.nan         # of the 95 % bounds on held-out halves
+    angle_bound_coverage: float = math.nan   #   (learning.error_bound)
 
     @classmethod
     def from_errors(cls, validation: str, samples: int, errors: np.ndarray,
@@ -160,10 +164,12 @@ def _subset(payload: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
 
 def cross_validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
                    deflections: np.ndarray, payload: np.ndarray | None = None,
-                   folds: int = 5, seed: int = 0) -> np.ndarray:
+                   folds: int = 5, seed: int = 0) -> tuple[np.ndarray, np.ndarray]:
     """Held-out residuals (N, 3), predicted − measured, of ``folds``-fold cross-validation
-    (shuffled groups of :func:`pose_groups`: the samples of one pose are held out together).
-    The data must have passed :func:`check_data`."""
+    (shuffled groups of :func:`pose_groups`: the samples of one pose are held out together),
+    and the raw std (N, 3) each fold's model stated for them
+    (:meth:`~flexarm_control.learning.predictors.Predictor.deflection_std`). The data must
+    have passed :func:`check_data`."""
     from sklearn.model_selection import GroupKFold  # here: the learner node never imports it
 
     groups = pose_groups(joints)
@@ -171,14 +177,15 @@ def cross_validate(kind: str, settings: Mapping[str, Any] | None, joints: np.nda
         raise ValueError(f'too few distinct poses: {groups.max() + 1} in {len(joints)} '
                          f'samples, at least {folds} are needed ({folds}-fold '
                          'cross-validation)')
-    residuals = np.empty_like(deflections)
+    residuals, std = np.empty_like(deflections), np.empty_like(deflections)
     for train_index, test in GroupKFold(folds, shuffle=True, random_state=seed).split(
             joints, groups=groups):
         predictor = make_predictor(kind, settings).fit(
             joints[train_index], deflections[train_index], _subset(payload, train_index))
         residuals[test] = (predictor.predict(joints[test], _subset(payload, test))
                            - deflections[test])
-    return residuals
+        std[test] = predictor.deflection_std(joints[test], _subset(payload, test))
+    return residuals, std
 
 
 def validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
@@ -187,7 +194,7 @@ def validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
     """Errors of ``kind`` with fixed ``settings`` on held-out poses (:func:`cross_validate`)."""
     make_predictor(kind, settings)   # unknown kind or bad settings: fail before any fit
     joints, deflections, payload = check_data(joints, deflections, payload, folds)
-    residuals = cross_validate(kind, settings, joints, deflections, payload, folds, seed)
+    residuals, _ = cross_validate(kind, settings, joints, deflections, payload, folds, seed)
     return Metrics.from_errors(f'{folds}-fold cross-validation', len(joints),
                                np.abs(residuals))
 
@@ -261,8 +268,8 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
     kept, excluded = np.arange(len(joints)), np.array([], dtype=int)
     most = int(screening.max_outlier_fraction * len(joints))
 
-    def validate_option(i: int) -> np.ndarray:
-        """Held-out residuals of option ``i`` on the kept samples."""
+    def validate_option(i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Held-out residuals and raw stds of option ``i`` on the kept samples."""
         option_kind, option, given = options[i]
         cheaper = {name: value for name, value in make_predictor(option_kind).cv_overrides.items()
                    if name not in given}
@@ -281,9 +288,9 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
         return chosen if kind != 'auto' else {'kind': option_kind, **chosen}
 
     first = [validate_option(i) for i in range(len(options))]
-    cv_scores = [_trimmed_rms(residuals, output_std) for residuals in first]
+    cv_scores = [_trimmed_rms(residuals, output_std) for residuals, _ in first]
     ranked = sorted(range(len(options)), key=lambda i: cv_scores[i])
-    best, residuals = ranked[0], first[ranked[0]]
+    best, (residuals, std) = ranked[0], first[ranked[0]]
     for _ in range(2):          # screen; take back what the screened model does not contradict
         while True:
             scale = ROBUST_SCALE * np.median(np.abs(residuals), axis=0)
@@ -292,7 +299,7 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
                 break
             worst = int(np.argmax(scores))
             excluded, kept = np.append(excluded, kept[worst]), np.delete(kept, worst)
-            residuals = validate_option(best)
+            residuals, std = validate_option(best)
         if not len(excluded):
             break
         predicted = fit(best).predict(joints[excluded], _subset(payload, excluded))
@@ -300,24 +307,28 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
         if not back.any():
             break
         kept, excluded = np.sort(np.append(kept, excluded[back])), excluded[~back]
-        residuals = validate_option(best)
+        residuals, std = validate_option(best)
     slopes = []
     for i in ranked:            # the best choice, unless the compensator could not solve with it
         if i != best:
-            residuals = validate_option(i)
+            residuals, std = validate_option(i)
         predictor = fit(i)
         slope = (0.0 if geometry is None else
                  _slope(geometry, predictor, joints[kept], _subset(payload, kept)))
         if slope <= screening.max_slope:
+            calibration = calibrate(residuals, std, pose_groups(joints[kept]))
             metrics = Metrics.from_errors(
                 f'{folds}-fold cross-validation', len(kept), np.abs(residuals),
                 excluded_samples=tuple(int(e) for e in sorted(excluded)),
-                selected_settings=json.dumps(label(i)), max_slope=slope)
+                selected_settings=json.dumps(label(i)), max_slope=slope,
+                bound_coverage=calibration.coverage,
+                angle_bound_coverage=calibration.angle_coverage)
             if kind == 'auto':
                 by_kind = {k: min(score for (option_kind, _, _), score
                                   in zip(options, cv_scores) if option_kind == k)
                            for k, _, _ in options}
                 predictor = make_predictor(kind, settings).adopt(predictor, by_kind)
+            predictor.metadata['error_bound'] = calibration.as_dict()
             return predictor, metrics
         slopes.append(f'{json.dumps({**label(i), **options[i][1]})}: {slope:.2f}')
     raise ValueError(

@@ -8,8 +8,12 @@ a warning if the goal allows extrapolation), CLOSED_LOOP started from the rigid 
 usable model — is :mod:`flexarm_control.execution.planning`; how it runs (move, measure, correct
 until within tolerance) is :mod:`flexarm_control.execution.goal_execution`, over
 :class:`~flexarm_control.execution.arm_motion.ArmMotion` (config/motion.yaml); every result,
-feedback and ``/compensator/outcomes`` message carries the plan's distance from the learned data
-and the model's std there. The algorithm lives in :mod:`flexarm_control.execution.compensator`;
+feedback and ``/compensator/outcomes`` message carries the plan's distance from the learned data,
+the model's std there and the plan's 95 % error bound, stated before anything moves
+(:mod:`flexarm_control.execution.plan_bound`, with the site's ``error_bound`` parameters). A
+PREDICTIVE goal whose tolerance its bound exceeds is refused (BOUND_EXCEEDS_TOLERANCE) unless it
+allows extrapolation; AUTO runs PREDICTIVE within its tolerance and CLOSED_LOOP beyond it, and
+the result's ``mode_run`` says which ran. The algorithm lives in :mod:`flexarm_control.execution.compensator`;
 this node validates goals, maps ROS to those calls and their outcomes to error codes,
 reports feedback and results, and hot-reloads the predictor the learner announces on
 ``/learner/model`` and republishes the one it uses on the latched
@@ -106,6 +110,7 @@ from flexarm_control.execution.goal_execution import (
     sanity_bound,
 )
 from flexarm_control.execution.modes import Mode
+from flexarm_control.execution.plan_bound import SiteErrors
 from flexarm_control.execution.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.model_health import HealthSettings, ModelHealth
@@ -134,7 +139,8 @@ Goal = MoveToPose.Goal
 Result = MoveToPose.Result
 Feedback = MoveToPose.Feedback
 REFUSALS = {'no_model': Result.NO_MODEL, 'unreachable': Result.UNREACHABLE,
-            'outside_learned_data': Result.OUTSIDE_LEARNED_DATA}
+            'outside_learned_data': Result.OUTSIDE_LEARNED_DATA,
+            'bound': Result.BOUND_EXCEEDS_TOLERANCE}
 OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
             CONTROLLER_TIMEOUT: Result.CONTROLLER_TIMEOUT,
             MEASUREMENT_FAILED: Result.MEASUREMENT_FAILED,
@@ -182,6 +188,8 @@ class CompensatorNode(Node):
         self._sanity_floor = declare(self, 'sanity_floor', 1.0e-3,
                                      '[m] the smallest sanity bound of a PREDICTIVE goal',
                                      bounds=(0.0, 0.1))
+        self._site = SiteErrors.from_dict(declare_tree(self, 'error_bound',
+                                                       'config/compensator.yaml'))
         model_path = declare(self, 'model_path', '',
                              'predictor loaded at start ("" = wait for /learner/model)')
         self._health = ModelHealth(
@@ -375,24 +383,26 @@ class CompensatorNode(Node):
         if not self._arm.wait_for_joints(5.0):
             return fail(Result.CONTROLLER_TIMEOUT, 'no /joint_states from the controller')
         mode = Mode(goal.mode)
-        closed = mode == Mode.CLOSED_LOOP
-        spec = GoalSpec(
-            target, mode,
-            goal.position_tolerance or (self._pos_tol if closed else 0.0),
-            goal.angle_tolerance or (self._ang_tol if closed else 0.0),
-            goal.max_corrections or self._max_corrections)
+        measuring = mode in (Mode.CLOSED_LOOP, Mode.AUTO)     # the server's default tolerance
+        tolerance = (goal.position_tolerance or (self._pos_tol if measuring else 0.0),
+                     goal.angle_tolerance or (self._ang_tol if measuring else 0.0))
 
         self._target_pub.publish(pose_stamped(target, self.get_clock().now().to_msg()))
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         try:
             planned = plan_goal(self._compensator, mode, target, predictor, self._limits,
                                 goal.allow_extrapolation,
-                                trained_payloads=list(info.payloads) if info else [])
+                                trained_payloads=list(info.payloads) if info else [],
+                                site=self._site, tolerance=tolerance)
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
             return fail(REFUSALS[planned.code], '; '.join(filter(None, [planned.reason] + (
                 [self._load_error, unusable] if planned.code == 'no_model' else []))))
+        spec = GoalSpec(target, planned.mode, *tolerance,
+                        goal.max_corrections or self._max_corrections)
+        result.mode_run = int(planned.mode)
+        result.position_error_bound, result.angle_error_bound = planned.bound
         plan = planned.plan
         notes = [planned.note]
         result.model_version = info.version if planned.uses_model else ''
@@ -403,7 +413,7 @@ class CompensatorNode(Node):
                                                  predictor.payload)]
             notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
                          if any(fit) else '')
-        if mode == Mode.PREDICTIVE and not planned.extrapolated:
+        if planned.mode == Mode.PREDICTIVE and not planned.extrapolated:
             spec = replace(spec, sanity_bound=sanity_bound(
                 info.metrics.max_error_x, info.metrics.max_error_y, self._sanity_factor,
                 self._sanity_floor))
@@ -476,6 +486,7 @@ class CompensatorNode(Node):
         fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
         if planned is not None:
             fb.data_distance, fb.prediction_std = planned.data_distance, planned.prediction_std
+            fb.position_error_bound, fb.angle_error_bound = planned.bound
             fb.model_version = self._goal_model_version
         if measured is not None and target is not None:
             fb.measured, fb.measured_pose = True, planar(measured)
@@ -493,7 +504,10 @@ class CompensatorNode(Node):
             measured_pose=result.measured_pose, measured=result.measured,
             position_error=result.position_error, angle_error=result.angle_error,
             iterations=result.iterations, data_distance=result.data_distance,
-            prediction_std=result.prediction_std, error_code=result.error_code,
+            prediction_std=result.prediction_std,
+            position_error_bound=result.position_error_bound,
+            angle_error_bound=result.angle_error_bound, mode_run=result.mode_run,
+            error_code=result.error_code,
             error_string=result.error_string, model_version=result.model_version))
 
 

@@ -41,8 +41,12 @@ model health (``/compensator/model_health``) says the model no longer fits in a 
 samples are taken where the largest residuals were and across the region, into the dataset
 ``<dataset>-refresh``; a low-dimensional correction fitted to them on top of the current model
 (:mod:`flexarm_control.learning.drift_correction`) becomes the next model version, announced as
-usual. The refresh moves the arm: like a collection, only on request (`flexarm refresh`), never on
-its own — an arm in a vessel moves when its operator says so.
+usual. At a payload the model was not trained at, the samples go into the model's own dataset
+instead, which is trained again on both payloads (a correction cannot tell the arm's masses
+from its compliance; :mod:`flexarm_control.learning.payload_bounds`): declaring such a payload
+answers with how the model's error bounds grew there. The refresh moves the arm: like a
+collection, only on request (`flexarm refresh`), never on its own — an arm in a vessel moves
+when its operator says so.
 
 Policy: one motion at a time per arm. A collection or refresh claims the arm from its owner
 (:mod:`flexarm_control.ros.arm_claim`) once its goal is valid, before anything moves; while
@@ -104,8 +108,9 @@ from flexarm_control.learning.model_store import (
     unloadable_text,
     write_current,
 )
+from flexarm_control.learning.payload_bounds import bound_report, needs_retraining
 from flexarm_control.learning.payload_record import payload_path, read_payload, write_payload
-from flexarm_control.learning.predictors import KINDS, load_predictor, make_predictor
+from flexarm_control.learning.predictors import KINDS, Predictor, load_predictor, make_predictor
 from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
 from flexarm_control.learning.training import Screening, TrainingWorker
@@ -242,8 +247,25 @@ class LearnerNode(Node):
                     f'written ({exc})'))
             self._payload = float(value)
             self._payload_pub.publish(Float64(data=self._payload))
-            self.get_logger().info(f'payload now {self._payload:g} kg')
+            report = self._bound_report()
+            self.get_logger().info(f'payload now {self._payload:g} kg' + (
+                f': {report}' if report else ''))
+            return SetParametersResult(successful=True, reason=report)
         return SetParametersResult(successful=True)
+
+    def _bound_report(self) -> str:
+        """How the current model's bounds grew at the payload declared ('' if it was
+        trained there, or there is no model to say it of)."""
+        try:
+            current = read_current(self._model_dir)
+            if current is None:
+                return ''
+            predictor = load_predictor(current['path'])
+        except (DamagedRecord, ValueError, OSError) as exc:
+            return f'the current model cannot be read to say its bounds there ({exc})'
+        origin = predictor.metadata.get('provenance') or {}
+        return bound_report(predictor, self._regions, self._geometry,
+                            origin.get('payloads', []), self._payload)
 
     def _restore_payload(self) -> None:
         """Take the last declared payload over the configured one: the arm still carries it
@@ -438,8 +460,10 @@ class LearnerNode(Node):
         except (DamagedRecord, ValueError, OSError) as exc:
             result.error_code, result.error_string = codes.INVALID_GOAL, str(exc)
             return
-        dataset = ((predictor.metadata.get('provenance') or {}).get('dataset')
-                   or self._default_dataset) + '-refresh'
+        origin = predictor.metadata.get('provenance') or {}
+        retrain = needs_retraining(origin.get('payloads', []), self._payload)
+        dataset = (origin.get('dataset') or self._default_dataset) + ('' if retrain
+                                                                       else '-refresh')
         path = self.dataset_path(dataset)
         result.dataset_path = str(path)
         self.get_logger().info(f'refreshing model v{current["version"]} with {len(plan)} '
@@ -471,6 +495,9 @@ class LearnerNode(Node):
                                    'canceled; the model is unchanged' if counts.canceled else
                                    counts.stopped or 'no valid measurement')
             return
+        if retrain:
+            self._retrain(predictor, path, samples, result)
+            return
         version = next_version(self._model_dir)
         mended = refreshed(predictor, self._geometry, np.array([s.joints for s in samples]),
                            np.array([s.deflection for s in samples]),
@@ -489,6 +516,42 @@ class LearnerNode(Node):
             f'model v{version} (v{current["version"]} refreshed with {len(samples)} samples) '
             f'announced; median residual {correction.residual_before * 1e3:.3f} mm -> '
             f'{correction.residual_after * 1e3:.3f} mm')
+
+    def _retrain(self, predictor: Predictor, path: Path, samples: list[Sample],
+                 result: RefreshModel.Result) -> None:
+        """A refresh at a payload the model was not trained at: its samples went into the
+        model's own dataset, which is trained again (the learner's default training of the
+        model's kind, with the payload as an input: :func:`train_and_save`) — a correction
+        at one payload cannot tell the arm's masses from its compliance, samples at two
+        can (:mod:`flexarm_control.learning.payload_bounds`)."""
+        joints = np.array([s.joints for s in samples])
+        deflections = np.array([s.deflection for s in samples])
+        before = predictor.predict(joints, self._payload if predictor.carries_payload else None)
+        version = next_version(self._model_dir)
+        model_path = self._model_dir / f'{path.stem}-{predictor.kind}-v{version}.model'
+        self._training = True
+        try:
+            metrics, samples_hash, _ = self._trainer.run(
+                train_and_save, predictor.kind, {}, str(path), self._folds, str(model_path),
+                self._geometry, self._screening, self._arm_id, timeout=self._train_timeout)
+        except (ValueError, RuntimeError, OSError, TimeoutError) as exc:
+            result.error_code = RefreshModel.Result.FAILED
+            result.error_string = (f'training on {path.stem} at {self._payload:g} kg failed: '
+                                   f'{exc}; the model is unchanged')
+            return
+        finally:
+            self._training = False
+        info = self._model_info(str(version), model_path)
+        write_current(self._model_dir, version, info.kind, info.path, samples_hash)
+        self._announce(info)
+        after = load_predictor(model_path).predict(joints, self._payload)
+        result.model = info
+        result.residual_before, result.residual_after = (
+            float(np.median(np.hypot(*(predicted - deflections)[:, :2].T)))
+            for predicted in (before, after))
+        self.get_logger().info(
+            f'model v{version} announced: {path.stem} trained again with {len(samples)} '
+            f'samples at {self._payload:g} kg ({metrics.samples} in all)')
 
     @staticmethod
     def _sample_msg(sample: Sample) -> DeflectionSample:

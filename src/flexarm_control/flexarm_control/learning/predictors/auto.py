@@ -96,6 +96,16 @@ class AutoPredictor(Predictor):
         """The chosen model's."""
         return self.chosen.position_std(joints, payload)
 
+    def deflection_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                       ) -> np.ndarray:
+        """The chosen model's."""
+        return self.chosen.deflection_std(joints, payload)
+
+    def prior_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                  ) -> np.ndarray:
+        """The chosen model's."""
+        return self.chosen.prior_std(joints, payload)
+
     def _state(self) -> dict[str, np.ndarray]:
         return self._chosen._state()
 

@@ -69,6 +69,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from flexarm_control.learning.drift_correction import Correction
+from flexarm_control.learning.error_bound import BoundCalibration
 from flexarm_core.atomic_file import atomic_write
 
 if TYPE_CHECKING:
@@ -79,6 +80,10 @@ JOINTS = 4
 OUTPUTS = 3
 _CONSTANT_STD = 1e-12     # an input with a smaller spread in the training set is dropped
 CONSTANT_INPUT_SCALE = 1e-3  # [rad, m, kg] unit of data_distance along a dropped input
+# [kg] a payload this close to a trained one counts as that one: the tip sags at most 3.6 mm
+# per kg over the learner's regions (simulated arm), so 10 g is <= 0.04 mm, the joints'
+# repeatability at the tip; payloads are declared to a gram or two.
+PAYLOAD_TOLERANCE = 0.01
 
 
 def model_inputs(joints: np.ndarray) -> np.ndarray:
@@ -296,6 +301,36 @@ class Predictor(ABC):
         kinds with a posterior (the GP); 0 for the others, which have none."""
         x, single = self._inputs(joints, payload)
         return 0.0 if single else np.zeros(len(x))
+
+    def deflection_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                       ) -> np.ndarray:
+        """The model's own standard deviation of its predicted deflection [m, m, rad] at
+        joints (4,) or (M, 4), shaped like :meth:`predict`: what the samples it was fitted on
+        leave open (the GP: its posterior; the physical kinds: their fitted parameters'
+        covariance; the MLP: its ensemble's spread); zeros for a kind without one. Raw: the
+        learner scales it on held-out samples into a 95 % bound (:mod:`..error_bound`)."""
+        x, single = self._inputs(joints, payload)
+        return np.zeros(OUTPUTS) if single else np.zeros((len(x), OUTPUTS))
+
+    def prior_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                  ) -> np.ndarray:
+        """Standard deviation [m, m, rad] of what the samples cannot tell and a prior bounds,
+        shaped like :meth:`predict` (the grey-box: how a payload loads an arm whose masses are
+        known only nominally, when every sample had one payload); zeros for the others."""
+        return np.zeros_like(self.deflection_std(joints, payload))
+
+    def error_bound(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                    ) -> np.ndarray:
+        """95 % bound [m, rad] of the predicted tip position's and angle's error at joints
+        (4,) → (2,) or (M, 4) → (M, 2): the raw std scaled by the learner's held-out
+        calibration (metadata ``error_bound``, :mod:`..error_bound`) with the prior's term;
+        NaN for a model fitted without one (not by the learner's training)."""
+        std = self.deflection_std(joints, payload)
+        calibration = self.metadata.get('error_bound')
+        if calibration is None:
+            return np.full(std.shape[:-1] + (2,), np.nan)
+        return BoundCalibration.from_dict(calibration).bound(
+            std, self.prior_std(joints, payload))
 
     def save(self, path: str | Path) -> None:
         """Write the fitted model to ``path`` atomically (format: module docstring)."""

@@ -146,7 +146,7 @@ def negative_log_likelihood(theta: np.ndarray, kernel: str, squares: np.ndarray,
 
 
 class GpPredictor(Predictor):
-    """Independent GP regression of dx, dy, dφ; :meth:`predict_std` gives their std."""
+    """Independent GP regression of dx, dy, dφ; :meth:`deflection_std` gives their std."""
 
     kind: ClassVar[str] = 'gp'
     defaults: ClassVar[dict[str, Any]] = {
@@ -233,9 +233,9 @@ class GpPredictor(Predictor):
     def _predict_normalised(self, x: np.ndarray) -> np.ndarray:
         return np.einsum('kmn,kn->mk', cross_covariance(self._side, x), self._alpha)
 
-    def predict_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
-                    ) -> np.ndarray:
-        """Predictive standard deviation [m, m, rad], shaped like :meth:`predict`."""
+    def deflection_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                       ) -> np.ndarray:
+        """The posterior's standard deviation [m, m, rad], shaped like :meth:`predict`."""
         from scipy import linalg
 
         x, single = self._inputs(joints, payload)
@@ -249,7 +249,7 @@ class GpPredictor(Predictor):
 
     def position_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
                      ) -> np.ndarray | float:
-        std = np.asarray(self.predict_std(joints, payload))
+        std = np.asarray(self.deflection_std(joints, payload))
         position = np.hypot(std[..., 0], std[..., 1])
         return float(position) if position.ndim == 0 else position
 

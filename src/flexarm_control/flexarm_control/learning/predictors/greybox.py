@@ -55,14 +55,20 @@ from typing import Any, ClassVar
 
 import numpy as np
 
-from flexarm_control.learning.gravity_moments import ArmMasses
-from flexarm_control.learning.predictors.base import Predictor, restore
+from flexarm_control.learning.gravity_moments import (
+    ArmMasses,
+    InertiaUncertainty,
+    moment_spread,
+)
+from flexarm_control.learning.predictors.base import PAYLOAD_TOLERANCE, Predictor, restore
 from flexarm_control.learning.predictors.gp import KERNELS, GpPredictor
 from flexarm_control.learning.predictors.kinematic import (
     KINEMATIC,
     PARAMETERS,
+    covariance,
     pose_change,
     pose_jacobian,
+    propagated_std,
     read_config,
     solve,
     weighted,
@@ -84,6 +90,11 @@ RESIDUALS = ('none', 'gp')
 def load_arm() -> ArmMasses:
     """The arm as the robot description has it (config/arm.yaml ``arm``: nominal masses)."""
     return ArmMasses.from_description(read_config('arm.yaml')['arm'])
+
+
+def load_inertia_uncertainty() -> InertiaUncertainty:
+    """How far the description's masses may be off (``arm.inertia_uncertainty``)."""
+    return InertiaUncertainty.from_dict(read_config('arm.yaml')['arm']['inertia_uncertainty'])
 
 
 class GreyboxPredictor(Predictor):
@@ -118,7 +129,11 @@ class GreyboxPredictor(Predictor):
     def _features(self, joints: np.ndarray, payload: np.ndarray | float) -> np.ndarray:
         """Per sample (N, terms): the moment of each compliance term [N·m], tanh of it for a
         dead-band term."""
-        moments = self._arm.moments(joints, payload)[:, _MOMENT]
+        return self._features_of(self._arm.moments(joints, payload))
+
+    def _features_of(self, moments: np.ndarray) -> np.ndarray:
+        """:meth:`_features` of the moments (N, 4) about the elements."""
+        moments = moments[:, _MOMENT]
         return np.where(_PLAY, np.tanh(moments / self.settings['dead_band']), moments)
 
     def _geometry(self) -> dict[str, float]:
@@ -130,6 +145,15 @@ class GreyboxPredictor(Predictor):
         slots = (features * compliance) @ _SLOTS
         return pose_change(self._geometry(), joints, kinematic, slots[:, :4], slots[:, 4:])
 
+    def _parameter_jacobian(self, joints: np.ndarray, features: np.ndarray,
+                            kinematic: np.ndarray, compliance: np.ndarray) -> np.ndarray:
+        """Derivatives (N, 3, 21) of the structure's deflection by the kinematic errors and
+        the compliances: the kinematic errors' own, and each term's through its slot."""
+        slots = (features * compliance) @ _SLOTS
+        jac = pose_jacobian(self._geometry(), joints, kinematic, slots[:, :4], slots[:, 4:])
+        terms = (jac[:, :, KINEMATIC:] @ _SLOTS.T) * features[:, None]
+        return np.concatenate([jac[:, :, :KINEMATIC], terms], axis=2)
+
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
         self._arm = load_arm()
@@ -139,22 +163,27 @@ class GreyboxPredictor(Predictor):
         features = self._features(joints, payload)
         scale = np.sqrt(np.mean(features ** 2, axis=0))
         scale = np.where(scale > 0, scale, 1.0)     # a term without moment stays at 0
+        column = np.concatenate([np.ones(KINEMATIC), 1.0 / scale])   # p -> the parameters
 
-        def split(p: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-            return p[:KINEMATIC], p[KINEMATIC:] / scale
+        def residuals(p: np.ndarray) -> np.ndarray:
+            return weighted(self._structure(joints, features, p[:KINEMATIC],
+                                            p[KINEMATIC:] / scale) - deflections)
 
         def jacobian(p: np.ndarray) -> np.ndarray:
-            """Of the residuals by p: the kinematic errors', and each term's through its
-            slot."""
-            kinematic, compliance = split(p)
-            slots = (features * compliance) @ _SLOTS
-            jac = pose_jacobian(self._geometry(), joints, kinematic, slots[:, :4], slots[:, 4:])
-            terms = (jac[:, :, KINEMATIC:] @ _SLOTS.T) * (features / scale)[:, None]
-            return weighted(np.concatenate([jac[:, :, :KINEMATIC], terms], axis=2))
+            return weighted(self._parameter_jacobian(
+                joints, features, p[:KINEMATIC], p[KINEMATIC:] / scale) * column)
 
-        p = solve(lambda p: weighted(self._structure(joints, features, *split(p)) - deflections),
-                  jacobian, KINEMATIC + len(TERMS), self.settings['ridge'])
-        self._kinematic, self._compliance = split(p)
+        ridge = self.settings['ridge']
+        p = solve(residuals, jacobian, KINEMATIC + len(TERMS), ridge)
+        self._kinematic, self._compliance = p[:KINEMATIC], p[KINEMATIC:] / scale
+        self._covariance = column[:, None] * covariance(jacobian(p), residuals(p), ridge) * column
+        self._relative_spread = None
+        if np.ptp(payload) <= PAYLOAD_TOLERANCE:     # one payload: the masses' prior decides
+            moments = self._arm.moments(joints, payload)
+            self._relative_spread = np.sqrt(
+                np.mean(moment_spread(self._arm, load_inertia_uncertainty(), joints) ** 2,
+                        axis=0)
+                / np.maximum(np.mean(moments ** 2, axis=0), 1e-12))
         self._residual: GpPredictor | None = None
         if self.settings['residual'] == 'gp':
             left = deflections - self._structure(joints, features, self._kinematic,
@@ -167,12 +196,13 @@ class GreyboxPredictor(Predictor):
             'arm': self._arm.as_dict(), 'trained_payload': self._trained_payload,
             'kinematic': dict(zip(PARAMETERS, self._kinematic.tolist())),
             'compliance': {t[0]: float(c) for t, c in zip(TERMS, self._compliance)},
+            'relative_moment_spread': (None if self._relative_spread is None
+                                       else self._relative_spread.tolist()),
             'residual': None if self._residual is None else self._residual.metadata}
 
     def _predict_physical(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
-        moments_at = payload if payload is not None and self._carries else self._trained_payload
-        y = self._structure(joints, self._features(joints, moments_at), self._kinematic,
-                            self._compliance)
+        y = self._structure(joints, self._features_of(self._moments_at(joints, payload)),
+                            self._kinematic, self._compliance)
         return y if self._residual is None else y + self._residual.predict(joints, payload)
 
     def position_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
@@ -182,8 +212,47 @@ class GreyboxPredictor(Predictor):
             return super().position_std(joints, payload)
         return self._residual.position_std(joints, payload)
 
+    def _moments_at(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
+        return self._arm.moments(joints, payload if payload is not None and self._carries
+                                 else self._trained_payload)
+
+    def deflection_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                       ) -> np.ndarray:
+        """The structure's, from its parameters' covariance, and the residual GP's."""
+        q, p, single = self._query(joints, payload)
+        self._require_fitted()
+        std = propagated_std(self._parameter_jacobian(
+            q, self._features_of(self._moments_at(q, p)), self._kinematic, self._compliance),
+            self._covariance)
+        if self._residual is not None:
+            std = np.hypot(std, self._residual.deflection_std(q, p))
+        return std[0] if single else std
+
+    def prior_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                  ) -> np.ndarray:
+        """Trained at one payload, the compliances took up the masses' error with them:
+        asked at another, each element's share of the change is off by the parts' moment's
+        relative spread there (module docstring). Zeros at the trained payload, or when
+        the samples held several."""
+        q, p, single = self._query(joints, payload)
+        self._require_fitted()
+        std = np.zeros((len(q), 3))
+        if self._relative_spread is not None:
+            trained = self._arm.moments(q, self._trained_payload)
+            asked = self._moments_at(q, p)
+            before = self._structure(q, self._features_of(trained), self._kinematic,
+                                     self._compliance)
+            for element, spread in enumerate(self._relative_spread):
+                moved = trained.copy()
+                moved[:, element] = asked[:, element]
+                change = self._structure(q, self._features_of(moved), self._kinematic,
+                                         self._compliance) - before
+                std = np.hypot(std, spread * change)
+        return std[0] if single else std
+
     def _state(self) -> dict[str, np.ndarray]:
-        state = {'kinematic': self._kinematic, 'compliance': self._compliance}
+        state = {'kinematic': self._kinematic, 'compliance': self._compliance,
+                 'covariance': self._covariance}
         if self._residual is not None:
             state.update({f'residual.{k}': v for k, v in self._residual._state().items()})
         return state
@@ -195,6 +264,11 @@ class GreyboxPredictor(Predictor):
         self._trained_payload = meta.get('trained_payload', self.settings['payload'])
         self._kinematic = np.asarray(state['kinematic'], dtype=float).reshape(KINEMATIC)
         self._compliance = np.asarray(state['compliance'], dtype=float).reshape(len(TERMS))
+        size = KINEMATIC + len(TERMS)
+        self._covariance = np.asarray(state.get('covariance', np.zeros((size, size))),
+                                      dtype=float).reshape(size, size)
+        spread = meta.get('relative_moment_spread')
+        self._relative_spread = None if spread is None else np.asarray(spread, dtype=float)
         self._residual = None if meta['residual'] is None else restore(
             GpPredictor, meta['residual'], {
                 'support': state['support'],

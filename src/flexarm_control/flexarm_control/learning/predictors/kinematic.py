@@ -7,8 +7,10 @@ samples, φ residuals weighted by ``ANGLE_LENGTH``, with a small ridge ``ridge``
 keeps parameters the poses do not tell apart (θ2 fixed: δθ2 and δl3 along one line) at the
 smallest norm. The nominal geometry comes from config/arm.yaml at fit time and is kept in the
 metadata (``kinematic.geometry``) with the identified parameters (``kinematic.parameters``):
-a saved model is self-contained. Whatever is not rigid — the sag under gravity — it cannot
-represent: on its own it is the baseline a user would try first; :mod:`.greybox` builds on it.
+a saved model is self-contained. Their Gauss-Newton covariance (:func:`covariance`) gives
+the raw std of a prediction (:meth:`KinematicPredictor.deflection_std`). Whatever is not
+rigid — the sag under gravity — it cannot represent: on its own it is the baseline a user
+would try first; :mod:`.greybox` builds on it.
 """
 from __future__ import annotations
 
@@ -128,6 +130,25 @@ def solve(residuals: Callable[[np.ndarray], np.ndarray],
     return least_squares(objective, np.zeros(size), derivative, method='lm', x_scale='jac').x
 
 
+def covariance(jacobian: np.ndarray, residuals: np.ndarray, ridge: float) -> np.ndarray:
+    """Gauss-Newton covariance (P, P) of least-squares parameters at their optimum, from the
+    residuals' Jacobian (R, P) and the residuals (R,) there: σ² (JᵀJ + ridge)⁺, σ² their
+    variance over R - P degrees of freedom (at least one). Directions the samples do not
+    tell apart (and the ridge decides) get none: the pseudo-inverse drops them, as the
+    solution does."""
+    rows, size = jacobian.shape
+    variance = float(residuals @ residuals) / max(rows - size, 1)
+    return variance * np.linalg.pinv(jacobian.T @ jacobian + ridge * np.eye(size),
+                                     rcond=1e-10, hermitian=True)
+
+
+def propagated_std(jacobian: np.ndarray, parameter_covariance: np.ndarray) -> np.ndarray:
+    """Std (N, 3) of outputs whose derivatives by the parameters are ``jacobian``
+    (N, 3, P)."""
+    variance = np.einsum('nop,pq,noq->no', jacobian, parameter_covariance, jacobian)
+    return np.sqrt(np.maximum(variance, 0.0))
+
+
 def weighted(error: np.ndarray) -> np.ndarray:
     """Deflection errors (N, 3) [m, m, rad], or their derivatives (N, 3, P), as one residual
     vector [m] (or its Jacobian (3N, P))."""
@@ -150,20 +171,38 @@ class KinematicPredictor(Predictor):
                       deflections: np.ndarray) -> None:
         self._geometry = nominal_geometry()
         rigid = perturbed_pose(self._geometry, joints, np.zeros(KINEMATIC))
-        self._parameters = solve(
-            lambda p: weighted(perturbed_pose(self._geometry, joints, p) - rigid - deflections),
-            lambda p: weighted(pose_jacobian(self._geometry, joints, p)[:, :, :KINEMATIC]),
-            KINEMATIC, self.settings['ridge'])
+
+        def residuals(p: np.ndarray) -> np.ndarray:
+            return weighted(perturbed_pose(self._geometry, joints, p) - rigid - deflections)
+
+        def jacobian(p: np.ndarray) -> np.ndarray:
+            return weighted(pose_jacobian(self._geometry, joints, p)[:, :, :KINEMATIC])
+
+        ridge = self.settings['ridge']
+        self._parameters = solve(residuals, jacobian, KINEMATIC, ridge)
+        self._covariance = covariance(jacobian(self._parameters), residuals(self._parameters),
+                                      ridge)
         self.metadata['kinematic'] = {'geometry': self._geometry, 'parameters': dict(
             zip(PARAMETERS, self._parameters.tolist()))}
 
     def _predict_physical(self, joints: np.ndarray, payload: np.ndarray | None) -> np.ndarray:
         return pose_change(self._geometry, joints, self._parameters)
 
+    def deflection_std(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
+                       ) -> np.ndarray:
+        """From the identified parameters' covariance (:func:`covariance`)."""
+        q, _, single = self._query(joints, payload)
+        self._require_fitted()
+        std = propagated_std(pose_jacobian(self._geometry, q, self._parameters)[:, :, :KINEMATIC],
+                             self._covariance)
+        return std[0] if single else std
+
     def _state(self) -> dict[str, np.ndarray]:
-        return {'parameters': self._parameters}
+        return {'parameters': self._parameters, 'covariance': self._covariance}
 
     def _restore(self, state: Mapping[str, np.ndarray]) -> None:
         self._geometry = {name: float(value) for name, value in
                           self.metadata['kinematic']['geometry'].items()}
         self._parameters = np.asarray(state['parameters'], dtype=float).reshape(KINEMATIC)
+        self._covariance = np.asarray(state.get('covariance', np.zeros((KINEMATIC, KINEMATIC))),
+                                      dtype=float).reshape(KINEMATIC, KINEMATIC)

@@ -1,0 +1,252 @@
+"""Does every plan's stated 95 % error bound hold — also where the model was not taught?
+
+Offline, in the realistic world of benchmarks/error_budget.py (every error source on, the
+camera calibrated against the reference; the learner's collection loop and training, the
+compensator's planning with config/compensator.yaml's ``error_bound``). Per scenario, region
+(A, B) and seed: ``--samples`` learning samples at the payload trained at, the learner's
+training (``--kind``, default its default kind), then ``--targets`` targets uniform in the
+region, each planned PREDICTIVE at the payload the arm carries (as the compensator asks:
+:class:`~flexarm_control.learning.at_payload.AtPayload`) and moved to; the true tip (the
+simulator's) against the target is the goal's error, the plan's ``bound`` what it stated
+beforehand. Scenarios (the simulated arm's truth; the model knows the nominal description):
+
+- ``nominal``: the simulator's arm as configured (its masses 4.3 % over the nominal ones).
+- ``masses_off``: the No.2 arm 15 % heavier with a 0.6 kg cable harness, the end effector 10 %
+  heavier with its CoM 30 mm further out; ``masses_light``: every part 8 % lighter, the end
+  effector's CoM 20 mm nearer.
+- ``payload_5kg`` / ``payload_5kg_masses_off``: trained at 0 kg, 5 kg carried and declared.
+- ``payload_5kg_refreshed``: as ``payload_5kg_masses_off``, with ``--samples`` / 4 samples
+  more collected at 5 kg (what a refresh brings) and the model trained on both payloads.
+- ``samples_10``: 10 learning samples; ``kind_<k>``: another predictor kind (nominal).
+- ``drift``: 2 kg carried and not declared (no model can know it; the model health does),
+  reported apart from the pooled figures.
+
+Keys: ``coverage`` (share of goals whose true position error is within the stated position
+bound, scenarios pooled, drift apart) ≥ 0.95; ``coverage_min`` (worst scenario) ≥ 0.90;
+``sharpness`` (median bound / median true error, nominal) ≤ 3; ``unsafe_moves`` (goals that a
+0.5 mm tolerance would have let move — bound within it — and that missed it) 0; ``mlp_fit_s``
+(the MLP ensemble on 40 samples, a learner's second and later fits) ≤ 2, beside
+``mlp_first_fit_s`` (its first: torch imported and its optimisers' first use, once per
+learner worker). ``scenarios``: per scenario goals,
+coverage, median bound and error, the largest error and what it stated there, ``refused``.
+
+    python benchmarks/uncertainty.py [--targets 15] [--samples 40] [--seeds 1] [--json]
+    python benchmarks/uncertainty.py --smoke --json      (a few seconds: two scenarios)
+"""
+from __future__ import annotations
+
+import argparse
+import copy
+import json
+import math
+import time
+from concurrent.futures import ProcessPoolExecutor
+from typing import Any
+
+import numpy as np
+from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calibration
+
+from flexarm_control.execution.collection import Collector
+from flexarm_control.execution.compensator import CompensationError
+from flexarm_control.execution.modes import Mode
+from flexarm_control.execution.plan_bound import SiteErrors
+from flexarm_control.execution.planning import Planned, plan_goal
+from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
+from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_core.kinematics import pose_error
+from flexarm_core.regions import configured_regions
+
+TOLERANCE = 5e-4           # [m] the unsafe-move check's tolerance
+TARGET_SEED = 7100
+MASSES_OFF = {'scale': {'second_arm': 1.15, 'end_effector': 1.10},
+              'add': {'second_arm': 0.6}, 'com': 0.03}
+MASSES_LIGHT = {'scale': dict.fromkeys(('second_axis', 'second_arm', 'third_axis', 'third_arm',
+                                        'fourth_axis', 'fourth_arm', 'end_effector'), 0.92),
+                'add': {}, 'com': -0.02}
+# name: (plant masses, trained at [kg], carried [kg], declared, samples factor, kind)
+SCENARIOS: dict[str, dict[str, Any]] = {
+    'nominal': {},
+    'masses_off': {'masses': MASSES_OFF},
+    'masses_light': {'masses': MASSES_LIGHT},
+    'payload_5kg': {'carried': 5.0},
+    'payload_5kg_masses_off': {'masses': MASSES_OFF, 'carried': 5.0},
+    'payload_5kg_refreshed': {'masses': MASSES_OFF, 'carried': 5.0, 'refreshed': True},
+    'samples_10': {'samples': 10},
+    'kind_gp': {'kind': 'gp'},
+    'kind_greybox': {'kind': 'greybox'},
+    'kind_mlp': {'kind': 'mlp'},
+    'drift': {'carried': 2.0, 'declared': False},
+}
+SMOKE = ('nominal', 'payload_5kg_masses_off')
+
+
+def plant_config(c: dict[str, Any], masses: dict[str, Any] | None) -> dict[str, Any]:
+    """The configuration with the simulated arm's masses changed by ``masses``."""
+    c = copy.deepcopy(c)
+    if masses:
+        plant = c['plant']
+        for part, factor in masses['scale'].items():
+            plant['masses'][part] *= factor
+        for part, kg in masses['add'].items():
+            plant['masses'][part] += kg
+        plant['end_effector_com'] += masses['com']
+    return c
+
+
+def collect(rig: Rig, region: Any, count: int, kg: float, seed: int,
+            coverage: np.ndarray, retries: int) -> list[Any]:
+    rig.arm.set_payload(kg)
+    _, poses = sample_poses(rig.geometry, region.grown(coverage), count, 'sobol', seed=seed)
+    poses = poses[travel_order(poses, rig.arm.positions(), rig.geometry.velocity)]
+    collected: list[Any] = []
+    Collector(CalibratedMotion(rig), rig.geometry, retries,
+              clock=lambda: rig.arm.time).collect(poses, kg, collected.append)
+    return collected
+
+
+def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
+    """One scenario in one region with one seed: learn, then every target PREDICTIVE."""
+    name, region_name, region_index, seed, samples, targets, kind = job
+    scenario = SCENARIOS[name]
+    started = time.perf_counter()
+    c = plant_config(config(), scenario.get('masses'))
+    rig = Rig(c, set(SOURCES) - {'payload'}, 0.0, seed=100 * seed + region_index)
+    rig.arm.set_payload(0.0)
+    learner = c['learner']
+    region = configured_regions()[region_name]
+    rig.correction = reference_calibration(rig, region)['correction']
+    coverage = np.asarray(learner['coverage_margin'])
+    retries = learner['measurement_retries']
+    count = scenario.get('samples', samples)
+    collected = collect(rig, region, count, 0.0, 100 * seed + region_index, coverage, retries)
+    carried = scenario.get('carried', 0.0)
+    if scenario.get('refreshed'):
+        collected += collect(rig, region, max(4, samples // 4), carried,
+                             100 * seed + region_index + 50, coverage, retries)
+    payloads = np.array([s.payload for s in collected])
+    predictor, _ = fit_robust(
+        scenario.get('kind', kind or learner['default_kind']),
+        {'payload_input': np.ptp(payloads) > 0} if scenario.get('refreshed') else {},
+        np.array([s.joints for s in collected]), np.array([s.deflection for s in collected]),
+        payloads, folds=learner['validation_folds'], geometry=rig.geometry,
+        screening=Screening.from_dict(learner['training']))
+    rig.arm.set_payload(carried)
+    declared = carried if scenario.get('declared', True) else 0.0
+    model = AtPayload(predictor, declared)
+    site = SiteErrors.from_dict(c['compensator']['error_bound'])
+    goals, refused, out_of_reach = [], 0, 0
+    for target in random_targets(rig.geometry, region, targets, TARGET_SEED + 10 * seed
+                                 + region_index):
+        try:        # can the true arm reach it? (robustness.py: the sag near the edge)
+            rig.compensator.predictive(target, rig.arm.plant.deflection)
+        except CompensationError:
+            out_of_reach += 1
+            continue
+        planned = plan_goal(rig.compensator, Mode.PREDICTIVE, target, model, rig.limits,
+                            allow_extrapolation=True, trained_payloads=sorted(set(payloads)),
+                            site=site)
+        if not isinstance(planned, Planned):
+            refused += 1
+            continue
+        rig.motion.move_to(planned.plan.joints)
+        position, angle = pose_error(target, rig.arm.truth())
+        goals.append((position, angle, *planned.bound))
+    return {'name': name, 'region': region_name, 'seed': seed, 'samples': len(collected),
+            'goals': goals, 'refused': refused, 'out_of_reach': out_of_reach,
+            'wall_s': time.perf_counter() - started}
+
+
+def scenario_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
+    goals = np.array([g for r in rows for g in r['goals']]).reshape(-1, 4)
+    error, bound = goals[:, 0], goals[:, 2]
+    worst = int(np.argmax(error)) if len(goals) else 0
+    return {'goals': len(goals), 'refused': sum(r['refused'] for r in rows),
+            'out_of_reach': sum(r['out_of_reach'] for r in rows),
+            'coverage': float(np.mean(error <= bound)) if len(goals) else math.nan,
+            'angle_coverage': float(np.mean(goals[:, 1] <= goals[:, 3])) if len(goals)
+            else math.nan,
+            'median_bound_mm': 1e3 * float(np.median(bound)) if len(goals) else math.nan,
+            'median_error_mm': 1e3 * float(np.median(error)) if len(goals) else math.nan,
+            'max_error_mm': 1e3 * float(error[worst]) if len(goals) else math.nan,
+            'bound_at_max_mm': 1e3 * float(bound[worst]) if len(goals) else math.nan,
+            'unsafe_moves': int(np.sum((bound <= TOLERANCE) & (error > TOLERANCE))),
+            'wall_s': round(sum(r['wall_s'] for r in rows), 1)}
+
+
+def mlp_fit_s(samples: int) -> tuple[float, float]:
+    """Wall times of the MLP ensemble's fit on ``samples`` learning samples: the first in this
+    process (torch imported, and its optimisers' first use: ~3 s, once per learner worker),
+    and the next one, each fit after."""
+    c = config()
+    rig = Rig(c, set(SOURCES) - {'payload'}, 0.0, seed=0)
+    region = configured_regions()['A']
+    collected = collect(rig, region, samples, 0.0, 0, np.asarray(
+        c['learner']['coverage_margin']), c['learner']['measurement_retries'])
+    joints = np.array([s.joints for s in collected])
+    deflections = np.array([s.deflection for s in collected])
+    times = []
+    for seed in (0, 1):
+        started = time.perf_counter()
+        make_predictor('mlp', {'seed': seed}).fit(joints, deflections)
+        times.append(time.perf_counter() - started)
+    return times[0], times[1]
+
+
+def main() -> None:
+    parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    parser.add_argument('--targets', type=int, default=15, help='targets per region and seed')
+    parser.add_argument('--samples', type=int, default=40)
+    parser.add_argument('--seeds', type=int, default=1)
+    parser.add_argument('--regions', default='A,B')
+    parser.add_argument('--kind', help="predictor kind (default: the learner's default_kind)")
+    parser.add_argument('--only', help='comma-separated scenarios (default: every one)')
+    parser.add_argument('--workers', type=int, default=2)
+    parser.add_argument('--smoke', action='store_true',
+                        help=f'{", ".join(SMOKE)}; 3 targets, 12 samples, region A')
+    parser.add_argument('--json', action='store_true', help='print one JSON object last')
+    args = parser.parse_args()
+    if args.smoke:
+        args.only, args.targets, args.samples, args.regions = ','.join(SMOKE), 3, 12, 'A'
+    names = args.only.split(',') if args.only else list(SCENARIOS)
+    unknown = sorted(set(names) - set(SCENARIOS))
+    if unknown:
+        parser.error(f'unknown scenarios {unknown}; known: {", ".join(SCENARIOS)}')
+    regions = args.regions.split(',')
+    jobs = [(name, region, i, seed, args.samples, args.targets, args.kind or '')
+            for name in names for i, region in enumerate(regions) for seed in range(args.seeds)]
+    with ProcessPoolExecutor(args.workers) as pool:
+        rows = list(pool.map(run, jobs))
+    scenarios = {name: scenario_figures([r for r in rows if r['name'] == name])
+                 for name in names}
+    print('scenario                  goals  coverage  median bound / error mm   max error mm '
+          '(bound there)  refused  unsafe')
+    for name, s in scenarios.items():
+        print(f"{name:<25} {s['goals']:5d}  {s['coverage']:8.3f}  {s['median_bound_mm']:12.4f}"
+              f" / {s['median_error_mm']:.4f}  {s['max_error_mm']:12.4f} "
+              f"({s['bound_at_max_mm']:.4f})  {s['refused']:7d}  {s['unsafe_moves']:6d}",
+              flush=True)
+    pooled = [g for r in rows if r['name'] != 'drift' for g in r['goals']]
+    judged = {name: s for name, s in scenarios.items() if name != 'drift'}
+    nominal = scenarios.get('nominal')
+    out: dict[str, Any] = {
+        'coverage': (float(np.mean([g[0] <= g[2] for g in pooled])) if pooled else math.nan),
+        'coverage_min': min((s['coverage'] for s in judged.values()), default=math.nan),
+        'sharpness': (nominal['median_bound_mm'] / nominal['median_error_mm']
+                      if nominal else math.nan),
+        'unsafe_moves': sum(s['unsafe_moves'] for s in judged.values()),
+        **dict(zip(('mlp_first_fit_s', 'mlp_fit_s'),
+                   (round(t, 3) for t in mlp_fit_s(args.samples if not args.smoke else 40)))),
+        'drift': scenarios.get('drift'), 'scenarios': scenarios,
+        'targets_per_region': args.targets, 'samples': args.samples, 'seeds': args.seeds,
+        'regions': regions}
+    print(f"coverage {out['coverage']:.3f} (worst scenario {out['coverage_min']:.3f}), "
+          f"sharpness {out['sharpness']:.2f}, unsafe moves {out['unsafe_moves']}, "
+          f"MLP ensemble fit {out['mlp_fit_s']:.2f} s (the first {out['mlp_first_fit_s']:.2f} s)")
+    if args.json:
+        print(json.dumps(out))
+
+
+if __name__ == '__main__':
+    main()

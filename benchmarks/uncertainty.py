@@ -6,7 +6,8 @@ compensator's planning with config/compensator.yaml's ``error_bound``). Per scen
 (A, B) and seed: ``--samples`` learning samples at the payload trained at, the learner's
 training (``--kind``, default its default kind), then ``--targets`` targets uniform in the
 region, each planned PREDICTIVE at the payload the arm carries (as the compensator asks:
-:class:`~flexarm_control.learning.at_payload.AtPayload`) and moved to; the true tip (the
+:class:`~flexarm_control.learning.at_payload.AtPayload`; refused as the compensator refuses,
+e.g. beyond the learned data: ``refused``) and moved to; the true tip (the
 simulator's) against the target is the goal's error, the plan's ``bound`` what it stated
 beforehand. Scenarios (the simulated arm's truth; the model knows the nominal description):
 
@@ -23,7 +24,11 @@ beforehand. Scenarios (the simulated arm's truth; the model knows the nominal de
 
 Keys: ``coverage`` (share of goals whose true position error is within the stated position
 bound, scenarios pooled, drift apart) ≥ 0.95; ``coverage_min`` (worst scenario) ≥ 0.90;
-``sharpness`` (median bound / median true error, nominal) ≤ 3; ``unsafe_moves`` (goals that a
+``sharpness`` (median bound / median true error, nominal) ≤ 3, beside ``sharpness_floor``: the
+same of a bound that knows the simulated servos' true repeatability (config/sim.yaml) and
+nothing else — the exact 95 % radius of the tip error they cause, which the errors that
+move the tip mostly across the arm make near one-dimensional (95 % point / median 1.96 / 0.67
+= 2.9 for a one-dimensional normal error); ``unsafe_moves`` (goals that a
 0.5 mm tolerance would have let move — bound within it — and that missed it) 0; ``mlp_fit_s``
 (the MLP ensemble on 40 samples, a learner's second and later fits) ≤ 2, beside
 ``mlp_first_fit_s`` (its first: torch imported and its optimisers' first use, once per
@@ -31,7 +36,7 @@ learner worker). ``scenarios``: per scenario goals,
 coverage, median bound and error, the largest error and what it stated there, ``refused``.
 
     python benchmarks/uncertainty.py [--targets 15] [--samples 40] [--seeds 1] [--json]
-    python benchmarks/uncertainty.py --smoke --json      (a few seconds: two scenarios)
+    python benchmarks/uncertainty.py --smoke --json      (~20 s: two scenarios, small)
 """
 from __future__ import annotations
 
@@ -136,6 +141,8 @@ def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
     declared = carried if scenario.get('declared', True) else 0.0
     model = AtPayload(predictor, declared)
     site = SiteErrors.from_dict(c['compensator']['error_bound'])
+    servos = SiteErrors(np.asarray(c['error_sources']['repeatability']['sigma']), (0.0, 0.0),
+                        (0.0, 0.0))      # the simulated servos' true errors, nothing else
     goals, refused, out_of_reach = [], 0, 0
     for target in random_targets(rig.geometry, region, targets, TARGET_SEED + 10 * seed
                                  + region_index):
@@ -145,21 +152,21 @@ def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
             out_of_reach += 1
             continue
         planned = plan_goal(rig.compensator, Mode.PREDICTIVE, target, model, rig.limits,
-                            allow_extrapolation=True, trained_payloads=sorted(set(payloads)),
-                            site=site)
+                            trained_payloads=sorted(set(payloads)), site=site)
         if not isinstance(planned, Planned):
             refused += 1
             continue
         rig.motion.move_to(planned.plan.joints)
         position, angle = pose_error(target, rig.arm.truth())
-        goals.append((position, angle, *planned.bound))
+        goals.append((position, angle, *planned.bound, servos.at(rig.geometry,
+                                                                 planned.plan.joints)[0]))
     return {'name': name, 'region': region_name, 'seed': seed, 'samples': len(collected),
             'goals': goals, 'refused': refused, 'out_of_reach': out_of_reach,
             'wall_s': time.perf_counter() - started}
 
 
 def scenario_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
-    goals = np.array([g for r in rows for g in r['goals']]).reshape(-1, 4)
+    goals = np.array([g for r in rows for g in r['goals']]).reshape(-1, 5)
     error, bound = goals[:, 0], goals[:, 2]
     worst = int(np.argmax(error)) if len(goals) else 0
     return {'goals': len(goals), 'refused': sum(r['refused'] for r in rows),
@@ -172,6 +179,8 @@ def scenario_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
             'max_error_mm': 1e3 * float(error[worst]) if len(goals) else math.nan,
             'bound_at_max_mm': 1e3 * float(bound[worst]) if len(goals) else math.nan,
             'unsafe_moves': int(np.sum((bound <= TOLERANCE) & (error > TOLERANCE))),
+            'median_servo_bound_mm': 1e3 * float(np.median(goals[:, 4])) if len(goals)
+            else math.nan,
             'wall_s': round(sum(r['wall_s'] for r in rows), 1)}
 
 
@@ -204,11 +213,12 @@ def main() -> None:
     parser.add_argument('--only', help='comma-separated scenarios (default: every one)')
     parser.add_argument('--workers', type=int, default=2)
     parser.add_argument('--smoke', action='store_true',
-                        help=f'{", ".join(SMOKE)}; 3 targets, 12 samples, region A')
+                        help=f'{", ".join(SMOKE)}; 3 targets, 12 samples, region A, greybox')
     parser.add_argument('--json', action='store_true', help='print one JSON object last')
     args = parser.parse_args()
     if args.smoke:
         args.only, args.targets, args.samples, args.regions = ','.join(SMOKE), 3, 12, 'A'
+        args.kind, args.workers = 'greybox', 1
     names = args.only.split(',') if args.only else list(SCENARIOS)
     unknown = sorted(set(names) - set(SCENARIOS))
     if unknown:
@@ -235,14 +245,17 @@ def main() -> None:
         'coverage_min': min((s['coverage'] for s in judged.values()), default=math.nan),
         'sharpness': (nominal['median_bound_mm'] / nominal['median_error_mm']
                       if nominal else math.nan),
+        'sharpness_floor': (nominal['median_servo_bound_mm'] / nominal['median_error_mm']
+                            if nominal else math.nan),
         'unsafe_moves': sum(s['unsafe_moves'] for s in judged.values()),
         **dict(zip(('mlp_first_fit_s', 'mlp_fit_s'),
-                   (round(t, 3) for t in mlp_fit_s(args.samples if not args.smoke else 40)))),
+                   (round(t, 3) for t in mlp_fit_s(args.samples)))),
         'drift': scenarios.get('drift'), 'scenarios': scenarios,
         'targets_per_region': args.targets, 'samples': args.samples, 'seeds': args.seeds,
         'regions': regions}
     print(f"coverage {out['coverage']:.3f} (worst scenario {out['coverage_min']:.3f}), "
-          f"sharpness {out['sharpness']:.2f}, unsafe moves {out['unsafe_moves']}, "
+          f"sharpness {out['sharpness']:.2f} (floor {out['sharpness_floor']:.2f}), "
+          f"unsafe moves {out['unsafe_moves']}, "
           f"MLP ensemble fit {out['mlp_fit_s']:.2f} s (the first {out['mlp_first_fit_s']:.2f} s)")
     if args.json:
         print(json.dumps(out))

@@ -78,6 +78,10 @@ OFFLINE = [
           ('residual_mm_p95', 'settle_s_p95', 'settle_s_p95_off'), seconds=6),
     Smoke('training', ('--samples', '12', '--repeats', '1', '--kinds', 'kinematic,gp'),
           ('samples', 'kinematic', 'gp'), ('kinematic.fit_s', 'gp.fit_s')),
+    Smoke('uncertainty', ('--smoke',),
+          ('coverage', 'coverage_min', 'sharpness', 'unsafe_moves', 'mlp_fit_s', 'scenarios'),
+          ('coverage', 'sharpness', 'mlp_fit_s', 'scenarios.nominal.median_bound_mm'),
+          seconds=20),
     Smoke('compensation', ('--kind', 'kinematic', '--targets', 'A1', '--samples', '12'),
           ('kind', 'rows', 'predictive_max_ms'), ('predictive_max_ms',)),
     # The README's headline figures as last measured, checked (measuring them takes minutes)

@@ -59,6 +59,9 @@ MOVE_HINTS = {
     'OUTSIDE_LEARNED_DATA': 'collect samples around this target and train again, or pass '
                             '--allow-extrapolation to run it with a warning',
     'ARM_BUSY': ARM_BUSY_HINT,
+    'BOUND_EXCEEDS_TOLERANCE': 'use --mode auto or closed_loop (they measure and correct), '
+                               'collect samples where the reason says, or pass '
+                               '--allow-extrapolation to move anyway',
 }
 COLLECT_HINTS = {
     'INVALID_GOAL': 'check the count, --region, --strategy and --dataset (flexarm collect -h)',

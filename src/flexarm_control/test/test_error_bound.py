@@ -5,7 +5,12 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.learning.error_bound import BoundCalibration, calibrate, split
+from flexarm_control.learning.error_bound import (
+    BoundCalibration,
+    calibrate,
+    conformal_exists,
+    split,
+)
 
 
 def held_out(n: int, true_std: float, stated_std: float, seed: int = 0):
@@ -67,3 +72,16 @@ def test_the_calibration_round_trips_and_refuses_what_it_cannot_use():
     assert BoundCalibration.from_dict(calibration.as_dict()) == calibration
     with pytest.raises(ValueError, match='at least 2 samples'):
         calibrate(np.zeros((1, 3)), np.zeros((1, 3)))
+
+
+def test_below_19_held_out_samples_the_plain_bound_is_a_floor():
+    """There no 95 % conformal quantile exists, and a model's std of a small fit is unsteady:
+    the residuals' own 95 % point holds the bound up where the scaled std falls short."""
+    assert not conformal_exists(18) and conformal_exists(19)
+    residuals, std = held_out(10, 1e-4, 1e-4)
+    few = calibrate(residuals, std)
+    assert few.position_plain > 1e-4 and few.angle_plain > 1e-4
+    tiny_std = np.full((3, 3), 1e-9)
+    assert np.all(few.bound(tiny_std)[:, 0] >= few.position_plain)
+    many = calibrate(*held_out(40, 1e-4, 1e-4))
+    assert many.position_plain == many.angle_plain == 0.0

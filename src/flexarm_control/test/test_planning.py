@@ -161,7 +161,7 @@ def test_the_greybox_trained_at_0_kg_reaches_a_goal_at_5_kg(world, at_0_kg, targ
     assert np.hypot(*(reached - target.pose)[:2]) < 0.5e-3
 
 
-SITE = SiteErrors(np.array([2.9e-5, 5e-6, 2.9e-5, 2.9e-5]), (2e-5, 3.5e-5), (5e-6, 1.3e-5))
+SITE = SiteErrors(np.array([2.9e-5, 5e-6, 2.9e-5, 2.9e-5]), (2e-5, 3.5e-5), (5e-6, 1.3e-5), 1.2e-5)
 TOLERANCE = (5e-4, 1e-2)
 
 
@@ -220,3 +220,14 @@ def test_auto_runs_predictive_within_the_tolerance_and_closed_loop_beyond_it(wor
     assert alone.mode == Mode.CLOSED_LOOP and 'no trained predictor' in alone.note
     with pytest.raises(ValueError, match='AUTO needs'):
         plan_goal(compensator, 'auto', TARGET, model(plant), LIMITS)
+
+
+def test_a_model_run_at_a_payload_it_cannot_predict_at_states_no_bound(world):
+    compensator, plant = world
+    blind = SimpleNamespace(**vars(model(plant)), payload=5.0, carried=False)
+    planned = plan_goal(compensator, 'predictive', TARGET, blind, LIMITS, True,
+                        trained_payloads=[0.0], site=SITE)
+    assert isinstance(planned, Planned) and all(math.isnan(b) for b in planned.bound)
+    closed = plan_goal(compensator, 'closed_loop', TARGET, blind, LIMITS, trained_payloads=[0.0],
+                       site=SITE, tolerance=TOLERANCE)
+    assert closed.bound[0] < 6e-4

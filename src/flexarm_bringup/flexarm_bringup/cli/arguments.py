@@ -141,19 +141,22 @@ def _move_arguments(p: argparse.ArgumentParser) -> None:
                    default='predictive',
                    help='rigid: rigid inverse kinematics; predictive: compensate the learned '
                         'deflection (needs a model); closed_loop: predictive (rigid without a '
-                        'model), then corrected from the measured tip')
+                        'model), then corrected from the measured tip; auto: predictive where '
+                        'the plan\'s 95 %% error bound is within the tolerance, else '
+                        'closed_loop')
     p.add_argument('--position-tolerance', type=_non_negative, default=0.0, metavar='MM',
-                   help='[mm] CLOSED_LOOP corrects until within it (0: the compensator\'s '
-                        'default); RIGID/PREDICTIVE: if given, the measured error must be '
-                        'within it, else TOLERANCE_NOT_MET')
+                   help='[mm] CLOSED_LOOP and AUTO correct until within it (0: the '
+                        'compensator\'s default); RIGID/PREDICTIVE: if given, refused before '
+                        'moving when the plan\'s 95 %% error bound exceeds it, else the '
+                        'measured error must be within it (TOLERANCE_NOT_MET)')
     p.add_argument('--angle-tolerance', type=_non_negative, default=0.0, metavar='DEG',
                    help='[deg] as --position-tolerance, for the tool angle')
     p.add_argument('--max-corrections', type=_natural, default=0, metavar='N',
                    help='CLOSED_LOOP only: corrective moves after the first (0: the '
                         'compensator\'s default)')
     p.add_argument('--allow-extrapolation', action='store_true',
-                   help='run a PREDICTIVE goal beyond the learned data (with a warning) '
-                        'instead of refusing it')
+                   help='run a PREDICTIVE goal beyond the learned data, or whose error bound '
+                        'exceeds its tolerance (with a warning), instead of refusing it')
     p.add_argument('--trial', default='', help='trial name for logs and bags')
     p.add_argument('--dry-run', action='store_true',
                    help='only plan: print the commanded pose, joints, predicted deflection, '

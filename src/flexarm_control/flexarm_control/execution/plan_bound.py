@@ -3,14 +3,16 @@
 * PREDICTIVE: the model's own bound at the joints to command and the payload carried
   (:meth:`~flexarm_control.learning.predictors.Predictor.error_bound`: its raw std scaled on
   held-out samples, with the masses' prior where the samples had one payload), and what no
-  model sees (:class:`SiteErrors`): the servos' repeatability carried to the tip through the
-  arm's Jacobian there (the 95 % radius of that tip error's own ellipse: the joints' errors
-  move the tip mostly across the arm, near one-dimensional, where 1.96 σ holds rather than a
-  round error's 2.45 σ per axis), and what the tool calibration leaves of the camera's own
-  error (the
-  learner learns the camera's pose; a camera error the calibration did not remove is in every
-  sample and no held-out sample shows it). The camera's noise is in the held-out residuals
-  already. Each at its own 95 % point, summed in quadrature (independent sources).
+  model sees (:class:`SiteErrors`): the arm's thermal growth since its samples were taken
+  (the held-out samples are of one time; the model health mends a growth that shows), what
+  the tool calibration leaves of the camera's own error (the learner learns the camera's pose;
+  a camera error the calibration did not remove is in every sample and no held-out sample
+  shows it), and the servos' positioning error where /joint_states does not show it, carried
+  to the tip through the arm's Jacobian (the 95 % radius of that tip error's own ellipse: the
+  joints' errors move the tip mostly across the arm, near one-dimensional, where 1.96 σ holds
+  rather than a round error's 2.45 σ per axis). The camera's noise, and the servos' error
+  where /joint_states reports the commanded position, are in the held-out residuals already.
+  Each at its own 95 % point, summed in quadrature (independent sources).
 * CLOSED_LOOP: the goal ends when the measured tip is within its tolerance, so the true tip
   is within the tolerance plus the camera's 95 % error (one measurement's noise and the tool
   residual) — whatever the model.
@@ -46,31 +48,35 @@ class SiteErrors:
     """What no learned model sees, one standard deviation, as a site states it
     (config/compensator.yaml ``error_bound``)."""
 
-    joint_repeatability: np.ndarray       # (4,) [rad, m, rad, rad]: the servos' data sheet
+    joint_repeatability: np.ndarray       # (4,) [rad, m, rad, rad] that /joint_states hides
     tool_residual: tuple[float, float]    # [m, rad] what the tool calibration leaves
     camera_noise: tuple[float, float]     # [m, rad] of one measured tip pose
+    thermal_strain: float = 0.0           # [-] the arm's length change since its samples
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> SiteErrors:
         errors = cls(np.asarray(d['joint_repeatability'], dtype=float),
                      tuple(float(v) for v in d['tool_residual']),
-                     tuple(float(v) for v in d['camera_noise']))
+                     tuple(float(v) for v in d['camera_noise']), float(d['thermal_strain']))
         if (errors.joint_repeatability.shape != (4,) or len(errors.tool_residual) != 2
                 or len(errors.camera_noise) != 2 or min(*errors.joint_repeatability,
                                                         *errors.tool_residual,
-                                                        *errors.camera_noise) < 0):
+                                                        *errors.camera_noise,
+                                                        errors.thermal_strain) < 0):
             raise ValueError(f'error_bound: joint_repeatability needs 4 values, tool_residual '
-                             f'and camera_noise 2, all >= 0; got {errors}')
+                             f'and camera_noise 2, thermal_strain 1, all >= 0; got {errors}')
         return errors
 
     def at(self, geometry: ArmGeometry, joints: np.ndarray) -> np.ndarray:
-        """95 % [m, rad] of what the servos and the tool calibration add at ``joints``."""
+        """95 % [m, rad] of what the servos, the arm's growth and the tool calibration add at
+        ``joints`` (the growth is about joint1, along the line to the tip)."""
         jacobian = np.column_stack([
             (forward(geometry, joints + step) - forward(geometry, joints - step)) / (2 * _STEP)
             for step in np.eye(4) * _STEP])
         covariance = jacobian @ np.diag(self.joint_repeatability ** 2) @ jacobian.T
         servo = (radius_95(covariance[:2, :2]), Z_ANGLE * math.sqrt(covariance[2, 2]))
-        return np.hypot(servo, Z_ANGLE * np.asarray(self.tool_residual))
+        growth = Z_ANGLE * self.thermal_strain * float(np.hypot(*forward(geometry, joints)[:2]))
+        return np.hypot(np.hypot(servo, (growth, 0.0)), Z_ANGLE * np.asarray(self.tool_residual))
 
     def closed_loop(self, tolerance: tuple[float, float]) -> np.ndarray:
         """95 % [m, rad] of a CLOSED_LOOP goal's true error that ends within ``tolerance``."""

@@ -26,7 +26,8 @@ goal runs, and when the model is not trusted.
   (:attr:`Planned.mode` says which, :attr:`Planned.note` why).
 
 Every plan states the 95 % bound of the goal's true error before anything moves
-(:attr:`Planned.bound`, :mod:`.plan_bound`). A PREDICTIVE goal with a tolerance its bound
+(:attr:`Planned.bound`, :mod:`.plan_bound`); NaN (none) for a model run at a payload it cannot
+predict at (:func:`payload_beyond`, extrapolation allowed). A PREDICTIVE goal with a tolerance its bound
 exceeds is refused (``BOUND_EXCEEDS_TOLERANCE``) with the bound and what would help, unless it
 allows extrapolation: moving to learn it missed is what the bound is there to prevent.
 
@@ -119,8 +120,9 @@ def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
                     trained_payloads)
     if isinstance(planned, Refusal):
         return planned
-    planned = replace(planned, mode=mode,
-                      bound=_bound(compensator, mode, planned, predictor, site, tolerance))
+    blind = predictor is not None and bool(payload_beyond(predictor, trained_payloads))
+    planned = replace(planned, mode=mode, bound=(math.nan, math.nan) if blind and mode != (
+        Mode.CLOSED_LOOP) else _bound(compensator, mode, planned, predictor, site, tolerance))
     if (mode == Mode.PREDICTIVE and not allow_extrapolation and max(tolerance) > 0
             and not all(b <= t for b, t in zip(planned.bound, tolerance) if t > 0)):
         if any(math.isnan(b) for b in planned.bound):

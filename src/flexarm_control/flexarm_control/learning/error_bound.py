@@ -19,8 +19,15 @@ limit (χ² with one degree per score and component), so a few lucky folds do no
 the next goal breaks.
 
 The raw std is floored at ``FLOOR_SHARE`` of its median over the held-out samples: a kind
-whose raw std is zero (RBF) gets a constant bound (plain split-conformal), and a point where
-a posterior is near zero does not get a near-zero bound.
+whose raw std is zero (RBF) gets a constant bound, and a point where a posterior is near zero
+does not get a near-zero bound. Below 19 held-out samples, where no 95 % conformal quantile
+exists and the scale rests on the scores' RMS alone, the bound is at least the plain one too:
+the same rule on the residuals themselves (split-conformal without the raw std). There a
+model's own std is as unsteady as its fit — the grey-box's 21 parameters on the 8 samples of a
+fold leave 3 degrees of freedom to its variance — and with 10 samples the scaled bound alone
+covered 70 % of the goals, with the plain one 97 % (benchmarks/uncertainty.py ``samples_10``).
+With more samples the plain bound, set by the held-out samples at the region's edges, would
+only widen the bound inside it.
 
 What no held-out sample shows is added in quadrature at its own 95 % point:
 :meth:`~flexarm_control.learning.predictors.Predictor.prior_std` (the grey-box's payload term,
@@ -60,12 +67,15 @@ class BoundCalibration:
     held_out: int             # samples it was calibrated on
     coverage: float           # of the position bound, on held-out halves (module docstring)
     angle_coverage: float
+    position_plain: float = 0.0   # [m] the plain bound: the residuals' own 95 % point
+    angle_plain: float = 0.0      # [rad]
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> BoundCalibration:
         return cls(*(float(d[name]) for name in (
             'position_scale', 'angle_scale', 'position_floor', 'angle_floor')),
-            int(d['held_out']), float(d['coverage']), float(d['angle_coverage']))
+            int(d['held_out']), float(d['coverage']), float(d['angle_coverage']),
+            float(d.get('position_plain', 0.0)), float(d.get('angle_plain', 0.0)))
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
@@ -74,8 +84,9 @@ class BoundCalibration:
         """95 % bounds (..., 2) [m, rad] from raw stds (..., 3) [m, m, rad] and the prior's
         stds (..., 3) of what the held-out samples did not show."""
         position, angle = split(std)
-        bound = np.stack([self.position_scale * np.maximum(position, self.position_floor),
-                          self.angle_scale * np.maximum(angle, self.angle_floor)], axis=-1)
+        bound = np.stack([np.maximum(self.position_scale * np.maximum(
+            position, self.position_floor), self.position_plain), np.maximum(
+            self.angle_scale * np.maximum(angle, self.angle_floor), self.angle_plain)], axis=-1)
         if prior is None:
             return bound
         prior_position, prior_angle = split(prior)
@@ -87,6 +98,11 @@ def split(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Position (hypot of x and y) and |angle| of (..., 3) [m, m, rad]."""
     values = np.asarray(values, dtype=float)
     return np.hypot(values[..., 0], values[..., 1]), np.abs(values[..., 2])
+
+
+def conformal_exists(n: int) -> bool:
+    """Whether ``n`` held-out samples have a 95 % conformal quantile (n >= 19)."""
+    return math.ceil((n + 1) * LEVEL) <= n
 
 
 def conformal_rank(n: int) -> int:
@@ -112,10 +128,12 @@ def scale(scores: np.ndarray, components: int) -> float:
 
 
 def _scales(residuals: np.ndarray, std: np.ndarray, floors: tuple[float, float]
-            ) -> tuple[float, float]:
+            ) -> tuple[float, float, float, float]:
+    """The scales of the raw std (position, angle), then the plain bounds [m, rad]."""
     (error_p, error_a), (std_p, std_a) = split(residuals), split(std)
     return (scale(error_p / np.maximum(std_p, floors[0]), 2),
-            scale(error_a / np.maximum(std_a, floors[1]), 1))
+            scale(error_a / np.maximum(std_a, floors[1]), 1),
+            scale(error_p, 2), scale(error_a, 1))
 
 
 def calibrate(residuals: np.ndarray, std: np.ndarray, groups: np.ndarray | None = None
@@ -129,9 +147,12 @@ def calibrate(residuals: np.ndarray, std: np.ndarray, groups: np.ndarray | None 
                          f'{residuals.shape} and {std.shape}')
     floors = tuple(max(FLOOR_SHARE * float(np.median(part)), tiny)
                    for part, tiny in zip(split(std), TINY))
-    position, angle = _scales(residuals, std, floors)
+    position, angle, position_plain, angle_plain = _scales(residuals, std, floors)
+    if conformal_exists(len(residuals)):
+        position_plain = angle_plain = 0.0
     return BoundCalibration(position, angle, *floors, len(residuals),
-                            *_coverage(residuals, std, floors, groups))
+                            *_coverage(residuals, std, floors, groups), position_plain,
+                            angle_plain)
 
 
 def _coverage(residuals: np.ndarray, std: np.ndarray, floors: tuple[float, float],
@@ -145,8 +166,12 @@ def _coverage(residuals: np.ndarray, std: np.ndarray, floors: tuple[float, float
     half = np.isin(groups, np.random.default_rng(0).permutation(distinct)[:len(distinct) // 2])
     within = []
     for fit, check in ((half, ~half), (~half, half)):
-        calibration = BoundCalibration(*_scales(residuals[fit], std[fit], floors), *floors,
-                                       int(fit.sum()), math.nan, math.nan)
+        position, angle, position_plain, angle_plain = _scales(residuals[fit], std[fit],
+                                                               floors)
+        if conformal_exists(len(residuals)):
+            position_plain = angle_plain = 0.0
+        calibration = BoundCalibration(position, angle, *floors, int(fit.sum()), math.nan,
+                                       math.nan, position_plain, angle_plain)
         within.append(np.stack(split(residuals[check]), axis=-1)
                       <= calibration.bound(std[check]))
     position, angle = np.concatenate(within).mean(axis=0)

@@ -71,7 +71,7 @@ PROGRESS_PERIOD = 2.0           # [s] between reports of messages read
 CSV_FIELDS = (
     'trial', 'kind', 'mode', 'mode_name', 'error_code', 'error_name', 'succeeded', 'reason',
     'model_version', 'iterations', 'stamp_s', 'data_distance', 'prediction_std_mm',
-    'target_x_mm', 'target_y_mm', 'target_phi_deg',
+    'position_error_bound_mm', 'angle_error_bound_deg', 'mode_run', 'target_x_mm', 'target_y_mm', 'target_phi_deg',
     'measured', 'measured_x_mm', 'measured_y_mm', 'measured_phi_deg',
     'measured_position_error_mm', 'measured_angle_error_deg',
     'truth_x_mm', 'truth_y_mm', 'truth_phi_deg',
@@ -330,6 +330,11 @@ def trial_rows(outcomes: Sequence[Any], truths: Sequence[Any], prefix: str
             'stamp_s': stamp * 1e-9,
             'data_distance': outcome.data_distance,
             'prediction_std_mm': outcome.prediction_std * 1e3,
+            'position_error_bound_mm': getattr(outcome, 'position_error_bound',   # older bags
+                                               math.nan) * 1e3,
+            'angle_error_bound_deg': math.degrees(getattr(outcome, 'angle_error_bound',
+                                                          math.nan)),
+            'mode_run': MODE_NAMES.get(getattr(outcome, 'mode_run', outcome.mode), ''),
             **_pose_mm_deg('target', target),
             'measured': outcome.measured,
         }

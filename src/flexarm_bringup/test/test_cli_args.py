@@ -9,11 +9,12 @@ import json
 import signal
 import sys
 import time
+from importlib import metadata
 from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.cli import main
+from flexarm_bringup.cli import arguments, main
 from flexarm_bringup.outcome_text import Exit
 
 pytestmark = pytest.mark.duration(13)
@@ -76,14 +77,35 @@ def test_a_refusal_before_connecting_ends_the_json_output_too(domain_id, capsys)
     assert 'unknown region "Z"' in result['outcome'] and 'unknown region' in captured.err
 
 
+def test_a_usage_error_ends_the_json_output_too(capsys):
+    """argparse's own refusals (a missing argument, a value of the wrong type) included."""
+    for argv, says in ((['move', '1', '--json'], 'the following arguments are required: y'),
+                       (['--json', 'move', '1', '2', 'x'], "argument phi: must be")):
+        assert main(argv) == Exit.USAGE
+        captured = capsys.readouterr()
+        result = json.loads(captured.out.splitlines()[-1])
+        assert result == {'ok': False, 'error_string': result['outcome'],
+                          'outcome': result['outcome'], 'exit_code': 2}
+        assert says in result['outcome'] and says in captured.err and 'usage:' in captured.err
+    assert main(['move', '1']) == Exit.USAGE and not capsys.readouterr().out
+
+
+def test_version_says_which_flexarm_this_is(capsys):
+    with pytest.raises(SystemExit):
+        arguments.build_parser().parse_args(['--version'])
+    assert capsys.readouterr().out.strip() == f'flexarm {metadata.version("flexarm-bringup")}'
+    assert main(['--version']) == 0
+
+
 def test_help_shows_defaults_and_what_each_option_governs(capsys):
     assert main(['move', '--help']) == 0
     out = ' '.join(capsys.readouterr().out.split())     # unwrapped
     for default in ('predictive', '300.0', '30.0', '0.0', '0'):
         assert f'(default: {default})' in out
-    assert ('CLOSED_LOOP corrects until within it (0: the compensator\'s default); '
-            'RIGID/PREDICTIVE: if given, the measured error must be within it, else '
-            'TOLERANCE_NOT_MET') in out
+    assert ('CLOSED_LOOP and AUTO correct until within it (0: the compensator\'s default); '
+            'RIGID/PREDICTIVE: if given, refused before moving when the plan\'s 95 % error '
+            'bound exceeds it, else the measured error must be within it (TOLERANCE_NOT_MET)'
+            ) in out
     assert '--max-corrections N CLOSED_LOOP only: corrective moves after the first' in out
     assert main(['--help']) == 0
     out = capsys.readouterr().out

@@ -4,7 +4,8 @@ Humans type millimetres and degrees and read them back (every printed pose carri
 everything below the CLI is SI, and so is the ``--json`` result. Every outcome is said in
 words: results on stdout, anything else (refused, failed, busy, timeout, interrupted) on
 stderr as ``flexarm COMMAND: …``; ``--json`` ends stdout with one line of JSON holding the
-result and its ``exit_code``. Arguments are checked before anything connects. Whatever takes
+result and its ``exit_code`` (a usage error too). Arguments are checked before anything
+connects; ``--version`` says which flexarm this is. Whatever takes
 more than a moment shows progress on stderr (bars, waiting lines, goal feedback) unless
 ``--quiet`` or ``--json``. The graph must be running (``flexarm up``) for move/collect/train,
 in the same ROS_DOMAIN_ID. DDS stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST,
@@ -38,7 +39,7 @@ from collections.abc import Sequence
 from typing import Any
 
 from flexarm_bringup import transport
-from flexarm_bringup.cli.arguments import SUBCOMMANDS, build_parser
+from flexarm_bringup.cli.arguments import SUBCOMMANDS, UsageError, build_parser
 from flexarm_bringup.cli.common import Outcome
 from flexarm_bringup.cli.graph import _interrupt
 from flexarm_bringup.outcome_text import Exit
@@ -63,10 +64,18 @@ def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:
 
 
 def main(argv: Sequence[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = build_parser().parse_args(argv)
-    except SystemExit as exc:        # --help (0), or a usage error argparse has printed (2)
+    except SystemExit as exc:        # --help or --version (0)
         return int(exc.code or 0)
+    except UsageError as exc:
+        print(exc, file=sys.stderr, flush=True)
+        if '--json' in argv:
+            message = str(exc).splitlines()[-1]
+            print(json.dumps({'ok': False, 'error_string': message, 'outcome': message,
+                              'exit_code': int(Exit.USAGE)}))
+        return int(Exit.USAGE)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     transport.apply(os.environ)    # before any participant: Fast DDS reads its profile once
     # SIGTERM stops a command like Ctrl-C does: a running goal is cancelled and a graph it

@@ -6,6 +6,7 @@ import argparse
 import json
 import math
 import textwrap
+from importlib import metadata
 from collections.abc import Callable
 from typing import Any
 
@@ -32,6 +33,19 @@ UINT32_MAX = 2 ** 32 - 1
 
 
 MAX_DOMAIN_ID = 232       # the largest ROS_DOMAIN_ID whose DDS ports exist
+
+
+class UsageError(Exception):
+    """A usage error, said as argparse says it (``prog: error: …``), for the caller to print
+    and, under ``--json``, to end stdout with."""
+
+
+class _Parser(argparse.ArgumentParser):
+    """argparse's parser, but a usage error is raised, not printed and exited on: ``--json``
+    must end stdout with a JSON line then too."""
+
+    def error(self, message: str) -> None:      # type: ignore[override]
+        raise UsageError(f'{self.format_usage()}{self.prog}: error: {message}')
 
 
 class _HelpFormatter(argparse.ArgumentDefaultsHelpFormatter,
@@ -342,10 +356,12 @@ def build_parser() -> argparse.ArgumentParser:
     epilog = 'exit codes:\n' + '\n'.join(
         textwrap.fill(text, 79, initial_indent=f'  {int(code):>3}  ', subsequent_indent=' ' * 7)
         for code, text in EXIT_MEANINGS.items())
-    parser = argparse.ArgumentParser(prog='flexarm', description=DESCRIPTION,
-                                     epilog=epilog, formatter_class=_HelpFormatter)
+    parser = _Parser(prog='flexarm', description=DESCRIPTION, epilog=epilog,
+                     formatter_class=_HelpFormatter)
+    parser.add_argument('--version', action='version',
+                        version=f'flexarm {metadata.version("flexarm-bringup")}')
     _output_options(parser, False)
-    output = argparse.ArgumentParser(add_help=False)
+    output = _Parser(add_help=False)
     _output_options(output, argparse.SUPPRESS)     # after the subcommand: only when given
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
     for name, (run, arguments, graph) in SUBCOMMANDS.items():

@@ -35,7 +35,11 @@ nothing executable in it). Entry ``metadata`` is a JSON string::
      "normalisation": {"input_mean": [...], "input_std": [...], "active_inputs": [...],
                        "output_mean": [3], "output_std": [3]},
      "dataset_hash": "sha256 hex or empty", "metrics": {...} or null,
-     "support_spacing": 0.42}
+     "support_spacing": 0.42, "error_bound": {...}}
+
+(``error_bound``: the held-out calibration of :meth:`Predictor.error_bound`, set by the
+learner's training, :mod:`flexarm_control.learning.error_bound`; absent for a model fitted
+outside it, whose bound is then unknown)
 
 entry ``support`` holds the normalised training inputs, and the kind's arrays are entries
 ``<kind>.<name>`` (MLP: its weights; RBF: the normalised

@@ -42,6 +42,14 @@ compliance per element averages the plant's two of Table 5, which the payload th
 extrapolates (without noise, 20 samples: 0.05 mm at 0 kg, 0.22 mm at 5 kg in region B,
 0.003 mm in A).
 
+Uncertainty (:meth:`GreyboxPredictor.deflection_std`, :meth:`GreyboxPredictor.prior_std`): the
+identified parameters' Gauss-Newton covariance carried to the prediction, with the residual
+GP's posterior; and, from samples at a single payload, what they cannot tell — the
+compliances took up the nominal masses' error with them, so a payload's change is off by the
+parts' moments' relative spread under the inertia prior (config/arm.yaml
+``arm.inertia_uncertainty``; :func:`~flexarm_control.learning.gravity_moments.moment_spread`),
+element by element. Samples at two payloads tell the two apart: no prior term then.
+
 The masses and geometry used are kept in the metadata (``greybox.arm``) with the identified
 compliances: a saved model is self-contained. A model saved before the moments took the
 samples' payload without ``payload_input`` (no ``greybox.trained_payload``) identified its

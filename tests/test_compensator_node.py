@@ -28,8 +28,8 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
-from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import sample_poses
+from flexarm_control.learning.training import fit_robust
 from flexarm_control.ros.client import FlexarmClient, GoalFailed
 from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import liveness, topics
@@ -77,7 +77,8 @@ def model_path(tmp_path_factory):
         'regions'])['B']
     _, joints = sample_poses(geometry, region, 60)
     path = tmp_path_factory.mktemp('model') / 'b.model'
-    make_predictor('gp').fit(joints, plant.deflection(joints)).save(path)
+    # trained as the learner trains (its held-out calibration: an error bound), the RBF kernel
+    fit_robust('gp', {'kernel': 'rbf'}, joints, plant.deflection(joints))[0].save(path)
     return path
 
 
@@ -265,8 +266,13 @@ def test_provenance_tolerances_and_dry_run(graph):
     spin_for(client, 1.0)
     np.testing.assert_array_equal(joints['q'], before)            # nothing moved
     versions = []
-    # the floor (what the camera tells apart, 0.02 mm): this plan misses by some 0.04 mm
+    # the floor (what the camera tells apart, 0.02 mm): this plan's bound exceeds it, and it
+    # misses by some 0.04 mm when it moves anyway
+    refused = client.move_to(*TARGET, mode='predictive', position_tolerance=2e-5, timeout=60)
+    assert refused.error_code == Result.BOUND_EXCEEDS_TOLERANCE, refused.error_string
+    assert refused.iterations == 0 and refused.position_error_bound > 2e-5
     strict = client.move_to(*TARGET, mode='predictive', position_tolerance=2e-5, timeout=120,
+                            allow_extrapolation=True,
                             feedback=lambda fb: versions.append(fb.model_version))
     assert strict.error_code == Result.TOLERANCE_NOT_MET, strict.error_string
     assert strict.measured and 'beyond the tolerance' in strict.error_string
@@ -276,8 +282,10 @@ def test_provenance_tolerances_and_dry_run(graph):
     assert loose.error_code == Result.SUCCESSFUL, loose.error_string
     rigid = client.move_to(*TARGET, mode='rigid', position_tolerance=1e-3, timeout=120)
     assert rigid.error_code == Result.TOLERANCE_NOT_MET and rigid.model_version == ''
-    spin_until(client, lambda: len(outcomes) >= 4, 10.0, 'four outcomes')
-    assert [o.model_version for o in outcomes] == [plan.model_version] * 3 + ['']
+    spin_until(client, lambda: len(outcomes) >= 5, 10.0, 'five outcomes')
+    assert [o.model_version for o in outcomes] == [plan.model_version, ''] + [
+        plan.model_version] * 2 + ['']
+    assert outcomes[2].position_error_bound == strict.position_error_bound > 0
 
 
 @pytest.mark.parametrize('target, code', [

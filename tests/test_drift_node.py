@@ -18,6 +18,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
+from flexarm_bringup.cli.learning import payload_bounds_note
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.learning.predictors import load_predictor
 from flexarm_control.ros.client import FlexarmClient
@@ -223,9 +224,9 @@ def test_a_goal_its_bound_exceeds_is_refused_before_moving_and_a_refresh_brings_
     train_on(client, name, 'greybox')
     light = plan(client)
     assert light.position_error_bound < 5e-4, light.position_error_bound
-    note = client.set_payload(5.0)
-    assert 'its 95 % position bounds grew' in note and 'flexarm refresh' in note, note
     heavy = plan_after(client, 5.0, light)
+    note = payload_bounds_note(client, 5.0)          # what `flexarm payload 5` says
+    assert 'its 95 % position bounds grew' in note and 'flexarm refresh' in note, note
     assert heavy.position_error_bound > 5e-4, heavy.position_error_bound
     refused = client.move_to(*TARGET, mode='predictive', position_tolerance=5e-4, timeout=60)
     assert refused.error_code == Result.BOUND_EXCEEDS_TOLERANCE, refused.error_string

@@ -46,7 +46,7 @@ def test_the_testers_goal_is_refused_for_each_of_its_values():
 @pytest.mark.parametrize('kwargs, reason', [
     ({'target': (math.nan, 0.0, 0.0)}, 'non-finite target.x'),
     ({'angle': math.inf}, 'non-finite angle_tolerance'),
-    ({'mode': 3}, 'unknown mode 3'),
+    ({'mode': 4}, 'unknown mode 4'),
     ({'position': -1e-3}, 'position_tolerance must be >= 0'),
     ({'angle': 1e-6}, 'angle_tolerance 1e-06 rad is below 5e-05 rad'),
     ({'position': 0.5}, 'position_tolerance 0.5 m is beyond 0.1 m'),

@@ -3,6 +3,8 @@ from __future__ import annotations
 
 import argparse
 import math
+import os
+import time
 from pathlib import Path
 from typing import Any
 
@@ -141,11 +143,33 @@ def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
     note = ''
     with _session(args, learner=True) as client:
         if args.kg is not None:
-            note = client.set_payload(args.kg)
+            client.set_payload(args.kg)
+            note = payload_bounds_note(client, args.kg)
         kg = float(client.node_parameter(node_name('learner'), 'payload'))
     print(f'payload: {kg:g} kg' + (' (declared now)' if args.kg is not None else '')
           + (f'\n  {note}' if note else ''))
     return {'ok': True, 'payload_kg': kg, 'note': note}
+
+
+def payload_bounds_note(client: Any, kg: float, wait: float = 2.0) -> str:
+    """How the error bounds of the model the compensator uses grew at ``kg`` and what brings
+    them back (:mod:`flexarm_control.learning.payload_bounds`; '' at a trained payload, or
+    when this host cannot read the model's file)."""
+    from flexarm_control.learning.payload_bounds import bound_report
+    from flexarm_control.learning.predictors import load_predictor
+    from flexarm_core.kinematics import ArmGeometry
+    from flexarm_core.params import load_config
+    from flexarm_core.regions import configured_regions
+
+    deadline = time.monotonic() + wait          # the latched announcement, if not yet heard
+    while client.active_model is None and time.monotonic() < deadline:
+        client.spin_once(0.05)
+    info = client.active_model
+    if info is None or not os.path.isfile(info.path):
+        return ''
+    return bound_report(load_predictor(info.path), configured_regions(node_name('learner')),
+                        ArmGeometry.from_dict(load_config('arm.yaml')['arm']),
+                        list(info.payloads), kg)
 
 
 def cmd_train(args: argparse.Namespace) -> dict[str, Any]:

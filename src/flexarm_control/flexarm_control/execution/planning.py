@@ -73,6 +73,7 @@ class Planned:
 class Refusal:
     code: str              # 'no_model', 'unreachable', 'outside_learned_data', 'bound'
     reason: str
+    bound: tuple[float, float] = (math.nan, math.nan)   # [m, rad] the plan's ('bound')
 
 
 def beyond_data(predictor: Predictor, joints: np.ndarray, limits: DataLimits
@@ -130,7 +131,8 @@ def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
                                     "the learner's held-out calibration): train it again, or "
                                     'run CLOSED_LOOP or AUTO')
         return Refusal('bound', f"the plan's 95 % error bound, {_text(planned.bound)}, exceeds "
-                                f'the tolerance {_text(tolerance)}{_help(predictor, planned)}')
+                                f'the tolerance {_text(tolerance)}{_help(predictor, planned)}',
+                       planned.bound)
     return planned
 
 

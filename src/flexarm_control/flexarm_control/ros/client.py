@@ -376,11 +376,10 @@ class FlexarmClient(Node):
         goal = RefreshModel.Goal(count=int(count), region=region, force=force)
         return GoalRun(self, self._refresh, goal, timeout, feedback).result()
 
-    def set_payload(self, kg: float, timeout: float = 10.0) -> str:
+    def set_payload(self, kg: float, timeout: float = 10.0) -> None:
         """Declare the payload [kg] the arm carries now (the learner's ``payload``, published
-        on /payload for the compensator and the simulator); the learner's word on it (how the
-        model's error bounds grew there, '' if nothing changed)."""
-        return self.set_node_parameter(self._learner_node, 'payload', float(kg), timeout)
+        on /payload for the compensator and the simulator)."""
+        self.set_node_parameter(self._learner_node, 'payload', float(kg), timeout)
 
     def train(self, kind: str = '', settings: Mapping[str, Any] | None = None,
               dataset: str = '', timeout: float = 120.0) -> Train.Response:
@@ -445,15 +444,14 @@ class FlexarmClient(Node):
         return parameter_value_to_python(values[0])
 
     def set_node_parameter(self, node: str, name: str, value: Any,
-                           timeout: float = 10.0) -> str:
-        """Set parameter ``name`` of the graph's node ``node``; the node's reason (its word
-        on the change, often ''); ValueError with the reason if it refuses."""
+                           timeout: float = 10.0) -> None:
+        """Set parameter ``name`` of the graph's node ``node``; ValueError with the node's
+        reason if it refuses."""
         result = self._parameter_call(
             node, lambda client: client.set_parameters([Parameter(name, value=value)]),
             timeout, f'{node} parameter {name}').results[0]
         if not result.successful:
             raise ValueError(f'{node} refused {name}: {result.reason}')
-        return result.reason
 
     def _parameter_call(self, node: str, request: Callable[[AsyncParameterClient], Future],
                         timeout: float, what: str) -> Any:

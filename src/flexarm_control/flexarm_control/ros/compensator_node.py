@@ -78,6 +78,7 @@ import threading
 import traceback
 from contextlib import ExitStack
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 from builtin_interfaces.msg import Time as TimeMsg
@@ -145,6 +146,11 @@ OUTCOMES = {SUCCEEDED: Result.SUCCESSFUL, CANCELED: Result.CANCELED,
             CONTROLLER_TIMEOUT: Result.CONTROLLER_TIMEOUT,
             MEASUREMENT_FAILED: Result.MEASUREMENT_FAILED,
             TOLERANCE_NOT_MET: Result.TOLERANCE_NOT_MET, UNREACHABLE: Result.UNREACHABLE}
+
+
+def unbound(**fields: Any) -> Result:
+    """A result whose plan states no bound (yet): NaN, not a 0 that reads as exact."""
+    return Result(position_error_bound=math.nan, angle_error_bound=math.nan, **fields)
 
 
 def describe(goal: Goal) -> str:
@@ -332,7 +338,7 @@ class CompensatorNode(Node):
                 self._executing = f'{describe(goal)}, {owner.text()}'
             running = self._executing
         if not won:                    # this server's other goal runs
-            result = Result(error_code=Result.ARM_BUSY, error_string=(
+            result = unbound(error_code=Result.ARM_BUSY, error_string=(
                 f'the arm is busy: {self.get_fully_qualified_name()} runs goal {running}; '
                 'nothing moved'))
         else:
@@ -340,10 +346,10 @@ class CompensatorNode(Node):
                 with self._arm.attached(), ExitStack() as arm:
                     result = self._run(handle, goal, owner, arm)
             except ArmBusy as exc:
-                result = Result(error_code=Result.ARM_BUSY, error_string=str(exc))
+                result = unbound(error_code=Result.ARM_BUSY, error_string=str(exc))
             except Exception as exc:   # last resort: a reason for the client, never empty
                 self.get_logger().error(f'goal failed: {traceback.format_exc()}')
-                result = Result(error_code=Result.INVALID_GOAL,
+                result = unbound(error_code=Result.INVALID_GOAL,
                                 error_string=f'internal error: {type(exc).__name__}: {exc}')
             finally:
                 self._executing = ''
@@ -362,7 +368,7 @@ class CompensatorNode(Node):
     def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack
              ) -> Result:
         """Validate, plan and (unless a dry run) claim the arm in ``arm`` and move."""
-        result = Result()
+        result = unbound()
         target = np.array([goal.target.x, goal.target.y, goal.target.phi])
 
         def fail(code: int, reason: str) -> Result:
@@ -397,6 +403,7 @@ class CompensatorNode(Node):
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
+            result.position_error_bound, result.angle_error_bound = planned.bound
             return fail(REFUSALS[planned.code], '; '.join(filter(None, [planned.reason] + (
                 [self._load_error, unusable] if planned.code == 'no_model' else []))))
         spec = GoalSpec(target, planned.mode, *tolerance,
@@ -483,7 +490,8 @@ class CompensatorNode(Node):
                   commanded: np.ndarray, planned: Planned | None,
                   measured: np.ndarray | None = None, target: np.ndarray | None = None,
                   ) -> None:
-        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded))
+        fb = Feedback(iteration=iteration, phase=phase, commanded_pose=planar(commanded),
+                      position_error_bound=math.nan, angle_error_bound=math.nan)
         if planned is not None:
             fb.data_distance, fb.prediction_std = planned.data_distance, planned.prediction_std
             fb.position_error_bound, fb.angle_error_bound = planned.bound

@@ -44,9 +44,9 @@ samples are taken where the largest residuals were and across the region, into t
 usual. At a payload the model was not trained at, the samples go into the model's own dataset
 instead, which is trained again on both payloads (a correction cannot tell the arm's masses
 from its compliance; :mod:`flexarm_control.learning.payload_bounds`): declaring such a payload
-answers with how the model's error bounds grew there. The refresh moves the arm: like a
-collection, only on request (`flexarm refresh`), never on its own — an arm in a vessel moves
-when its operator says so.
+logs how the model's error bounds grew there (`flexarm payload` says it too). The refresh
+moves the arm: like a collection, only on request (`flexarm refresh`), never on its own — an
+arm in a vessel moves when its operator says so.
 
 Policy: one motion at a time per arm. A collection or refresh claims the arm from its owner
 (:mod:`flexarm_control.ros.arm_claim`) once its goal is valid, before anything moves; while
@@ -250,7 +250,6 @@ class LearnerNode(Node):
             report = self._bound_report()
             self.get_logger().info(f'payload now {self._payload:g} kg' + (
                 f': {report}' if report else ''))
-            return SetParametersResult(successful=True, reason=report)
         return SetParametersResult(successful=True)
 
     def _bound_report(self) -> str:

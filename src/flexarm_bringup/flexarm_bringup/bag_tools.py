@@ -71,7 +71,8 @@ PROGRESS_PERIOD = 2.0           # [s] between reports of messages read
 CSV_FIELDS = (
     'trial', 'kind', 'mode', 'mode_name', 'error_code', 'error_name', 'succeeded', 'reason',
     'model_version', 'iterations', 'stamp_s', 'data_distance', 'prediction_std_mm',
-    'position_error_bound_mm', 'angle_error_bound_deg', 'mode_run', 'target_x_mm', 'target_y_mm', 'target_phi_deg',
+    'position_error_bound_mm', 'angle_error_bound_deg', 'mode_run',
+    'target_x_mm', 'target_y_mm', 'target_phi_deg',
     'measured', 'measured_x_mm', 'measured_y_mm', 'measured_phi_deg',
     'measured_position_error_mm', 'measured_angle_error_deg',
     'truth_x_mm', 'truth_y_mm', 'truth_phi_deg',

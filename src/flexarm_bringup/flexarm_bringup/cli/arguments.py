@@ -6,8 +6,8 @@ import argparse
 import json
 import math
 import textwrap
-from importlib import metadata
 from collections.abc import Callable
+from importlib import metadata
 from typing import Any
 
 from flexarm_bringup.cli.common import IDEAL_HELP, _learner_default

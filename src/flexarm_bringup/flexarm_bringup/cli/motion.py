@@ -31,6 +31,7 @@ from flexarm_bringup.outcome_text import (
 from flexarm_control.execution.modes import Mode
 from flexarm_core import topics
 
+
 def _measured_text(pose: Any, position_error: float, angle_error: float) -> str:
     return (f'measured {pose_text((pose.x, pose.y, pose.phi))}; error '
             f'{mm(position_error):.3f} mm, {deg(angle_error):.4f} deg')

@@ -26,10 +26,11 @@ goal runs, and when the model is not trusted.
   (:attr:`Planned.mode` says which, :attr:`Planned.note` why).
 
 Every plan states the 95 % bound of the goal's true error before anything moves
-(:attr:`Planned.bound`, :mod:`.plan_bound`); NaN (none) for a model run at a payload it cannot
-predict at (:func:`payload_beyond`, extrapolation allowed). A PREDICTIVE goal with a tolerance its bound
-exceeds is refused (``BOUND_EXCEEDS_TOLERANCE``) with the bound and what would help, unless it
-allows extrapolation: moving to learn it missed is what the bound is there to prevent.
+(:attr:`Planned.bound`, :mod:`.plan_bound`); NaN (none) for a model run at a payload it
+cannot predict at (:func:`payload_beyond`, extrapolation allowed). A PREDICTIVE goal with a
+tolerance its bound exceeds is refused (``BOUND_EXCEEDS_TOLERANCE``) with the bound and what
+would help, unless it allows extrapolation: moving to learn it missed is what the bound is
+there to prevent.
 
 :class:`~flexarm_core.kinematics.UnreachableError` escapes for a target the rigid arm
 cannot reach at all.

@@ -13,8 +13,9 @@ the model's std there and the plan's 95 % error bound, stated before anything mo
 (:mod:`flexarm_control.execution.plan_bound`, with the site's ``error_bound`` parameters). A
 PREDICTIVE goal whose tolerance its bound exceeds is refused (BOUND_EXCEEDS_TOLERANCE) unless it
 allows extrapolation; AUTO runs PREDICTIVE within its tolerance and CLOSED_LOOP beyond it, and
-the result's ``mode_run`` says which ran. The algorithm lives in :mod:`flexarm_control.execution.compensator`;
-this node validates goals, maps ROS to those calls and their outcomes to error codes,
+the result's ``mode_run`` says which ran. The algorithm lives in
+:mod:`flexarm_control.execution.compensator`; this node validates goals, maps ROS to those
+calls and their outcomes to error codes,
 reports feedback and results, and hot-reloads the predictor the learner announces on
 ``/learner/model`` and republishes the one it uses on the latched
 ``/compensator/active_model``. For rviz and Foxglove it publishes each goal's target on

@@ -1,5 +1,5 @@
 """What a newly declared payload does to the model's error bounds, said when it is declared
-(pure; the learner's reply to ``flexarm payload KG``).
+(pure; what the learner logs and ``flexarm payload KG`` says).
 
 A model trained at some payloads and asked at another states a wider bound there: the
 grey-box's masses' prior (:meth:`~flexarm_control.learning.predictors.Predictor.prior_std`),

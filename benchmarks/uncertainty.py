@@ -70,7 +70,8 @@ MASSES_OFF = {'scale': {'second_arm': 1.15, 'end_effector': 1.10},
 MASSES_LIGHT = {'scale': dict.fromkeys(('second_axis', 'second_arm', 'third_axis', 'third_arm',
                                         'fourth_axis', 'fourth_arm', 'end_effector'), 0.92),
                 'add': {}, 'com': -0.02}
-# name: (plant masses, trained at [kg], carried [kg], declared, samples factor, kind)
+# name: what differs from the nominal scenario (plant masses, samples, carried and declared
+# payload [kg], a refresh at it, predictor kind)
 SCENARIOS: dict[str, dict[str, Any]] = {
     'nominal': {},
     'masses_off': {'masses': MASSES_OFF},

@@ -200,6 +200,20 @@ class CalibratedMotion(ArmMotion):
         return None if measurement is None else self._rig.correction.apply(measurement)
 
 
+def collect(rig: Rig, region: Any, count: int, kg: float, seed: int,
+            coverage: np.ndarray, retries: int) -> list[Any]:
+    """The learner's samples at ``count`` Sobol poses of ``region`` grown by ``coverage``,
+    the arm carrying ``kg``, in travel order (its collection loop, through the tool
+    calibration)."""
+    rig.arm.set_payload(kg)
+    _, poses = sample_poses(rig.geometry, region.grown(coverage), count, 'sobol', seed=seed)
+    poses = poses[travel_order(poses, rig.arm.positions(), rig.geometry.velocity)]
+    collected: list[Any] = []
+    Collector(CalibratedMotion(rig), rig.geometry, retries,
+              clock=lambda: rig.arm.time).collect(poses, kg, collected.append)
+    return collected
+
+
 def camera_error(rig: Rig, joints: np.ndarray) -> ToolCorrection:
     """The camera's true error in the tool frame at ``joints`` (measured against the truth)."""
     rig.motion.move_to(joints)

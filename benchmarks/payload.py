@@ -25,11 +25,10 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
-from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calibration
+from error_budget import SOURCES, Rig, collect, config, reference_calibration
 
-from flexarm_control.execution.collection import Collector
 from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.sampling import sample_poses, travel_order
+from flexarm_control.learning.sampling import sample_poses
 from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import forward
 from flexarm_core.regions import configured_regions
@@ -45,16 +44,12 @@ def run(job: tuple[str, int, int, int, int, str, tuple[float, ...]]) -> dict[str
     learner = c['learner']
     regions = configured_regions()
     rig.correction = reference_calibration(rig, regions[region_name])['correction']
-    collector = Collector(CalibratedMotion(rig), rig.geometry, learner['measurement_retries'],
-                          clock=lambda: rig.arm.time)
-    grown = regions[region_name].grown(np.asarray(learner['coverage_margin']))
     collected = []
     for k, kg in enumerate(trained):
-        rig.arm.set_payload(kg)
-        _, poses = sample_poses(rig.geometry, grown, samples, 'sobol',
-                                seed=100 * seed + 10 * region_index + k)
-        poses = poses[travel_order(poses, rig.arm.positions(), rig.geometry.velocity)]
-        collector.collect(poses, kg, collected.append)
+        collected += collect(rig, regions[region_name], samples, kg,
+                             100 * seed + 10 * region_index + k,
+                             np.asarray(learner['coverage_margin']),
+                             learner['measurement_retries'])
     predictor, metrics = fit_robust(
         kind, {'payload_input': len(trained) > 1}, np.array([s.joints for s in collected]),
         np.array([s.deflection for s in collected]), np.array([s.payload for s in collected]),

@@ -49,16 +49,15 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
-from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calibration
+from error_budget import SOURCES, Rig, collect, config, reference_calibration
 
-from flexarm_control.execution.collection import Collector
 from flexarm_control.execution.compensator import CompensationError
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import SiteErrors
 from flexarm_control.execution.planning import Planned, plan_goal
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.predictors import make_predictor
-from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
+from flexarm_control.learning.sampling import random_targets
 from flexarm_control.learning.training import Screening, fit_robust
 from flexarm_core.kinematics import pose_error
 from flexarm_core.regions import configured_regions
@@ -99,17 +98,6 @@ def plant_config(c: dict[str, Any], masses: dict[str, Any] | None) -> dict[str, 
             plant['masses'][part] += kg
         plant['end_effector_com'] += masses['com']
     return c
-
-
-def collect(rig: Rig, region: Any, count: int, kg: float, seed: int,
-            coverage: np.ndarray, retries: int) -> list[Any]:
-    rig.arm.set_payload(kg)
-    _, poses = sample_poses(rig.geometry, region.grown(coverage), count, 'sobol', seed=seed)
-    poses = poses[travel_order(poses, rig.arm.positions(), rig.geometry.velocity)]
-    collected: list[Any] = []
-    Collector(CalibratedMotion(rig), rig.geometry, retries,
-              clock=lambda: rig.arm.time).collect(poses, kg, collected.append)
-    return collected
 
 
 def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:

@@ -157,11 +157,12 @@ def payload_bounds_note(client: Any, kg: float, wait: float = 2.0) -> str:
     when this host cannot read the model's file)."""
     from flexarm_control.learning.payload_bounds import bound_report
     from flexarm_control.learning.predictors import load_predictor
+    from flexarm_core import liveness
     from flexarm_core.kinematics import ArmGeometry
     from flexarm_core.params import load_config
     from flexarm_core.regions import configured_regions
 
-    deadline = time.monotonic() + wait          # the latched announcement, if not yet heard
+    deadline = time.monotonic() + liveness.limit(wait)   # the latched announcement, if unheard
     while client.active_model is None and time.monotonic() < deadline:
         client.spin_once(0.05)
     info = client.active_model

@@ -31,14 +31,14 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.learning.error_bound import Z_ANGLE, Z_POSITION
+from flexarm_control.learning.error_bound import Z_1D, Z_2D
+from flexarm_control.learning.predictors.kinematic import KINEMATIC, pose_jacobian
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.paper import TABLE_10
 
 # [m, rad] the rigid model's largest errors over the paper's Table 10 (16 mm, 3.8 deg)
 RIGID_ERROR = tuple(max(t.rigid_errors[i] for t in TABLE_10 if t.rigid_errors) * unit
                     for i, unit in ((0, 1e-3), (1, math.pi / 180)))
-_STEP = 1e-6     # [rad, m] of the finite-difference Jacobian
 # Fixed standard normal draws (2, n): the 95 % radius of any 2-D normal error, deterministic
 _NORMAL = np.random.default_rng(0).standard_normal((2, 20000))
 
@@ -70,18 +70,18 @@ class SiteErrors:
     def at(self, geometry: ArmGeometry, joints: np.ndarray) -> np.ndarray:
         """95 % [m, rad] of what the servos, the arm's growth and the tool calibration add at
         ``joints`` (the growth is about joint1, along the line to the tip)."""
-        jacobian = np.column_stack([
-            (forward(geometry, joints + step) - forward(geometry, joints - step)) / (2 * _STEP)
-            for step in np.eye(4) * _STEP])
+        links = {'link3': geometry.link3, 'link4': geometry.link4, 'offset': geometry.offset}
+        jacobian = pose_jacobian(links, np.asarray(joints, dtype=float)[np.newaxis],
+                                 np.zeros(KINEMATIC))[0, :, :4]     # the joint zero offsets'
         covariance = jacobian @ np.diag(self.joint_repeatability ** 2) @ jacobian.T
-        servo = (radius_95(covariance[:2, :2]), Z_ANGLE * math.sqrt(covariance[2, 2]))
-        growth = Z_ANGLE * self.thermal_strain * float(np.hypot(*forward(geometry, joints)[:2]))
-        return np.hypot(np.hypot(servo, (growth, 0.0)), Z_ANGLE * np.asarray(self.tool_residual))
+        servo = (radius_95(covariance[:2, :2]), Z_1D * math.sqrt(covariance[2, 2]))
+        growth = Z_1D * self.thermal_strain * float(np.hypot(*forward(geometry, joints)[:2]))
+        return np.hypot(np.hypot(servo, (growth, 0.0)), Z_1D * np.asarray(self.tool_residual))
 
     def closed_loop(self, tolerance: tuple[float, float]) -> np.ndarray:
         """95 % [m, rad] of a CLOSED_LOOP goal's true error that ends within ``tolerance``."""
-        camera = np.hypot([Z_POSITION * self.camera_noise[0], Z_ANGLE * self.camera_noise[1]],
-                          Z_ANGLE * np.asarray(self.tool_residual))
+        camera = np.hypot([Z_2D * self.camera_noise[0], Z_1D * self.camera_noise[1]],
+                          Z_1D * np.asarray(self.tool_residual))
         return np.asarray(tolerance, dtype=float) + camera
 
 

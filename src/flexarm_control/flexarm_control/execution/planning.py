@@ -47,7 +47,7 @@ from flexarm_control.execution.compensator import CompensationError, Compensator
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors, combined
 from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.error_bound import Z_ANGLE
+from flexarm_control.learning.error_bound import Z_1D
 from flexarm_control.learning.predictors import Predictor
 from flexarm_control.learning.predictors.base import PAYLOAD_TOLERANCE
 from flexarm_core.kinematics import inverse
@@ -148,7 +148,7 @@ def _help(predictor: Predictor | AtPayload | None, planned: Planned) -> str:
     prior makes most of it, more samples where the model is unsure."""
     joints = planned.plan.joints
     prior = np.asarray(predictor.prior_std(joints)) if predictor is not None else np.zeros(3)
-    if Z_ANGLE * np.hypot(prior[0], prior[1]) > 0.5 * planned.bound[0]:
+    if Z_1D * np.hypot(prior[0], prior[1]) > 0.5 * planned.bound[0]:
         return ('; most of it is the payload, which the samples do not show: collect samples '
                 'carrying it (`flexarm refresh` or `flexarm collect`), or run CLOSED_LOOP or AUTO')
     return '; collect more samples here, or run CLOSED_LOOP or AUTO (they measure and correct)'

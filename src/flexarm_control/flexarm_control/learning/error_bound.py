@@ -49,8 +49,8 @@ from typing import Any
 import numpy as np
 
 LEVEL = 0.95
-Z_ANGLE = 1.959964             # 95 % of |normal|
-Z_POSITION = 1.730818          # 95 % radius of two normal components / their radial std
+Z_1D = 1.959964                # 95 % of |e|, e one normal component (an angle, a shift)
+Z_2D = 1.730818                # 95 % of |e|, e two equal normal components / |e|'s RMS
 FLOOR_SHARE = 0.25             # of the median raw std
 TINY = (1e-9, 1e-9)            # [m, rad] floor of a raw std that is zero everywhere
 FLOOR_COVERAGE, RISK = 0.93, 0.1   # the calibration's own risk (conformal_rank)
@@ -90,7 +90,7 @@ class BoundCalibration:
         if prior is None:
             return bound
         prior_position, prior_angle = split(prior)
-        return np.hypot(bound, np.stack([Z_ANGLE * prior_position, Z_ANGLE * prior_angle],
+        return np.hypot(bound, np.stack([Z_1D * prior_position, Z_1D * prior_angle],
                                         axis=-1))
 
 
@@ -123,7 +123,7 @@ def scale(scores: np.ndarray, components: int) -> float:
     conformal = float(np.sort(scores)[conformal_rank(n) - 1])
     degrees = components * n
     rms = float(np.sqrt(np.mean(scores ** 2)))
-    z = Z_POSITION if components == 2 else Z_ANGLE
+    z = Z_2D if components == 2 else Z_1D
     return max(conformal, z * rms * math.sqrt(degrees / chi2.ppf(1 - LEVEL, degrees)))
 
 

@@ -1,9 +1,10 @@
-"""src/ is a ROS 2 workspace too (README "Building with colcon"): colcon finds every package
-(flexarm_msgs as ament_cmake, the others as ament_python), ``colcon build`` builds the Python
-packages into a temporary workspace, installs each node executable under ``lib/<package>/``
-(where ``ros2 run`` looks), registers each package in the ament index with its package.xml,
-copies config/ to flexarm_core's share directory, and the install space imports as
-``install/setup.sh`` sets it up, finding config/ there (no FLEXARM_HOME, no clone around it).
+"""src/ is a ROS 2 workspace too (docs/building.md "Building with colcon"): colcon finds
+every package (flexarm_msgs as ament_cmake, the others as ament_python), ``colcon build``
+builds the Python packages into a temporary workspace, installs each node executable under
+``lib/<package>/`` (where ``ros2 run`` looks), registers each package in the ament index with
+its package.xml, copies config/ to flexarm_core's share directory, and the install space
+imports as ``install/setup.sh`` sets it up, finding config/ there (no FLEXARM_HOME, no clone
+around it).
 
 colcon runs once for the module, from the venv, with the venv's bin first on PATH and nothing of
 an outer ROS environment. flexarm_msgs is left out of the build (``--packages-ignore``): its

@@ -24,7 +24,7 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from flexarm_control.execution.compensator import Compensator
-from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.models import make_model
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, inverse
 from flexarm_core.paper import TABLE_10
@@ -69,7 +69,7 @@ def main() -> None:
     for name in sorted({t.region for t in targets}):
         _, joints = sample_poses(geometry, regions[name].grown(learner['coverage_margin']),
                                  args.samples, seed=1)
-        models[name] = make_predictor(kind).fit(joints, plant.deflection(joints))
+        models[name] = make_model(kind).fit(joints, plant.deflection(joints))
 
     rows = []
     for t in targets:

@@ -46,11 +46,12 @@ from flexarm_control.execution.collection import Collector
 from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execute
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.planning import Refusal, plan_goal
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.model_health import HealthSettings, ModelHealth
 from flexarm_control.learning.predictors import Predictor
 from flexarm_control.learning.refresh import refresh_poses, refreshed
 from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward, pose_error
 from flexarm_core.regions import configured_regions
 

@@ -66,8 +66,9 @@ from flexarm_control.execution.tool_calibration import (
     joint4_sweep,
     sweep_joints,
 )
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.measurement import Measurement
 from flexarm_core.paper import TABLE_10

@@ -82,9 +82,10 @@ from flexarm_bringup.supervisor import Graph
 from flexarm_bringup.topic_discovery import request_qos
 from flexarm_control.execution.compensator import Compensator
 from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.predictors import Predictor
 from flexarm_control.learning.sampling import random_targets
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.params import load_config

@@ -28,8 +28,9 @@ import numpy as np
 from error_budget import SOURCES, Rig, collect, config, reference_calibration
 
 from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.sampling import sample_poses
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward
 from flexarm_core.regions import configured_regions
 

@@ -34,8 +34,9 @@ import numpy as np
 from flexarm_bringup.study import World
 from flexarm_control.execution.compensator import CompensationError, Compensator
 from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.sampling import random_targets
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import pose_error
 from flexarm_core.params import load_config
 
@@ -97,8 +98,8 @@ def run(world: World, compensator: Compensator, limits: DataLimits, learner: dic
 
 
 def _defaults(kind: str) -> dict:
-    from flexarm_control.learning.predictors import make_predictor
-    return make_predictor(kind).defaults
+    from flexarm_control.learning.models import make_model
+    return make_model(kind).defaults
 
 
 def worst(rows: list[dict]) -> dict:

@@ -4,23 +4,22 @@ Learning curves (offline, pure core, the realistic world): the learner's collect
 (:class:`~flexarm_control.execution.collection.Collector`, config/motion.yaml's approach leg and
 averaging) drives the simulated arm without its dynamics
 (:class:`flexarm_sim.static_arm.StaticArm`, config/sim.yaml's error sources: repeatability,
-friction hysteresis, thermal drift, the true camera; the camera calibrated against the
-reference first, as the realistic world is run; error_budget.py's rig). Per strategy (sobol:
-the learner's poses, visited in travel order; active:
-:mod:`flexarm_control.learning.active_sampling`), region (A, B) and seed (its poses, joint errors
-and image noise) one campaign of the largest sample count; the curve at n samples fits the
-learner's training (:func:`~flexarm_control.learning.training.fit_robust`, each ``--kinds``) on the
-first n poses of the strategy's sequence (Sobol order for sobol, the order chosen for
-active) and judges it on ``--held-out`` poses uniform in the region's box against the plant's
-TRUE deflection there (approached from below as every move is, at the campaign's end
-temperature). Errors: position |(dx, dy)| mm and |dφ| deg, max and 95th percentile over the
-held-out poses (NaN, and counted in ``refused``, where training refused the data: the user
-gets no model); ``samples_for_1mm``: the smallest n of the grid from which the max position
-error stays below 1 mm for every seed (null: never); ``samples_for_1mm`` and ``curves`` of the
-first of ``--kinds`` at the top level, of every kind under ``by_kind``. ``offline``: per
-strategy, the travel between consecutive poses at the Table 1 speeds (the first leg, from the
-start, left out) and the wall time of choosing the active poses. A full run (5 seeds, kinds
-gp and auto, campaigns of 20) takes about 10 minutes on 2 cores.
+friction hysteresis, thermal drift, the true camera; the camera calibrated against the reference
+first, as the realistic world is run; error_budget.py's rig). Per strategy (sobol: the learner's
+poses, visited in travel order; active: :mod:`flexarm_control.learning.active_sampling`), region
+(A, B) and seed (its poses, joint errors and image noise) one campaign of the largest sample count;
+the curve at n samples fits the learner's model selection
+(:func:`~flexarm_control.learning.selection.fit_robust`, each ``--kinds``) on the first n poses of
+the strategy's sequence (Sobol order for sobol, the order chosen for active) and judges it on
+``--held-out`` poses uniform in the region's box against the plant's TRUE deflection there
+(approached from below as every move is, at the campaign's end temperature). Errors: position |(dx,
+dy)| mm and |dφ| deg, max and 95th percentile over the held-out poses (NaN, and counted in
+``refused``, where training refused the data: the user gets no model); ``samples_for_1mm``: the
+smallest n of the grid from which the max position error stays below 1 mm for every seed (null:
+never); ``samples_for_1mm`` and ``curves`` of the first of ``--kinds`` at the top level, of every
+kind under ``by_kind``. ``offline``: per strategy, the travel between consecutive poses at the
+Table 1 speeds (the first leg, from the start, left out) and the wall time of choosing the active
+poses. A full run (5 seeds, kinds gp and auto, campaigns of 20) takes about 10 minutes on 2 cores.
 
 Campaign (``--campaign N``, 0: skip): the graph as ``flexarm up`` starts it (realistic world,
 ×10 real time), the tool calibration of ``flexarm calibrate``, then per strategy and region a
@@ -49,9 +48,10 @@ from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calib
 
 from flexarm_control.execution.collection import Collector
 from flexarm_control.learning.active_sampling import ActivePoses, ActiveSettings, run_now
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.dataset import Sample
 from flexarm_control.learning.sampling import path_time, sample_poses, travel_order
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward, wrap_angle
 from flexarm_core.regions import configured_regions
 

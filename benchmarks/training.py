@@ -16,7 +16,7 @@ from collections.abc import Callable
 
 import numpy as np
 
-from flexarm_control.learning.predictors import KINDS, make_predictor
+from flexarm_control.learning.models import KINDS, make_model
 from flexarm_control.learning.training import validate
 
 LOWER = np.array([-0.5, 0.3, -1.5, -1.0])   # working region [rad, m, rad, rad]
@@ -57,9 +57,9 @@ def main() -> None:
     results = {'samples': args.samples}
     for kind in args.kinds.split(','):
         start = time.perf_counter()
-        model = make_predictor(kind).fit(joints, deflections)   # first fit: includes warm-up
+        model = make_model(kind).fit(joints, deflections)   # first fit: includes warm-up
         first = time.perf_counter() - start
-        fit = seconds(lambda kind=kind: make_predictor(kind).fit(joints, deflections),
+        fit = seconds(lambda kind=kind: make_model(kind).fit(joints, deflections),
                       args.repeats)
         cv = seconds(lambda kind=kind: validate(kind, None, joints, deflections, folds=5), 1)
         single = seconds(lambda model=model: [model.predict(q) for q in queries[:200]],

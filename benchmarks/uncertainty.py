@@ -56,9 +56,10 @@ from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import SiteErrors
 from flexarm_control.execution.planning import Planned, plan_goal
 from flexarm_control.learning.at_payload import AtPayload
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import random_targets
-from flexarm_control.learning.training import Screening, fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import pose_error
 from flexarm_core.regions import configured_regions
 

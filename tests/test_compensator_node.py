@@ -29,7 +29,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
 from flexarm_control.learning.sampling import sample_poses
-from flexarm_control.learning.training import fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_control.ros.client import FlexarmClient, GoalFailed
 from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import liveness, topics

@@ -20,7 +20,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.cli.learning import payload_bounds_note
 from flexarm_control.learning.dataset import load_dataset
-from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.learning.models import load_model
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
@@ -129,7 +129,7 @@ def test_a_model_trained_at_one_payload_predicts_another_or_refuses_it(graph):
     follow(client, 0.0)
     result = client.collect(16, region='B', dataset=name, seed=11, timeout=180)
     assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
-    assert load_predictor(train_on(client, name, 'greybox')).carries_payload
+    assert load_model(train_on(client, name, 'greybox')).carries_payload
     heavy = plan_after(client, 5.0, plan(client), extrapolate=False)
     assert heavy.error_code == Result.SUCCESSFUL, heavy.error_string     # planned, said
     assert 'the arm carries 5 kg, outside the payloads 0 kg' in heavy.error_string
@@ -138,7 +138,7 @@ def test_a_model_trained_at_one_payload_predicts_another_or_refuses_it(graph):
     assert moved.error_code == Result.SUCCESSFUL, moved.error_string
     assert moved.position_error < 1.5e-3 < rigid.position_error, (moved.position_error,
                                                                   rigid.position_error)
-    assert not load_predictor(train_on(client, name, 'gp')).carries_payload
+    assert not load_model(train_on(client, name, 'gp')).carries_payload
     refused = client.move_to(*TARGET, mode='predictive', timeout=60)
     assert refused.error_code == Result.OUTSIDE_LEARNED_DATA, refused.error_string
     assert 'trained at payloads [0] kg, cannot predict at 5 kg' in refused.error_string
@@ -154,7 +154,7 @@ def test_a_declared_payload_is_learned_and_used(graph):
         assert result.error_code == CollectSamples.Result.SUCCESSFUL, result.error_string
     _, _, payload = load_dataset(result.dataset_path).arrays()
     assert sorted(set(payload)) == [0.0, 5.0]
-    model = load_predictor(train_on(client, name, 'gp'))
+    model = load_model(train_on(client, name, 'gp'))
     assert model.settings['payload_input']                  # two payloads: an input
 
     # 20 samples: the GP is unsure of TARGET, its plans extrapolate

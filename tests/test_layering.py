@@ -8,6 +8,7 @@ import tomllib
 from pathlib import Path
 from xml.etree import ElementTree
 
+import networkx
 import pytest
 
 SRC = Path(__file__).resolve().parents[1] / 'src'
@@ -70,20 +71,91 @@ def test_only_the_simulator_reads_its_truth():
     assert readers == {'flexarm_sim'}
 
 
-def test_in_the_controller_only_its_ros_shell_imports_rclpy():
+def test_in_the_controller_only_its_ros_shell_imports_rclpy_or_messages():
     """flexarm_control's learning and execution are pure: the nodes, the arm interface and the
-    client (``flexarm_control/ros``) are its only modules that import rclpy."""
+    client (``flexarm_control/ros``) are its only modules that import rclpy or the messages
+    (they convert between messages and the pure cores' types)."""
     package = SRC / 'flexarm_control' / 'flexarm_control'
     shell = {path.relative_to(package).parts[0] for path in package.rglob('*.py')
-             if _imports_rclpy(path)}
+             if _imports(path, {'rclpy', 'flexarm_msgs'})}
     assert shell == {'ros'}
 
 
-def _imports_rclpy(path: Path) -> bool:
+def _imports(path: Path, names: set[str]) -> bool:
+    """Whether the module imports a top-level package of ``names``."""
     for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-        if isinstance(node, ast.Import) and any(a.name.split('.')[0] == 'rclpy'
+        if isinstance(node, ast.Import) and any(a.name.split('.')[0] in names
                                                  for a in node.names):
             return True
-        if isinstance(node, ast.ImportFrom) and (node.module or '').split('.')[0] == 'rclpy':
+        if isinstance(node, ast.ImportFrom) and (node.module or '').split('.')[0] in names:
             return True
     return False
+
+
+# Inside a package, sub-packages form layers too: each imports only the ones before it.
+SUBLAYERS = {'flexarm_control': ['learning', 'execution', 'ros']}
+
+
+def module_imports(package: str, src: Path = SRC) -> dict[str, set[str]]:
+    """Every module of ``package`` (dotted name) and the modules of the package it imports,
+    at the top or inside a function alike (either makes an import cycle): ``from a import b``
+    names module ``a.b`` where that is one, else ``a``."""
+    root = src / package
+    modules = {'.'.join(path.relative_to(root).with_suffix('').parts).removesuffix('.__init__'):
+               path for path in (root / package).rglob('*.py')}
+    graph: dict[str, set[str]] = {}
+    for name, path in modules.items():
+        here = name if path.name == '__init__.py' else name.rpartition('.')[0]
+        targets = set()
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if isinstance(node, ast.Import):
+                targets.update(alias.name for alias in node.names)
+            elif isinstance(node, ast.ImportFrom):
+                base = node.module or ''
+                if node.level:
+                    parent = here.split('.')[:len(here.split('.')) - node.level + 1]
+                    base = '.'.join(parent + ([base] if base else []))
+                for alias in node.names:
+                    targets.add(f'{base}.{alias.name}' if f'{base}.{alias.name}' in modules
+                                else base)
+        graph[name] = {t for t in targets if t in modules and t != name}
+    return graph
+
+
+def import_cycles(package: str, src: Path = SRC) -> list[list[str]]:
+    """The groups of modules of ``package`` that import each other, directly or around."""
+    graph = networkx.DiGraph([(a, b) for a, targets in module_imports(package, src).items()
+                              for b in targets])
+    return [sorted(c) for c in networkx.strongly_connected_components(graph) if len(c) > 1]
+
+
+@pytest.mark.parametrize('package', LAYERS[1:])
+def test_no_module_imports_itself_through_others(package):
+    """No import cycle among a package's modules (a cycle works only by the order modules
+    happen to be imported in, and ties what it joins into one)."""
+    assert not import_cycles(package), f'import cycles in {package}'
+
+
+def test_a_cycle_through_a_function_level_import_is_found(tmp_path):
+    package = tmp_path / 'pkg' / 'pkg'
+    (package / 'sub').mkdir(parents=True)
+    (package / '__init__.py').write_text('')
+    (package / 'sub' / '__init__.py').write_text('from pkg.sub.kinds import KIND\n')
+    (package / 'sub' / 'kinds.py').write_text('KIND = 1\n\ndef fit():\n'
+                                              '    from pkg.train import run\n')
+    (package / 'train.py').write_text('from pkg.sub import KIND\n\nrun = KIND\n')
+    assert import_cycles('pkg', tmp_path) == [['pkg.sub', 'pkg.sub.kinds', 'pkg.train']]
+
+
+@pytest.mark.parametrize('package', sorted(SUBLAYERS))
+def test_a_sub_package_imports_only_the_ones_below_it(package):
+    order = SUBLAYERS[package]
+    wrong = []
+    for module, targets in module_imports(package).items():
+        parts = module.split('.')
+        if len(parts) < 3 or parts[1] not in order:
+            continue
+        above = order[order.index(parts[1]) + 1:]
+        wrong += [f'{module} -> {target}' for target in targets
+                  if len(target.split('.')) > 1 and target.split('.')[1] in above]
+    assert not wrong, f'{package}: arrows up between sub-packages: {wrong}'

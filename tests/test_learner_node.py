@@ -18,7 +18,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.learning.model_store import read_current, versions_on_disk
-from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.learning.models import load_model
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples
@@ -226,7 +226,7 @@ def test_an_outlier_is_excluded_and_reported(trainer, write_dataset):
     assert list(trained.metrics.excluded_samples) == [11]
     assert trained.metrics.samples == 29 and trained.metrics.selected_settings
     assert 0 < trained.metrics.max_slope < 0.5
-    model = load_predictor(trained.model_path)
+    model = load_model(trained.model_path)
     assert model.kind == 'auto' and model.metadata['metrics']['excluded_samples'] == [11]
 
 

@@ -44,7 +44,7 @@ from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 from flexarm_bringup.launcher import node_name
 from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_control.learning.deflection_field import deflection_field
-from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.learning.models import load_model
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.paper import TABLE_9, TABLE_10
@@ -95,7 +95,7 @@ class FieldPanel:
 def model_predict(path: str | Path) -> tuple[Predict | None, str]:
     """The model file's prediction, or None and why not (missing, unreadable)."""
     try:
-        model = load_predictor(path)
+        model = load_model(path)
     except (OSError, ValueError) as exc:
         return None, f'no model ({type(exc).__name__}: {path})'
 

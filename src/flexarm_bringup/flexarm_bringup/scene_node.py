@@ -134,10 +134,10 @@ class SceneNode(Node):
             return
         # The predictors (scipy: some 45 MB of the process) are loaded once a model is in use.
         from flexarm_control.learning.at_payload import AtPayload
-        from flexarm_control.learning.predictors import load_predictor
+        from flexarm_control.learning.models import load_model
 
         try:
-            model = AtPayload(load_predictor(self._model.path), self._payload)
+            model = AtPayload(load_model(self._model.path), self._payload)
         except (OSError, ValueError) as exc:
             self._field_problem = f'model {self._model.version}: no deflection field: {exc}'
             self.get_logger().warn(self._field_problem)

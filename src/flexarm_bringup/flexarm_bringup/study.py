@@ -36,8 +36,9 @@ import numpy as np
 
 from flexarm_bringup.launcher import node_name
 from flexarm_bringup.plots import write_csv
-from flexarm_control.learning.predictors import KINDS, AutoPredictor, make_predictor
+from flexarm_control.learning.models import KINDS, make_model
 from flexarm_control.learning.sampling import sample_poses
+from flexarm_control.learning.selection import AutoPredictor
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.paper import TABLE_7, TABLE_8
@@ -138,7 +139,7 @@ def study_settings(overrides: Mapping[str, Any] | None = None) -> dict[str, Any]
     settings['samples'] = sorted({int(n) for n in settings['samples']})
     settings['kinds'] = list(settings['kinds'])
     for kind in {*settings['kinds'], *predictors}:
-        make_predictor(kind, predictors.get(kind))      # unknown kind or bad settings
+        make_model(kind, predictors.get(kind))      # unknown kind or bad settings
     if settings['seeds'] < 1 or settings['held_out'] < 1 or min(settings['samples']) < 2:
         raise ValueError('the study needs seeds >= 1, held_out >= 1 and samples >= 2')
     return settings
@@ -195,9 +196,9 @@ def _evaluate(s: Mapping[str, Any], kind: str, hidden: int | None, n: int,
         predictor_settings = dict(s['predictors'].get(kind, {}))
         if hidden is not None:
             predictor_settings['hidden'] = [hidden]
-        if 'seed' in make_predictor(kind).defaults:
+        if 'seed' in make_model(kind).defaults:
             predictor_settings['seed'] = seed
-        model = make_predictor(kind, predictor_settings).fit(joints[:n], deflections[:n])
+        model = make_model(kind, predictor_settings).fit(joints[:n], deflections[:n])
         predictions.append(model.predict(test_q))
         if isinstance(model, AutoPredictor):
             chosen.append(model.chosen.kind)

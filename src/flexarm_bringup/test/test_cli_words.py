@@ -116,7 +116,7 @@ def test_every_option_named_exists_on_its_command(command, option):
 
 
 def test_help_names_the_learners_defaults_and_every_kind(capsys):
-    from flexarm_control.learning.predictors import KINDS
+    from flexarm_control.learning.models import KINDS
 
     learner = load_config('learner.yaml', node_name='flexarm_learner')
     assert all(re.search(rf'\b{kind}\b', arguments.KIND_HELP) for kind in KINDS)

@@ -7,14 +7,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.learning import training
-from flexarm_control.learning.predictors import (
-    AutoPredictor,
-    greybox,
-    kinematic,
-    load_predictor,
-    make_predictor,
-)
+from flexarm_control.learning import selection
+from flexarm_control.learning.models import load_model, make_model
+from flexarm_control.learning.predictors import greybox, kinematic
+from flexarm_control.learning.selection import AutoPredictor
 from flexarm_core.params import load_config
 
 SAMPLES = 24
@@ -62,7 +58,7 @@ def smooth(q: np.ndarray) -> np.ndarray:
 @pytest.fixture(scope='module')
 def gravity() -> AutoPredictor:
     q = joints()
-    return make_predictor('auto', {'kinds': ['kinematic', 'greybox']}).fit(q, noisy(sagging(q)))
+    return make_model('auto', {'kinds': ['kinematic', 'greybox']}).fit(q, noisy(sagging(q)))
 
 
 @pytest.mark.parametrize('truth, kinds, kind', [
@@ -70,7 +66,7 @@ def gravity() -> AutoPredictor:
     (smooth, ['kinematic', 'greybox', 'gp'], 'gp')])
 def test_picks_the_kind_that_made_the_data(truth, kinds: list[str], kind: str) -> None:  # noqa: ANN001
     q = joints()
-    model = make_predictor('auto', {'kinds': kinds}).fit(q, noisy(truth(q)))
+    model = make_model('auto', {'kinds': kinds}).fit(q, noisy(truth(q)))
     assert model.chosen.kind == kind
     scores = model.metadata['auto']['scores']
     assert set(scores) == set(kinds)
@@ -90,7 +86,7 @@ def test_picks_the_greybox_for_a_sagging_arm(gravity: AutoPredictor) -> None:
 def test_save_load_round_trip(gravity: AutoPredictor, tmp_path: Path) -> None:
     path = tmp_path / 'auto.npz'
     gravity.save(path)
-    loaded = load_predictor(path)
+    loaded = load_model(path)
     assert type(loaded) is AutoPredictor and loaded.kind == 'auto'
     assert loaded.metadata == gravity.metadata and loaded.chosen.kind == 'greybox'
     query = random_joints(50, seed=14)
@@ -103,7 +99,7 @@ def test_save_load_round_trip(gravity: AutoPredictor, tmp_path: Path) -> None:
 
 def test_the_learner_training_chooses_the_kind_once() -> None:
     q = joints()
-    model, metrics = training.fit_robust('auto', {'kinds': ['kinematic', 'greybox']}, q,
+    model, metrics = selection.fit_robust('auto', {'kinds': ['kinematic', 'greybox']}, q,
                                          noisy(sagging(q)))
     assert isinstance(model, AutoPredictor) and model.chosen.kind == 'greybox'
     assert metrics.selected_settings.startswith('{"kind": "greybox"')
@@ -115,7 +111,7 @@ def test_the_learner_training_chooses_the_kind_once() -> None:
                                       {'folds': 3}])
 def test_bad_settings(settings: dict) -> None:
     with pytest.raises(ValueError):
-        make_predictor('auto', settings)
+        make_model('auto', settings)
 
 
 def test_auto_is_the_learner_default() -> None:

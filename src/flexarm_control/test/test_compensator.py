@@ -5,7 +5,8 @@ import math
 import numpy as np
 import pytest
 
-from flexarm_control.execution.compensator import CompensationError, Compensator, deflection_slope
+from flexarm_control.execution.compensator import CompensationError, Compensator
+from flexarm_control.learning.deflection_slope import deflection_slope
 from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,

@@ -15,7 +15,8 @@ from flexarm_control.execution.modes import Mode
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.drift_correction import Correction, fit_correction
 from flexarm_control.learning.model_health import ELSEWHERE, HealthSettings, ModelHealth
-from flexarm_control.learning.predictors import load_predictor, make_predictor
+from flexarm_control.learning.models import load_model
+from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward
@@ -133,7 +134,7 @@ def test_a_corrected_model_round_trips_and_corrections_compose(world, tmp_path):
     twice = refreshed(once, world.geometry, q, once.predict(q) + shift, np.zeros(5), '3')
     assert len(twice.corrections) == 2
     twice.save(tmp_path / 'm.model')
-    loaded = load_predictor(tmp_path / 'm.model')
+    loaded = load_model(tmp_path / 'm.model')
     assert np.allclose(loaded.predict(q), twice.predict(q))
     assert not np.allclose(twice.predict(q), model.predict(q))
     with pytest.raises(ValueError):

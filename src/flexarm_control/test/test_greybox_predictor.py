@@ -10,7 +10,8 @@ import pytest
 
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.gravity_moments import ArmMasses
-from flexarm_control.learning.predictors import greybox, kinematic, load_predictor, make_predictor
+from flexarm_control.learning.models import load_model
+from flexarm_control.learning.predictors import greybox, kinematic, make_predictor
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
@@ -188,7 +189,7 @@ def test_the_moments_take_the_payload_the_samples_carried(world, tmp_path: Path)
     assert tip_error(model.predict(query), heavy.deflection(query)) < 0.01e-3
     assert tip_error(model.predict(query, 0.0), plant.deflection(query)) < 0.01e-3
     model.save(tmp_path / 'heavy.npz')
-    loaded = load_predictor(tmp_path / 'heavy.npz')
+    loaded = load_model(tmp_path / 'heavy.npz')
     assert loaded.payload_physical
     np.testing.assert_array_equal(loaded.predict(query, 2.5), model.predict(query, 2.5))
 
@@ -206,7 +207,7 @@ def test_a_model_saved_before_it_carried_the_payload(world, tmp_path: Path,
                          plant.deflection(joints)), payload)
     del model.metadata['greybox']['trained_payload']
     model.save(tmp_path / 'old.npz')
-    old = load_predictor(tmp_path / 'old.npz')
+    old = load_model(tmp_path / 'old.npz')
     assert old.payload_physical == old.carries_payload == payload_input
     heavy = AtPayload(old, 5.0).predict(joints)
     np.testing.assert_array_equal(heavy, model.predict(joints, 5.0 if payload_input else 0.0))
@@ -258,7 +259,7 @@ def test_saved_model_is_self_contained(with_residual: greybox.GreyboxPredictor,
         raise AssertionError('a saved model must not read the config')
 
     monkeypatch.setattr(greybox, 'load_arm', no_config)
-    loaded = load_predictor(path)
+    loaded = load_model(path)
     assert type(loaded) is greybox.GreyboxPredictor
     assert loaded.metadata == with_residual.metadata
     assert loaded.metadata['greybox']['arm']['masses']['end_effector'] == 4.65   # nominal

@@ -6,7 +6,8 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.learning.predictors import kinematic, load_predictor, make_predictor
+from flexarm_control.learning.models import load_model
+from flexarm_control.learning.predictors import kinematic, make_predictor
 
 LOWER = np.array([-0.6, 0.3, -1.6, -1.0])
 UPPER = np.array([0.3, 0.8, 0.0, 1.0])
@@ -106,7 +107,7 @@ def test_saved_model_is_self_contained(fitted: kinematic.KinematicPredictor, tmp
         raise AssertionError('a saved model must not read config/arm.yaml')
 
     monkeypatch.setattr(kinematic, 'nominal_geometry', no_config)
-    loaded = load_predictor(path)
+    loaded = load_model(path)
     assert type(loaded) is kinematic.KinematicPredictor
     assert loaded.metadata == fitted.metadata
     assert loaded.metadata['kinematic']['geometry'] == {'link3': 0.4, 'link4': 0.4,

@@ -5,7 +5,7 @@ import pytest
 
 from flexarm_control.learning.payload_bounds import bound_report, needs_retraining
 from flexarm_control.learning.sampling import sample_poses
-from flexarm_control.learning.training import fit_robust
+from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.learning.predictors import KINDS, make_predictor
+from flexarm_control.learning.models import KINDS, make_model
 
 pytestmark = pytest.mark.duration(17)
 
@@ -24,13 +24,13 @@ import numpy as np
 
 import flexarm_control.ros.compensator_node
 import flexarm_control.ros.learner_node
-from flexarm_control.learning.predictors import load_predictor
+from flexarm_control.learning.models import load_model
 
 assert not {'torch', 'sklearn'} & set(sys.modules), 'imported by a control node module'
 assert 'scipy' not in sys.modules, 'imported by a control node before it fits or predicts'
 joints = np.array([0.1, 0.6, -0.3, 0.2])
 for path in sys.argv[1:]:
-    predictor = load_predictor(path)
+    predictor = load_model(path)
     assert predictor.predict(joints).shape == (3,)
     predictor.data_distance(joints), predictor.position_std(joints)
     predictor.deflection_std(joints)
@@ -46,7 +46,7 @@ def test_loading_and_predicting_do_not_import_torch_or_sklearn(tmp_path: Path) -
     paths = []
     for kind in KINDS:
         paths.append(str(tmp_path / f'{kind}.npz'))
-        make_predictor(kind, settings.get(kind)).fit(joints, deflections).save(paths[-1])
+        make_model(kind, settings.get(kind)).fit(joints, deflections).save(paths[-1])
     run = subprocess.run([sys.executable, '-c', CHECK, *paths], capture_output=True, text=True,
                          timeout=120)
     assert run.returncode == 0, run.stderr

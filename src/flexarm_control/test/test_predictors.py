@@ -8,7 +8,8 @@ from typing import TYPE_CHECKING
 import numpy as np
 import pytest
 
-from flexarm_control.learning.predictors import Predictor, base, load_predictor, make_predictor
+from flexarm_control.learning.models import load_model
+from flexarm_control.learning.predictors import Predictor, base, make_predictor
 
 if TYPE_CHECKING:
     from sklearn.gaussian_process.kernels import Kernel
@@ -166,7 +167,7 @@ def test_gp_is_scikit_learns(kernel: str) -> None:
 def test_save_load_round_trip(fitted: dict[str, Predictor], kind: str, tmp_path: Path) -> None:
     path = tmp_path / 'models' / f'{kind}.npz'
     fitted[kind].save(path)
-    loaded = load_predictor(path)
+    loaded = load_model(path)
     assert type(loaded) is type(fitted[kind])
     assert loaded.metadata == fitted[kind].metadata
     assert loaded.metadata['kind'] == kind and loaded.metadata['samples'] == 60
@@ -193,7 +194,7 @@ def test_failed_save_keeps_the_old_file(fitted: dict[str, Predictor], tmp_path: 
         fitted['mlp'].save(path)
     assert path.read_bytes() == before
     assert os.listdir(tmp_path) == ['model.npz']
-    assert load_predictor(path).kind == 'rbf'
+    assert load_model(path).kind == 'rbf'
 
 
 def _rewrite(path: Path, change) -> None:  # noqa: ANN001
@@ -226,7 +227,7 @@ def test_damaged_model_file_raises_value_error(fitted: dict[str, Predictor], dam
     fitted['mlp'].save(path)
     DAMAGES[damage](path)
     with pytest.raises(ValueError, match='model.npz'):
-        load_predictor(path)
+        load_model(path)
 
 
 def test_gp_predictive_std(fitted: dict[str, Predictor]) -> None:
@@ -331,7 +332,7 @@ def test_data_distance_grows_outside_the_learned_data(fitted: dict[str, Predicto
     outside = UPPER + 0.5 * (UPPER - LOWER)           # half the box beyond every upper limit
     assert model.data_distance(outside) > 3 * inside.max()
     model.save(tmp_path / 'm.npz')
-    assert load_predictor(tmp_path / 'm.npz').data_distance(outside) == pytest.approx(
+    assert load_model(tmp_path / 'm.npz').data_distance(outside) == pytest.approx(
         model.data_distance(outside))
 
 
@@ -372,4 +373,4 @@ def test_a_model_of_an_older_format_is_refused(fitted: dict[str, Predictor],
     metadata['format'] = 1
     np.savez(path, metadata=np.array(json.dumps(metadata)), **arrays)
     with pytest.raises(ValueError, match='model format 1.*train a new one'):
-        load_predictor(path)
+        load_model(path)

@@ -9,18 +9,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from flexarm_control.learning import training
+from flexarm_control.learning import cross_validation, selection, training
+from flexarm_control.learning.cross_validation import MIN_SAMPLES, SAME_POSE, Metrics, pose_groups
 from flexarm_control.learning.dataset import Dataset, Sample
-from flexarm_control.learning.predictors import load_predictor
-from flexarm_control.learning.training import (
-    MIN_SAMPLES,
-    SAME_POSE,
-    Metrics,
-    TrainingWorker,
-    pose_groups,
-    train,
-    validate,
-)
+from flexarm_control.learning.models import load_model
+from flexarm_control.learning.predictors import make_predictor
+from flexarm_control.learning.training import TrainingWorker, train, validate
 
 
 def plant_like(n: int, seed: int) -> tuple[np.ndarray, np.ndarray]:
@@ -76,7 +70,7 @@ def test_pose_groups_join_the_samples_of_one_pose() -> None:
 def test_no_pose_is_both_trained_on_and_validated(monkeypatch: pytest.MonkeyPatch) -> None:
     joints, deflections = collected_twice(15, seed=7)
     folds = []
-    make = training.make_predictor
+    make = training.make_model
 
     def spy(kind, settings=None):  # noqa: ANN001, ANN202
         predictor = make(kind, settings)
@@ -85,7 +79,7 @@ def test_no_pose_is_both_trained_on_and_validated(monkeypatch: pytest.MonkeyPatc
         predictor.predict = lambda j, *a: folds[-1].append(j) or predict(j, *a)
         return predictor
 
-    monkeypatch.setattr(training, 'make_predictor', spy)
+    monkeypatch.setattr(training, 'make_model', spy)
     validate('rbf', None, joints, deflections, folds=5)
     assert len(folds) == 5 and sum(len(test) for _, test in folds) == len(joints)
     for trained, tested in folds:
@@ -153,7 +147,7 @@ def test_train_fits_the_whole_dataset(tmp_path: Path) -> None:
     assert predictor.metadata['metrics'] == metrics.as_dict()
     assert predictor.metadata['samples'] == 30
     predictor.save(tmp_path / 'model.npz')
-    assert load_predictor(tmp_path / 'model.npz').metadata['metrics'] == metrics.as_dict()
+    assert load_model(tmp_path / 'model.npz').metadata['metrics'] == metrics.as_dict()
     joints, deflections, _ = dataset.arrays()
     training_error = np.abs(predictor.predict(joints) - deflections).max(axis=0)
     assert training_error[1] < metrics.max_error_y
@@ -169,7 +163,7 @@ def test_the_trained_model_states_a_bound_that_holds_on_new_samples(kind: str) -
     joints, deflections = plant_like(40, seed=11)
     rng = np.random.default_rng(12)
     noisy = deflections + rng.normal(0.0, [3e-5, 3e-5, 5e-5], deflections.shape)
-    predictor, _ = training.fit_robust(kind, None, joints, noisy, folds=5)
+    predictor, _ = selection.fit_robust(kind, None, joints, noisy, folds=5)
     calibration = predictor.metadata['error_bound']
     assert 0.8 <= calibration['coverage'] <= 1.0 and calibration['held_out'] >= 36
     new_joints, new_deflections = plant_like(300, seed=13)
@@ -178,7 +172,7 @@ def test_the_trained_model_states_a_bound_that_holds_on_new_samples(kind: str) -
     error = predictor.predict(new_joints) - measured
     assert np.mean(np.hypot(error[:, 0], error[:, 1]) <= bound[:, 0]) >= 0.85
     assert np.mean(np.abs(error[:, 2]) <= bound[:, 1]) >= 0.85
-    assert np.isnan(training.make_predictor(kind).fit(joints, noisy).error_bound(joints)).all()
+    assert np.isnan(make_predictor(kind).fit(joints, noisy).error_bound(joints)).all()
 
 
 @pytest.mark.parametrize('n, folds, match', [
@@ -208,9 +202,9 @@ def test_a_bad_sample_is_screened_out_and_reported() -> None:
     joints, deflections = plant_like(40, seed=6)
     bad = deflections.copy()
     bad[7, :2] += [0.006, -0.008]                               # 10 mm off
-    clean_model, clean = training.fit_robust('rbf', None, joints, deflections)
+    clean_model, clean = selection.fit_robust('rbf', None, joints, deflections)
     assert clean.excluded_samples == () and clean.samples == 40
-    model, metrics = training.fit_robust('rbf', None, joints, bad)
+    model, metrics = selection.fit_robust('rbf', None, joints, bad)
     assert metrics.excluded_samples == (7,) and metrics.samples == 39
     query = plant_like(200, seed=7)[0]
     truth = plant_like(200, seed=7)[1]
@@ -222,22 +216,22 @@ def test_a_bad_sample_is_screened_out_and_reported() -> None:
 def test_no_more_than_the_allowed_share_is_excluded() -> None:
     joints, deflections = plant_like(40, seed=6)
     deflections[[7, 20], :2] += [[0.006, -0.008], [-0.008, 0.006]]
-    _, both = training.fit_robust('rbf', None, joints, deflections)
+    _, both = selection.fit_robust('rbf', None, joints, deflections)
     assert both.excluded_samples == (7, 20)
-    _, one = training.fit_robust('rbf', None, joints, deflections,
-                                 screening=training.Screening(max_outlier_fraction=0.03))
+    _, one = selection.fit_robust('rbf', None, joints, deflections,
+                                 screening=cross_validation.Screening(max_outlier_fraction=0.03))
     assert len(one.excluded_samples) == 1 and one.excluded_samples[0] in (7, 20)
 
 
 def test_settings_not_given_are_chosen_by_validation() -> None:
-    assert training.candidates('gp', {'kernel': 'matern32'}) == [{'kernel': 'matern32'}]
-    options = training.candidates('mlp', {'hidden': [5]})
+    assert cross_validation.candidates('gp', {'kernel': 'matern32'}) == [{'kernel': 'matern32'}]
+    options = cross_validation.candidates('mlp', {'hidden': [5]})
     assert [o['weight_decay'] for o in options] == [1e-5, 1e-4, 1e-3]
     assert all(o['hidden'] == [5] for o in options)
     joints, deflections = plant_like(30, seed=2)
-    _, chosen = training.fit_robust('rbf', None, joints, deflections)
+    _, chosen = selection.fit_robust('rbf', None, joints, deflections)
     assert json.loads(chosen.selected_settings)['smoothing'] in (1e-4, 1e-3, 1e-2)
-    _, fixed = training.fit_robust('rbf', {'smoothing': 1e-3}, joints, deflections)
+    _, fixed = selection.fit_robust('rbf', {'smoothing': 1e-3}, joints, deflections)
     assert fixed.selected_settings == '{}'
 
 
@@ -247,9 +241,9 @@ def test_a_model_the_compensator_could_not_solve_with_is_refused() -> None:
 
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
     joints, deflections = plant_like(30, seed=2)
-    _, metrics = training.fit_robust('rbf', None, joints, deflections, geometry=geometry)
+    _, metrics = selection.fit_robust('rbf', None, joints, deflections, geometry=geometry)
     assert 0 < metrics.max_slope < 0.5
-    strict = training.Screening(max_slope=metrics.max_slope / 100)
+    strict = cross_validation.Screening(max_slope=metrics.max_slope / 100)
     with pytest.raises(ValueError, match='too fast for the compensator'):
-        training.fit_robust('rbf', None, joints, deflections, geometry=geometry,
+        selection.fit_robust('rbf', None, joints, deflections, geometry=geometry,
                             screening=strict)

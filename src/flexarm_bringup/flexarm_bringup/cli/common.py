@@ -134,7 +134,7 @@ def _check_dataset(name: str) -> None:
 
 def _check_kind(kind: str) -> None:
     if kind:
-        from flexarm_control.learning.predictors import KINDS
+        from flexarm_control.learning.models import KINDS
 
         if kind not in KINDS:
             raise usage(f'unknown predictor kind "{kind}"; known kinds: {", ".join(KINDS)}')

@@ -155,8 +155,8 @@ def payload_bounds_note(client: Any, kg: float, wait: float = 2.0) -> str:
     """How the error bounds of the model the compensator uses grew at ``kg`` and what brings
     them back (:mod:`flexarm_control.learning.payload_bounds`; '' at a trained payload, or
     when this host cannot read the model's file)."""
+    from flexarm_control.learning.models import load_model
     from flexarm_control.learning.payload_bounds import bound_report
-    from flexarm_control.learning.predictors import load_predictor
     from flexarm_core import liveness
     from flexarm_core.kinematics import ArmGeometry
     from flexarm_core.params import load_config
@@ -168,7 +168,7 @@ def payload_bounds_note(client: Any, kg: float, wait: float = 2.0) -> str:
     info = client.active_model
     if info is None or not os.path.isfile(info.path):
         return ''
-    return bound_report(load_predictor(info.path), configured_regions(node_name('learner')),
+    return bound_report(load_model(info.path), configured_regions(node_name('learner')),
                         ArmGeometry.from_dict(load_config('arm.yaml')['arm']),
                         list(info.payloads), kg)
 

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 from flexarm_control.learning.model_health import RegionHealth as RegionReport
+from flexarm_control.learning.model_summary import ModelSummary
 from flexarm_core.health_report import ERROR, OK, WARN, Status, status
-from flexarm_msgs.msg import ModelInfo
 
 
-def model_status(node: str, info: ModelInfo | None, load_error: str,
+def model_status(node: str, info: ModelSummary | None, load_error: str,
                  payload: float | None) -> Status:
     """``<node>: model`` in use: ERROR when an announced model could not be loaded and none
     is in use (PREDICTIVE refuses every goal); WARN when one could not be loaded but the

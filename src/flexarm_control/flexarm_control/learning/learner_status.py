@@ -2,15 +2,13 @@
 (pure)."""
 from __future__ import annotations
 
+from flexarm_control.learning.model_summary import ModelSummary
 from flexarm_core.health_report import ERROR, OK, WARN, Status, status
-from flexarm_msgs.msg import (
-    ModelInfo,
-)
 
 
 def learner_statuses(node: str, progress: str, training: bool,
                      dataset: tuple[str, int] | None, trained: tuple[bool, str] | None,
-                     announced: ModelInfo | None, announce_error: str) -> list[Status]:
+                     announced: ModelSummary | None, announce_error: str) -> list[Status]:
     """The learner's health:
 
     * ``<node>: activity``, always OK: idle, the collection's or refresh's ``progress``

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from flexarm_control.learning.cross_validation import Metrics, Screening
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.learning.model_store import provenance
-from flexarm_control.learning.training import Metrics, Screening, train
+from flexarm_control.learning.training import train
 from flexarm_core.kinematics import ArmGeometry
 
 

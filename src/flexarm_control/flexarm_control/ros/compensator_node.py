@@ -117,7 +117,8 @@ from flexarm_control.execution.planning import DataLimits, Planned, Refusal, bey
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.model_health import HealthSettings, ModelHealth
 from flexarm_control.learning.model_store import payload_warning
-from flexarm_control.learning.predictors import Predictor, load_predictor
+from flexarm_control.learning.models import load_model
+from flexarm_control.learning.predictors import Predictor
 from flexarm_control.ros.arm_claim import ArmBusy
 from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_control.ros.joint_commands import joint_commands
@@ -262,7 +263,7 @@ class CompensatorNode(Node):
 
     def _load_model(self, path: str, what: str, info: ModelInfo | None = None) -> None:
         try:
-            predictor = load_predictor(path)
+            predictor = load_model(path)
         except (OSError, ValueError) as exc:
             self._load_error = f'the model {what} from {path} could not be loaded: {exc}'
             self.get_logger().error(f'{self._load_error}; keeping the previous one')

@@ -91,6 +91,7 @@ from std_msgs.msg import Float64
 from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.collection import Collected, Collector
 from flexarm_control.learning.active_sampling import ActivePoses
+from flexarm_control.learning.cross_validation import Screening
 from flexarm_control.learning.dataset import (
     DatasetWriter,
     Sample,
@@ -108,12 +109,13 @@ from flexarm_control.learning.model_store import (
     unloadable_text,
     write_current,
 )
+from flexarm_control.learning.models import KINDS, load_model, make_model
 from flexarm_control.learning.payload_bounds import bound_report, needs_retraining
 from flexarm_control.learning.payload_record import payload_path, read_payload, write_payload
-from flexarm_control.learning.predictors import KINDS, Predictor, load_predictor, make_predictor
+from flexarm_control.learning.predictors import Predictor
 from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
 from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
-from flexarm_control.learning.training import Screening, TrainingWorker
+from flexarm_control.learning.training import TrainingWorker
 from flexarm_control.learning.training_job import train_and_save, warm_up
 from flexarm_control.ros.arm_claim import ArmBusy
 from flexarm_control.ros.arm_interface import ArmInterface
@@ -259,7 +261,7 @@ class LearnerNode(Node):
             current = read_current(self._model_dir)
             if current is None:
                 return ''
-            predictor = load_predictor(current['path'])
+            predictor = load_model(current['path'])
         except (DamagedRecord, ValueError, OSError) as exc:
             return f'the current model cannot be read to say its bounds there ({exc})'
         origin = predictor.metadata.get('provenance') or {}
@@ -454,7 +456,7 @@ class LearnerNode(Node):
                 raise ValueError('no current model to refresh: collect samples and train')
             if not self._arm.wait_for_joints(5.0):
                 raise ValueError('no /joint_states from the controller')
-            predictor = load_predictor(current['path'])
+            predictor = load_model(current['path'])
             plan, regions = self._refresh_plan(goal)
         except (DamagedRecord, ValueError, OSError) as exc:
             result.error_code, result.error_string = codes.INVALID_GOAL, str(exc)
@@ -543,7 +545,7 @@ class LearnerNode(Node):
         info = self._model_info(str(version), model_path)
         write_current(self._model_dir, version, info.kind, info.path, samples_hash)
         self._announce(info)
-        after = load_predictor(model_path).predict(joints, self._payload)
+        after = load_model(model_path).predict(joints, self._payload)
         result.model = info
         result.residual_before, result.residual_after = (
             float(np.median(np.hypot(*(predicted - deflections)[:, :2].T)))
@@ -578,7 +580,7 @@ class LearnerNode(Node):
             settings = json.loads(request.settings_json) if request.settings_json else {}
             if not isinstance(settings, dict):
                 raise ValueError('settings_json must be a JSON object')
-            make_predictor(kind, settings)      # unknown kind or bad settings: fail here
+            make_model(kind, settings)      # unknown kind or bad settings: fail here
             if not path.exists():
                 raise ValueError(f'no dataset at {path}: collect samples first')
             self._training = True
@@ -631,7 +633,7 @@ class LearnerNode(Node):
     def _model_info(self, version: str, path: Path) -> ModelInfo:
         """The announcement of a model file: provenance, metrics and whether it was made for
         this arm. ValueError/OSError if it cannot be loaded (unreadable, damaged)."""
-        predictor = load_predictor(path)
+        predictor = load_model(path)
         meta = predictor.metadata
         origin = meta.get('provenance') or {}
         info = ModelInfo(stamp=self.get_clock().now().to_msg(), version=version,

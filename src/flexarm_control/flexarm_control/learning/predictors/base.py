@@ -1,21 +1,21 @@
 """Deflection predictor interface, normalisation and the atomic single-file model format.
 
-A predictor maps joint positions θ = (θ1 rad, θ2 m, θ3 rad, θ4 rad), plus the payload [kg]
-as a fifth input when its ``payload_input`` setting is true, to the tip deflection
-(dx m, dy m, dφ rad) = measured − rigid pose. The model sees the joints as the link angles
-gravity acts on (:func:`model_inputs`): θ1, θ2, θ1+θ3, θ1+θ3+θ4 — each link sags by its
-absolute orientation, so these make the deflection a simpler function (a Gaussian process on
-them missed region-A targets 5-10× less than on the raw joints, 40 samples, 5 seeds). Inputs
-and outputs are z-scored with the training set's mean and standard deviation; an input that
-is constant in the training set (e.g. θ2 fixed at 0.6 m, or one payload) is dropped, as
-nothing can be learned about it. The learned kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only
-ever see the normalised space; the ``physical`` ones (:mod:`.kinematic`, :mod:`.greybox`,
-:mod:`.auto`) model the arm and take the joints and the payload in SI units instead — the
-payload whenever it is given, as an input or not: a model of how the payload loads the arm
-(:attr:`Predictor.payload_physical`, the grey-box's gravity moments) predicts at a payload
-from samples at another. :attr:`Predictor.carries_payload` says whether a model predicts at
-the payload it is given, either way; one that does not predicts at the payloads it was trained
-at, whatever it is asked.
+A predictor maps joint positions θ = (θ1 rad, θ2 m, θ3 rad, θ4 rad), plus the payload [kg] as a
+fifth input when its ``payload_input`` setting is true, to the tip deflection (dx m, dy m, dφ rad)
+= measured − rigid pose. The model sees the joints as the link angles gravity acts on
+(:func:`model_inputs`): θ1, θ2, θ1+θ3, θ1+θ3+θ4 — each link sags by its absolute orientation, so
+these make the deflection a simpler function (a Gaussian process on them missed region-A targets
+5-10× less than on the raw joints, 40 samples, 5 seeds). Inputs and outputs are z-scored with the
+training set's mean and standard deviation; an input that is constant in the training set (e.g. θ2
+fixed at 0.6 m, or one payload) is dropped, as nothing can be learned about it. The learned kinds
+(:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever see the normalised space; the ``physical`` ones
+(:mod:`.kinematic`, :mod:`.greybox`, and ``auto`` of :mod:`~flexarm_control.learning.selection`)
+model the arm and take the joints and the payload in SI units instead — the payload whenever it is
+given, as an input or not: a model of how the payload loads the arm
+(:attr:`Predictor.payload_physical`, the grey-box's gravity moments) predicts at a payload from
+samples at another. :attr:`Predictor.carries_payload` says whether a model predicts at the payload
+it is given, either way; one that does not predicts at the payloads it was trained at, whatever it
+is asked.
 
 Learned-data support: the model keeps its normalised training inputs, and
 :meth:`Predictor.data_distance` says how far a query lies from them — the distance to the

@@ -2,7 +2,7 @@
 
 PREDICTIVE: the fixed point x* = x_d - Delta(IK(x*)) with a predictor (``--kind``, default the
 learner's) fitted on 40 learning poses of the goal's region (deflections from the simulator's
-plant: this times the computation, not the camera). Alternative (seed section 3-1): invert the
+plant: this times the computation, not the camera). Alternative (paper section 3-1): invert the
 detailed flexible model numerically - least squares on plant.pose(q) = x_d over joints 1, 3, 4
 with joint2 from the same rule - which needs the detailed model the paper says is impractical
 to build.

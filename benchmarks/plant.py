@@ -1,5 +1,5 @@
 """Plant model: evaluation time (one pose, 10 000 poses) and the rigid-model error it gives
-on the seed's Table 10 targets, next to the paper's.
+on the paper's Table 10 targets, next to the paper's.
 
     python benchmarks/plant.py [--json]
 """

@@ -1,4 +1,4 @@
-"""``flexarm study``: the sensitivity study of the seed's Tables 7 and 8, and beyond.
+"""``flexarm study``: the sensitivity study of the paper's Tables 7 and 8, and beyond.
 
 Learning data are what the running system would collect: for space-filling poses of a region
 (scrambled Sobol, seeded), the tip camera image rendered at the simulator's actual tip pose

@@ -1,4 +1,4 @@
-"""Rigid kinematics of the 4-joint planar arm (seed section 2-2, Table 1).
+"""Rigid kinematics of the 4-joint planar arm (paper section 2-2, Table 1).
 
 Joints: ``joint1`` revolute θ1 [rad], ``joint2`` prismatic θ2 = No.2 arm length [m],
 ``joint3`` and ``joint4`` revolute [rad]. Base frame: x horizontal, y up; tip pose

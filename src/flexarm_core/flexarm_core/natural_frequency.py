@@ -1,4 +1,4 @@
-"""The tip's first natural frequency over payload and No.2 arm length (seed Table 6).
+"""The tip's first natural frequency over payload and No.2 arm length (paper Table 6).
 
 Shared by the simulator (its truth, config/sim.yaml ``dynamics.natural_frequency``) and the
 control side (the nominal tip mode of the robot description, config/arm.yaml

@@ -1,4 +1,4 @@
-"""The seed paper's benchmark numbers (Tables 8, 9 and 10), for side-by-side reports.
+"""The paper's benchmark numbers (Tables 8, 9 and 10), for side-by-side reports.
 
 Units as printed in the paper: mm and degrees.
 """

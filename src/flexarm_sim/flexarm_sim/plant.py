@@ -1,6 +1,6 @@
 """Static model of the actual, flexible arm: where the tip really is for given joint positions.
 
-Built from the seed's measured characteristics (Tables 3-5; every number and every reading of
+Built from the paper's measured characteristics (Tables 3-5; every number and every reading of
 an ambiguous one is in config/sim.yaml ``plant.*``):
 
 * Gravity moments (kgf·m, the unit of Table 5) at each compliant element from the part masses

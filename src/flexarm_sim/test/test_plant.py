@@ -1,4 +1,4 @@
-"""The flexible plant: physical behaviour and the paper's magnitudes (seed Tables 4, 10)."""
+"""The flexible plant: physical behaviour and the paper's magnitudes (paper Tables 4, 10)."""
 import math
 
 import numpy as np

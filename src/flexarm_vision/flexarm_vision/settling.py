@@ -7,7 +7,7 @@ A measurement counts as *settled* when
    (position, m) and ``angle_stability`` (rad) — the tip vibration has decayed below what the
    measurement is used for.
 Joint states alone cannot see the vibration of a flexible arm (the joints stand still while the
-tip rings at 3.6-12 Hz, seed Table 6); the image alone cannot tell a slow move from a drift.
+tip rings at 3.6-12 Hz, paper Table 6); the image alone cannot tell a slow move from a drift.
 """
 from __future__ import annotations
 

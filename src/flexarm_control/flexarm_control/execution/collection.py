@@ -1,4 +1,4 @@
-"""The collection loop of ``/collect_samples`` (pure core of the learner node; seed section
+"""The collection loop of ``/collect_samples`` (pure core of the learner node; paper section
 2-1 step 2).
 
 For every learning pose, in the order given: move there, measure the tip, and build the

@@ -1,4 +1,4 @@
-"""Position compensation (seed section 3-2, Fig. 4): where to command the rigid model so the
+"""Position compensation (paper section 3-2, Fig. 4): where to command the rigid model so the
 flexible arm's tip lands on the target.
 
 * RIGID: θ = IK(x_d).

@@ -12,7 +12,7 @@ Bounds: a goal beyond them is refused with INVALID_GOAL before anything moves.
   (0.02 mm) and ``settle.angle_stability`` (0.003 deg) of config/vision.yaml, some 4 x its
   noise; a measured error below them is noise, so a tolerance below them cannot be told met
   from missed, and a CLOSED_LOOP goal would only spend its corrections. The servos'
-  repeatability sets no floor: the control side has no nominal figure for it. The seed paper
+  repeatability sets no floor: the control side has no nominal figure for it. The paper
   states none (Table 1 gives ranges, speeds and drives; Tables 4-5 the joints' play and
   backlash, which every move's approach leg takes up the same way, config/motion.yaml, so they
   are no repeatability), a site knows it only from the servos' data sheet or a repeatability

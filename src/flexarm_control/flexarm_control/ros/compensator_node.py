@@ -1,4 +1,4 @@
-"""Compensator: the ``/move_to_pose`` action server (seed section 3-2, Fig. 4).
+"""Compensator: the ``/move_to_pose`` action server (paper section 3-2, Fig. 4).
 
 RIGID commands the rigid inverse kinematics of the target; PREDICTIVE commands the fixed point
 of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip and corrects

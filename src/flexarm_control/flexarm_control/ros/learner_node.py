@@ -1,5 +1,5 @@
 """Learner: collects deflection samples (``/collect_samples``) and trains the predictor
-(``/train``), seed section 2-1 steps 2-3.
+(``/train``), paper section 2-1 steps 2-3.
 
 Collection moves the arm through the controller's command topic to space-filling poses of a
 region (:mod:`flexarm_control.learning.sampling`), visited in a short-travel order — or, strategy

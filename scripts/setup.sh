@@ -2,8 +2,8 @@
 # Set up (or bring up to date) the flexarm environment in .venv:
 #   1. a Python 3.11 venv,
 #   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
-#   3. the interfaces: tf2_msgs (vendor/, no wheel exists) and flexarm_msgs (ament_cmake +
-#      rosidl, built into the venv prefix),
+#   3. the interfaces: tf2_msgs and control_msgs (vendor/, no wheel exists) and flexarm_msgs
+#      (ament_cmake + rosidl, built into the venv prefix),
 #   4. the Python packages flexarm_core, flexarm_description, flexarm_vision, flexarm_bridge,
 #      flexarm_sim, flexarm_control, flexarm_bringup (editable).
 # Each step is skipped when its inputs did not change since it last succeeded, so a re-run
@@ -65,6 +65,11 @@ install_tf2_msgs() {
   pip install --no-build-isolation --force-reinstall --no-deps "$root/vendor/tf2_msgs"
 }
 
+install_control_msgs() {
+  log "building control_msgs (about 2 min)"
+  pip install --no-build-isolation --force-reinstall --no-deps "$root/vendor/control_msgs"
+}
+
 install_msgs() {
   log "building flexarm_msgs (about 30 s)"
   pip install --no-build-isolation --force-reinstall --no-deps "$root/src/flexarm_msgs"
@@ -92,6 +97,9 @@ step requirements "$(digest requirements.txt)" install_requirements
 tf2_files=$(cd "$root" && find vendor/tf2_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
 step tf2_msgs "$(digest requirements.txt $tf2_files)" install_tf2_msgs
+control_files=$(cd "$root" && find vendor/control_msgs -type f -not -path "*/build/*" | sort)
+# shellcheck disable=SC2086
+step control_msgs "$(digest requirements.txt $control_files)" install_control_msgs
 msgs_files=$(cd "$root" && find src/flexarm_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
 step msgs "$(digest requirements.txt $msgs_files)" install_msgs

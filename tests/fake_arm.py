@@ -16,6 +16,8 @@ class FakeArm:
         self.holds = 0
         self.arrives = True           # moves reach their command
         self.silent = False           # the controller stopped reporting
+        self.refusal = ''             # the controller's reason it ends every move ('' none)
+        self.move_problem = ''
         self.blind_moves: set[int] = set()   # move numbers (1-based) measured as None
         self.cancel_at_move = 0       # abort requested during this move (0: never)
         self.braking = np.zeros(4)    # past its hold when read right after it (comes back)
@@ -36,7 +38,8 @@ class FakeArm:
         if len(self.commands) == self.cancel_at_move:
             self.q = (self.q + q) / 2          # stopped half-way
             self.cancelled = True
-        if abort() or not self.arrives or self.silent:
+        self.move_problem = self.refusal
+        if abort() or not self.arrives or self.silent or self.refusal:
             return False
         self.q = np.asarray(q, dtype=float).copy()
         return True

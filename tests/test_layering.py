@@ -17,7 +17,7 @@ LAYERS = ['flexarm_msgs', 'flexarm_core', 'flexarm_description', 'flexarm_vision
           'flexarm_bridge', 'flexarm_sim', 'flexarm_control', 'flexarm_bringup']
 ROS = {'rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'rosgraph_msgs', 'builtin_interfaces',
        'action_msgs', 'unique_identifier_msgs', 'rcl_interfaces', 'diagnostic_msgs',
-       'visualization_msgs', 'tf2_msgs'}
+       'visualization_msgs', 'tf2_msgs', 'control_msgs'}
 
 
 def imported(package: str) -> set[str]:

@@ -1,47 +1,99 @@
 """Node-level: the ``ros2_control`` robot entry drives an arm through joint_trajectory_controller's
-contract on wall time, with no simulator node and no ``/clock``: a stand-in for the
-controller_manager and the camera driver (tests/ros2_control_standin.py) plays the arm, the
-graph's own nodes start with config/graph.yaml's ``ros2_control`` settings, and the arm is
-learned and reaches a PREDICTIVE goal.
+FollowJointTrajectory action on wall time, with no simulator node and no ``/clock``: a stand-in
+for the controller_manager and the camera driver (tests/ros2_control_standin.py) plays the arm,
+the graph's own nodes start with config/graph.yaml's ``ros2_control`` settings. The arm is
+learned and reaches a PREDICTIVE goal through the action; a goal beyond the stand-in's
+hardware limits (narrower than flexarm's) fails with the controller's reason. The tests share
+one graph (learning it is what takes the time).
 """
 import math
 from pathlib import Path
 
 import pytest
+from action_msgs.msg import GoalStatus, GoalStatusArray
 from learned_goal import learn_and_reach
+from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.launcher import NodeProcess, NodeSpec, ros_env, stop_all
 from flexarm_core import topics
+from flexarm_msgs.action import MoveToPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
 TARGET = (1.30, -0.20, math.radians(-61))            # Table 10, B6
 ROBOT = 'ros2_control'
+# The stand-in's joint1 stops at 1 rad (flexarm's at pi): region B and TARGET lie within,
+# this pose (joint1 1.62 rad) does not.
+JOINT1_LIMIT = 1.0
+BEYOND = (0.30, 1.20, math.radians(90))
+ACTION = topics.absolute(topics.FOLLOW_JOINT_TRAJECTORY)
 
 
-@pytest.fixture
-def stand_in(domain_id, tmp_path):
-    """The stand-in arm as a node process of its own, on the test's domain."""
-    env = ros_env(domain_id, tmp_path / 'ros_log')
+@pytest.fixture(scope='module')
+def stand_in(domain_id, tmp_path_factory):
+    """The stand-in arm as a node process of its own, on the module's domain."""
+    folder = tmp_path_factory.mktemp('stand_in')
+    env = ros_env(domain_id, folder / 'ros_log')
     env['PYTHONPATH'] = f'{Path(__file__).parent}:{env.get("PYTHONPATH", "")}'
+    upper = [JOINT1_LIMIT, 0.80, 1.0471975511965976, 2.0943951023931953]
     node = NodeProcess(NodeSpec(name='ros2_control_standin', module='ros2_control_standin'),
-                       env, tmp_path / 'ros2_control_standin.log')
+                       env, folder / 'ros2_control_standin.log', {'upper': upper})
     node.start()
     yield node
     assert stop_all([node])[node.spec.name] is not None, 'the stand-in could not be stopped'
 
 
-def test_a_ros2_control_arm_is_learned_and_reached_through_trajectories_without_a_clock(
-        stand_in, launch, ready_client, tmp_path):
-    launch('flexarm_vision', robot=ROBOT, tool_calibration_file=str(tmp_path / 'none.json'),
-           camera_calibration_file=str(tmp_path / 'none_camera.json'))
-    launch('flexarm_learner', robot=ROBOT, data_directory=str(tmp_path / 'data'),
-           model_directory=str(tmp_path / 'models'))
-    launch('flexarm_compensator', robot=ROBOT)
+@pytest.fixture(scope='module')
+def graph(stand_in, module_launch, tmp_path_factory):
+    """The vision node, the learner and the compensator of the ros2_control entry."""
+    folder = tmp_path_factory.mktemp('graph')
+    module_launch('flexarm_vision', robot=ROBOT,
+                  tool_calibration_file=str(folder / 'none.json'),
+                  camera_calibration_file=str(folder / 'none_camera.json'))
+    module_launch('flexarm_learner', robot=ROBOT, data_directory=str(folder / 'data'),
+                  model_directory=str(folder / 'models'))
+    module_launch('flexarm_compensator', robot=ROBOT)
+    return module_launch
+
+
+def goal_statuses(client):
+    """The FollowJointTrajectory goals' final statuses the test's client hears, by goal id."""
+    ended: dict[bytes, int] = {}
+    finals = {GoalStatus.STATUS_SUCCEEDED, GoalStatus.STATUS_ABORTED,
+              GoalStatus.STATUS_CANCELED}
+
+    def heard(msg: GoalStatusArray) -> None:
+        for status in msg.status_list:
+            if status.status in finals:
+                ended[bytes(status.goal_info.goal_id.uuid)] = status.status
+    client.create_subscription(
+        GoalStatusArray, f'{ACTION}/_action/status', heard,
+        QoSProfile(depth=100, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))
+    return ended
+
+
+def test_a_ros2_control_arm_is_learned_and_reached_through_the_action_without_a_clock(
+        graph, ready_client):
     client = ready_client()
+    ended = goal_statuses(client)
 
     learn_and_reach(client, 8, 'arm', TARGET, collect_timeout=240)
 
     assert client.count_publishers(topics.CLOCK) == 0
     assert client.count_publishers(topics.absolute(topics.JOINT_COMMANDS)) == 0
-    trajectories = client.get_publishers_info_by_topic(topics.absolute(topics.JOINT_TRAJECTORY))
-    assert {p.node_name for p in trajectories} == {'flexarm_learner', 'flexarm_compensator'}
+    assert client.count_publishers(topics.absolute(topics.JOINT_TRAJECTORY)) == 0
+    senders = {name for name, ns in client.get_node_names_and_namespaces()
+               if f'{ACTION}/_action/send_goal' in dict(
+                   client.get_client_names_and_types_by_node(name, ns))}
+    assert senders == {'flexarm_learner', 'flexarm_compensator'}
+    # every pose's approach and final leg, and the goal's: each a goal the controller ran
+    # (succeeded, or preempted by the next once flexarm saw the joints arrive)
+    assert len(ended) >= 2 * (8 + 1), ended
+
+
+def test_a_goal_beyond_the_controllers_limits_fails_with_its_reason(graph, ready_client):
+    client = ready_client()
+    moved = client.move_to(*BEYOND, mode='rigid', timeout=60)
+    assert moved.error_code == MoveToPose.Result.CONTROLLER_TIMEOUT, moved.error_string
+    assert ('joint_trajectory_controller aborted the move: INVALID_GOAL (joint1 position'
+            in moved.error_string), moved.error_string
+    assert f'beyond the hardware limits [-3.1416, {JOINT1_LIMIT:.4f}]' in moved.error_string

@@ -52,7 +52,8 @@ MOVE_HINTS = {
                           '(its log in runs/<name>/)',
     'TOLERANCE_NOT_MET': 'loosen --position-tolerance/--angle-tolerance, allow more '
                          '--max-corrections (CLOSED_LOOP), or retrain the model',
-    'CONTROLLER_TIMEOUT': 'the joints did not follow the command: check the controller '
+    'CONTROLLER_TIMEOUT': 'the joints did not follow the command, or the controller refused '
+                          'or aborted it (the reason gives its words): check the controller '
                           '(`flexarm status` names a node that died) and /joint_states',
     'CANCELED': 'the goal was cancelled (flexarm cancel, another client, or the server: the '
                 'reason says why); the arm stopped where it was',

@@ -74,6 +74,7 @@ ARM_FOLDERS = (('learner', 'data_directory'), ('learner', 'model_directory'),
 READY_TOPICS = (topics.JOINT_STATES, topics.TIP_POSE)
 READY_ACTIONS = (topics.MOVE_TO_POSE, topics.COLLECT_SAMPLES)
 READY_SERVICES = (topics.TRAIN,)
+ACTION_STATUS = '{}/_action/status'   # an action server's goal status topic
 
 
 class Graph:
@@ -290,10 +291,13 @@ class Graph:
 def ready_topics(settings: Mapping[str, Any]) -> tuple[tuple[str, ...], tuple[str, ...]]:
     """The topics a ready graph publishes and those it listens to, for a robot entry's
     ``settings``: ``/clock`` only on sim time (a real arm's graph runs on wall time), and the
-    command topic of its ``motion.joint_commands`` (a controller executes what is sent)."""
+    command topic of its ``motion.joint_commands`` (a controller executes what is sent); for
+    ``follow_joint_trajectory`` the status its controller's action server publishes."""
     clock = (topics.CLOCK,) if settings.get('use_sim_time') else ()
-    commands = (topics.JOINT_TRAJECTORY if settings.get('motion.joint_commands') == 'trajectory'
-                else topics.JOINT_COMMANDS)
+    kind = settings.get('motion.joint_commands')
+    if kind == 'follow_joint_trajectory':
+        return (*READY_TOPICS, *clock, ACTION_STATUS.format(topics.FOLLOW_JOINT_TRAJECTORY)), ()
+    commands = topics.JOINT_TRAJECTORY if kind == 'trajectory' else topics.JOINT_COMMANDS
     return (*READY_TOPICS, *clock), (commands,)
 
 

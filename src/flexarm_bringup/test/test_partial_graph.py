@@ -7,6 +7,7 @@ import pytest
 from flexarm_bringup.launcher import select_nodes
 from flexarm_bringup.status_text import status_text
 from flexarm_bringup.supervisor import (
+    ACTION_STATUS,
     READY_ACTIONS,
     READY_SERVICES,
     READY_TOPICS,
@@ -51,6 +52,7 @@ class Probe:
         self.nodes = nodes
         names = [topics.absolute(n) for n in (*READY_TOPICS, topics.CLOCK, *READY_SERVICES)]
         names += [topics.absolute(a) + '/_action/send_goal' for a in READY_ACTIONS]
+        names.append(topics.absolute(ACTION_STATUS.format(topics.FOLLOW_JOINT_TRAJECTORY)))
         self.names = [n for n in names if n not in lacking]
         self.lacking = lacking
 
@@ -99,22 +101,25 @@ def test_a_partial_graph_is_ready_only_with_the_remote_nodes_and_names_what_lack
     graph.wait_ready(5.0)                                       # returns: ready
 
 
-def test_a_ros2_control_arm_is_ready_on_wall_time_with_a_trajectory_controller_listening(
+def test_a_ros2_control_arm_is_ready_on_wall_time_with_a_trajectory_controller_serving(
         tmp_path, discovering):
     """No simulator, no bridge, no /clock: the integrator's controller_manager and camera
-    driver are the robot; the learner and the compensator send trajectories on wall time."""
+    driver are the robot; the learner and the compensator send FollowJointTrajectory goals on
+    wall time, so the graph waits for the controller's action server."""
     assert ready_topics({'use_sim_time': True, 'motion.joint_commands': 'forward'}) == (
         (*READY_TOPICS, topics.CLOCK), (topics.JOINT_COMMANDS,))
+    assert ready_topics({'use_sim_time': True, 'motion.joint_commands': 'trajectory'}) == (
+        (*READY_TOPICS, topics.CLOCK), (topics.JOINT_TRAJECTORY,))
     graph = Graph(17, tmp_path, robot='ros2_control')
     assert not {'flexarm_sim', 'flexarm_bridge'} & set(graph.nodes)
     for name in ('flexarm_learner', 'flexarm_compensator'):
-        assert graph.nodes[name].spec.parameters == {'use_sim_time': False,
-                                                     'motion.joint_commands': 'trajectory'}
-    trajectories = topics.absolute(topics.JOINT_TRAJECTORY)
-    discovering(Probe(list(graph.nodes), lacking=(topics.CLOCK, trajectories)))
+        assert graph.nodes[name].spec.parameters == {
+            'use_sim_time': False, 'motion.joint_commands': 'follow_joint_trajectory'}
+    status = topics.absolute(ACTION_STATUS.format(topics.FOLLOW_JOINT_TRAJECTORY))
+    discovering(Probe(list(graph.nodes), lacking=(topics.CLOCK, status)))
     with pytest.raises(TimeoutError) as refused:
         graph.wait_ready(0.3)
-    assert str(refused.value).endswith(f'missing a subscriber of {trajectories}')
+    assert str(refused.value).endswith(f'missing {status}')
     discovering(Probe(list(graph.nodes), lacking=(topics.CLOCK,)))
     graph.wait_ready(5.0)                                       # ready without /clock
 

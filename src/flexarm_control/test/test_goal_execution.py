@@ -208,6 +208,17 @@ def test_a_move_that_does_not_arrive_ends_the_goal_with_the_arm_held(world, sile
     assert arm.timeout == pytest.approx(travel + world[2].move_timeout_margin)
 
 
+def test_a_move_the_controller_ends_fails_the_goal_with_its_reason_and_the_arm_held(world):
+    reason = ('joint_trajectory_controller aborted the move: PATH_TOLERANCE_VIOLATED '
+              '(Aborted due to path tolerance violation)')
+
+    def refusing(arm):
+        arm.refusal = reason
+    execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, arm_setup=refusing)
+    assert execution.status == CONTROLLER_TIMEOUT and execution.reason == reason
+    assert arm.holds == 1 and arm.measurements == 0
+
+
 def test_motion_settings_are_checked():
     good = {'arrival_tolerance': [1e-4, 1e-5, 1e-4, 1e-4], 'move_timeout_margin': 10.0,
             'measurement_frames': 3, 'measurement_timeout': 30.0, 'approach': [0.0] * 4}

@@ -1,7 +1,8 @@
 """Names of the flexarm graph's topics, actions and services (one place for every node).
 
-The controller contract is ros2_control's: joint_state_broadcaster's ``joint_states`` and
-forward_command_controller's ``forward_position_controller/commands``.
+The controller contract is ros2_control's: joint_state_broadcaster's ``joint_states``,
+forward_command_controller's ``forward_position_controller/commands`` and
+joint_trajectory_controller's ``joint_trajectory`` topic and ``follow_joint_trajectory`` action.
 
 Names are relative, so one arm's graph runs under a namespace (``flexarm up --namespace
 arm1``: ``/arm1/joint_states``, ``/arm1/move_to_pose``, ...) and several arms share a ROS
@@ -16,6 +17,8 @@ JOINT_STATES = 'joint_states'                               # sensor_msgs/JointS
 JOINT_COMMANDS = 'forward_position_controller/commands'     # std_msgs/Float64MultiArray
 JOINT_TRAJECTORY = ('joint_trajectory_controller/'                # trajectory_msgs/
                     'joint_trajectory')                         # JointTrajectory
+FOLLOW_JOINT_TRAJECTORY = ('joint_trajectory_controller/'         # control_msgs/action/
+                           'follow_joint_trajectory')             # FollowJointTrajectory
 CLOCK = '/clock'                                            # rosgraph_msgs/Clock
 CAMERA_IMAGE = 'camera/image_raw'                           # sensor_msgs/Image (mono8)
 CAMERA_INFO = 'camera/camera_info'                          # sensor_msgs/CameraInfo, latched

@@ -129,3 +129,7 @@ def test_controllers_yaml_names_the_ros2_controllers_and_the_arm_joints() -> Non
     assert constraints['goal_time'] > 0 and constraints['stopped_velocity_tolerance'] > 0
     arrived = load_config('motion.yaml')['motion']['arrival_tolerance']
     assert [constraints[n]['goal'] for n in ARM['joint_names']] == arrived
+    # the tolerances the flexarm nodes' goals carry, for clients that give none
+    assert [constraints[n]['trajectory'] for n in ARM['joint_names']] == (
+        ARM['trajectory_tolerance']['path'])
+    assert constraints['goal_time'] == ARM['trajectory_tolerance']['goal_time']

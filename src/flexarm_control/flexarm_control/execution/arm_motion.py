@@ -16,8 +16,8 @@ takes up the friction band (2 x 30 % of the backlash: 0.84 mrad at joint 4; some
 joint 2); all zero turns it off. It drives any :class:`Arm` — the nodes'
 :class:`~flexarm_control.ros.arm_interface.ArmInterface` or a fake in unit tests — and turns what
 goes wrong into exceptions the policies handle: :class:`Canceled` (the arm is held where it
-is) and :class:`MoveFailed` (the joints did not arrive in time, or the controller fell
-silent: the arm is held and its state is unknown).
+is) and :class:`MoveFailed` (the joints did not arrive in time, the controller ended the move
+short of them and said why, or it fell silent: the arm is held and its state is unknown).
 """
 from __future__ import annotations
 
@@ -49,7 +49,13 @@ class Arm(Protocol):
 
     def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
              abort: Abort = never) -> bool:
-        """Command ``q``; whether every joint came within ``tolerance`` of it in time."""
+        """Command ``q``; whether every joint came within ``tolerance`` of it in time (False
+        also when the controller ended the move, with its reason in :attr:`move_problem`)."""
+
+    @property
+    def move_problem(self) -> str:
+        """Why the controller ended the last move short of its target, in its words ('' if it
+        did not say)."""
 
     def measure(self, frames: int, timeout: float, abort: Abort = never,
                 ) -> Measurement | None:
@@ -143,11 +149,12 @@ class ArmMotion:
             raise Canceled('canceled; arm held', self.arm.hold())
         if not arrived:
             lost = self.arm.controller_silent
+            ended = self.arm.move_problem
             self.arm.hold()
             raise MoveFailed(
                 'the controller stopped publishing /joint_states mid-move (died, or its link '
                 "was lost): the arm's state is unknown" if lost else
-                f'joints did not reach the command within {timeout:.0f} s', lost)
+                ended or f'joints did not reach the command within {timeout:.0f} s', lost)
 
     def measure(self, abort: Abort = never) -> Measurement | None:
         """The tip where the arm stands, None if no valid settled measurement came in time;

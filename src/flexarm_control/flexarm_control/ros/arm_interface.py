@@ -3,8 +3,10 @@
 Shared by the compensator and the learner, whose policies drive it as an
 :class:`~flexarm_control.execution.arm_motion.Arm`. Commands follow one of ros2_controllers'
 contracts (:mod:`flexarm_control.ros.joint_commands`): a position set-point on
-``/forward_position_controller/commands`` or a trajectory on
-``/joint_trajectory_controller/joint_trajectory``, so a real controller drops in. A move or a
+``/forward_position_controller/commands``, a trajectory on
+``/joint_trajectory_controller/joint_trajectory`` or a FollowJointTrajectory goal of that
+controller, so a real controller drops in. A move ends early when the controller says it failed
+(rejected or aborted the goal): :attr:`ArmInterface.move_problem` gives its reason. A move or a
 measurement waits in the arm's own time, the stamps of its joint states (sim time from the
 simulator; a real arm's wall time): with several arms on one ``/clock`` a busy
 simulator following it can lag by seconds, and its arm is not late for that. Waits are also
@@ -126,6 +128,7 @@ class ArmInterface:
         self._joints_heard: float | None = None   # [s, monotonic] when the newest was taken
         self._frames: deque[TipPose] = deque(maxlen=frames_kept)
         self.measurement_problem = ''     # why the last measure() failed ('' if it did not)
+        self.move_problem = ''     # the controller's reason the last move() failed ('' none)
         self._commands = commands or ForwardCommands(node)
 
     @contextmanager
@@ -254,15 +257,24 @@ class ArmInterface:
 
     def move(self, q: np.ndarray, tolerance: np.ndarray, timeout: float,
              abort: Callable[[], bool] = lambda: False) -> bool:
-        """Command ``q`` and wait until every joint is within ``tolerance`` of it."""
+        """Command ``q`` and wait until every joint is within ``tolerance`` of it; False also
+        when the controller ends the move short of it, with its reason in
+        :attr:`move_problem` (kept there: the hold that follows is a command of its own)."""
         target = np.asarray(q, dtype=float)
+        self.move_problem = ''
         self.command(target)
 
         def arrived() -> bool:
             joints = self._joints
             return joints is not None and bool(np.all(np.abs(joints.positions - target)
                                                       <= tolerance))
-        return self.wait_until(arrived, timeout, abort, self.arm_time)
+
+        def ended() -> bool:
+            return abort() or bool(self._commands.problem)
+        if self.wait_until(arrived, timeout, ended, self.arm_time):
+            return True
+        self.move_problem = self._commands.problem
+        return False
 
     def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,
                 ) -> Measurement | None:

@@ -1,4 +1,4 @@
-"""How the control nodes' moves reach the arm: the two command contracts of ros2_controllers.
+"""How the control nodes' moves reach the arm: the command contracts of ros2_controllers.
 
 * ``forward`` (forward_command_controller): the target as one position set-point on
   ``forward_position_controller/commands``. The controller passes it on as it is, so this
@@ -18,29 +18,55 @@
   controller splines to it from where the arm is and how fast it goes, so the arm ends where
   the caller was told it is held (as a set-point's profile does on the forward contract).
 
+* ``follow_joint_trajectory`` (joint_trajectory_controller, as MoveIt drives it): the same
+  trajectory as a ``control_msgs/FollowJointTrajectory`` goal on
+  ``joint_trajectory_controller/follow_joint_trajectory``, with the path and goal tolerances and
+  the goal time of :mod:`flexarm_control.execution.trajectory_goal`. The controller answers:
+  a goal it rejects, or one it aborts (a path or goal tolerance violated, an invalid goal, ...),
+  is the move's :attr:`~JointCommands.problem` in its words, which ends the move's wait at once
+  (:meth:`~flexarm_control.ros.arm_interface.ArmInterface.move`). A goal flexarm's own next move
+  or stop replaced (the controller aborts it as preempted) is no failure: only the newest
+  goal's answer counts.
+
 A set-point stream on the forward contract could carry a shaped reference only at the rate the
 node can publish in the arm's time: a 20 ms wall poll is 0.2 s of simulated time at 10x, too
 coarse for a 10 Hz mode. A shaped move therefore needs the trajectory contract, which the
 controller interpolates in its own time; on the forward contract moves stay plain.
 
 config/graph.yaml ``robot_settings`` chooses one per robot entry (``motion.joint_commands``).
+On the contracts without an answer, arrival is seen only in ``/joint_states``.
 """
 from __future__ import annotations
 
+import threading
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
 import numpy as np
+from rclpy.action import ActionClient
+from rclpy.action.client import ClientGoalHandle
+from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.task import Future
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
+from control_msgs.action import FollowJointTrajectory
 from flexarm_control.execution.shaped_move import MovePlanner, ShapedMove
-from flexarm_core import topics
+from flexarm_control.execution.trajectory_goal import (
+    TrajectoryTolerances,
+    failure,
+    goal_message,
+    rejection,
+)
+from flexarm_core import liveness, topics
 from flexarm_core.kinematics import JOINT_NAMES
 
-KINDS = ('forward', 'trajectory')
+KINDS = ('forward', 'trajectory', 'follow_joint_trajectory')
+# [s, wall] a move waits for the controller's action server to be discovered (times the
+# liveness factor): it is there when the graph is; discovery takes a moment on a loaded machine.
+SERVER_WAIT = 5.0
 
 
 class JointCommands(Protocol):
@@ -50,9 +76,16 @@ class JointCommands(Protocol):
     def stop(self, here: np.ndarray) -> None:
         """Stop the arm (at ``here``, the joints now)."""
 
+    @property
+    def problem(self) -> str:
+        """Why the controller ended the last move short of its target, in its words ('' while
+        it runs, once it succeeded, and on a contract whose controller does not answer)."""
+
 
 class ForwardCommands:
     """One position set-point per move (forward_command_controller's contract)."""
+
+    problem = ''        # the controller does not answer
 
     def __init__(self, node: Node) -> None:
         self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
@@ -78,6 +111,8 @@ class TrajectoryCommands:
     """A shaped trajectory within the joint limits per move (joint_trajectory_controller's
     contract); ``payload()``: the load [kg] the arm carries now."""
 
+    problem = ''        # the controller does not answer on its topic
+
     def __init__(self, node: Node, planner: MovePlanner, payload: Callable[[], float]) -> None:
         self._publisher = node.create_publisher(JointTrajectory, topics.JOINT_TRAJECTORY, 10)
         self._planner, self._payload = planner, payload
@@ -92,14 +127,85 @@ class TrajectoryCommands:
         self._publisher.publish(trajectory_message(self._planner.stop(here)))
 
 
+class FollowTrajectoryCommands:
+    """The shaped trajectory of each move as a FollowJointTrajectory goal, with the arm's
+    tolerances (joint_trajectory_controller's action); ``payload()``: the load [kg] the arm
+    carries now.
+
+    A stop is a goal of its own, the topic contract's stop trajectory, not a cancel: canceled,
+    joint_trajectory_controller holds the arm where its state is at that instant, a step in
+    the commanded velocity of a moving arm (the ringing shaping avoids), and not where the
+    caller was told the arm is held; the one-point goal brakes within the joints' limits to
+    that point. It preempts the running goal, as every new move does.
+    """
+
+    def __init__(self, node: Node, planner: MovePlanner, payload: Callable[[], float],
+                 tolerances: TrajectoryTolerances) -> None:
+        self._client = ActionClient(node, FollowJointTrajectory, topics.FOLLOW_JOINT_TRAJECTORY,
+                                    callback_group=MutuallyExclusiveCallbackGroup())
+        self._planner, self._payload, self._tolerances = planner, payload, tolerances
+        self._lock = threading.Lock()
+        self._sent = 0          # goals sent; only the newest one's answer counts
+        self._problem = ''
+
+    @property
+    def problem(self) -> str:
+        with self._lock:
+            return self._problem
+
+    def send(self, start: np.ndarray | None, target: np.ndarray) -> None:
+        if start is None:                       # nothing known to plan from: go at once
+            start = target
+        self._send(self._planner.plan(start, target, self._payload()))
+
+    def stop(self, here: np.ndarray) -> None:
+        self._send(self._planner.stop(here))
+
+    def _send(self, move: ShapedMove) -> None:
+        with self._lock:
+            self._sent += 1
+            number, self._problem = self._sent, ''
+        if not self._client.server_is_ready():
+            self._client.wait_for_server(liveness.limit(SERVER_WAIT))
+        if not self._client.server_is_ready():
+            self._answer(number, f'no {topics.FOLLOW_JOINT_TRAJECTORY} action server: is '
+                         'joint_trajectory_controller loaded and active?')
+            return
+        sent = self._client.send_goal_async(goal_message(trajectory_message(move),
+                                                         self._tolerances))
+        sent.add_done_callback(lambda future: self._on_response(number, future))
+
+    def _answer(self, number: int, problem: str) -> None:
+        with self._lock:
+            if number == self._sent:            # an older goal's answer: replaced, no failure
+                self._problem = problem
+
+    def _on_response(self, number: int, future: Future) -> None:
+        handle: ClientGoalHandle | None = future.result()
+        if handle is None or not handle.accepted:
+            self._answer(number, rejection())
+            return
+        handle.get_result_async().add_done_callback(
+            lambda done: self._on_result(number, done))
+
+    def _on_result(self, number: int, future: Future) -> None:
+        response = future.result()
+        if response is not None:
+            self._answer(number, failure(response.status, response.result.error_code,
+                                         response.result.error_string))
+
+
 def joint_commands(node: Node, motion: Mapping[str, Any], arm: Mapping[str, Any],
                    payload: Callable[[], float]) -> JointCommands:
-    """The command contract ``motion['joint_commands']`` names, with the arm's limits and
-    tip mode (``payload()``: the load [kg] the arm carries now)."""
+    """The command contract ``motion['joint_commands']`` names, with the arm's limits, tip
+    mode and tolerances (``payload()``: the load [kg] the arm carries now)."""
     kind = motion['joint_commands']
     planner = MovePlanner.from_dicts(motion, arm)     # checked whichever contract is used
+    tolerances = TrajectoryTolerances.from_dicts(arm, motion)
     if kind == 'forward':
         return ForwardCommands(node)
     if kind == 'trajectory':
         return TrajectoryCommands(node, planner, payload)
+    if kind == 'follow_joint_trajectory':
+        return FollowTrajectoryCommands(node, planner, payload, tolerances)
     raise ValueError(f'motion.joint_commands {kind!r}: one of {", ".join(KINDS)}')

@@ -13,6 +13,7 @@ from typing import Any
 from flexarm_bringup.cli.common import IDEAL_HELP, _learner_default
 from flexarm_bringup.cli.experiments import cmd_benchmark, cmd_demo, cmd_study
 from flexarm_bringup.cli.graph import cmd_down, cmd_ps, cmd_status, cmd_up
+from flexarm_bringup.cli.integration import cmd_param, cmd_urdf
 from flexarm_bringup.cli.learning import (
     cmd_collect,
     cmd_model,
@@ -311,6 +312,22 @@ def _model_arguments(p: argparse.ArgumentParser) -> None:
                         'with --namespace NS)')
 
 
+def _urdf_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('file', nargs='?', default='', metavar='FILE',
+                   help='where to write it (default: stdout)')
+    p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
+
+
+def _param_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('action', choices=['get', 'set', 'list'])
+    p.add_argument('node', help='the node\'s name (e.g. flexarm_learner; under --namespace)')
+    p.add_argument('name', nargs='?', default='',
+                   help='the parameter (list: only those whose names start with it)')
+    p.add_argument('value', nargs='?', default=None,
+                   help='set: the value, read as YAML as ros2 param set reads it (2.5, true, '
+                        'text, "[0.0, 1.0]"); a whole number sets a double parameter')
+
+
 def _keygen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('path', help='key file to create')
 
@@ -351,6 +368,8 @@ SUBCOMMANDS: dict[str, tuple[Command, Callable[[argparse.ArgumentParser], None],
     'model': (cmd_model, _model_arguments, 'wait'),
     'keygen': (cmd_keygen, _keygen_arguments, None),
     'calibrate': (cmd_calibrate, _calibrate_arguments, 'wait'),
+    'urdf': (cmd_urdf, _urdf_arguments, None),
+    'param': (cmd_param, _param_arguments, 'wait'),
 }
 
 

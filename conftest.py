@@ -18,6 +18,7 @@
 """
 from __future__ import annotations
 
+import contextlib
 import os
 import shutil
 import signal
@@ -174,7 +175,7 @@ class DomainPool:
     """
 
     def __init__(self) -> None:
-        self._held: dict[int, socket.socket] = {}
+        self._held: dict[int, socket.socket | None] = {}    # None: lent (:meth:`lent`)
 
     def take(self) -> int:
         from flexarm_bringup import domains
@@ -192,9 +193,26 @@ class DomainPool:
             return did
         raise RuntimeError('no free ROS domain left for this test run')
 
+    @contextlib.contextmanager
+    def lent(self, did: int) -> Iterator[None]:
+        """The reservation of the run's domain ``did`` released for the block, for a process
+        of the test to take (``flexarm up`` refuses an exported domain that another process
+        reserves), and taken back after it; no other module of the run gets ``did`` meanwhile."""
+        from flexarm_bringup import domains
+
+        sock = self._held[did]
+        assert sock is not None, f'domain {did} is lent already'
+        self._held[did] = None
+        sock.close()
+        try:
+            yield
+        finally:
+            self._held[did] = domains.hold(did)
+
     def close(self) -> None:
         for sock in self._held.values():
-            sock.close()
+            if sock is not None:
+                sock.close()
         self._held.clear()
 
 

@@ -9,7 +9,10 @@ error source is off: the camera alone is tested.
 import math
 
 import pytest
+import yaml
 from learned_goal import learn_and_reach
+from rclpy.qos import DurabilityPolicy, QoSProfile
+from sensor_msgs.msg import CameraInfo
 
 from flexarm_bringup.cli import Exit, main
 from flexarm_control.execution.collection import BLIND_POSES
@@ -76,5 +79,13 @@ def test_a_camera_five_times_off_its_calibration_is_calibrated_learns_and_reache
     assert focal == pytest.approx(1 + camera['focal_length'], abs=1e-4)
     assert (k1, k2) == pytest.approx((camera['k1'], camera['k2']), abs=4e-3)
     assert lens.is_file() and 'not determined from the plate: ' in capsys.readouterr().out
+    # beside it, for the camera's driver: the intrinsics the vision node now measures through
+    driver_file = yaml.safe_load((tmp_path / 'camera_info.yaml').read_text())
+    latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+    in_use = client.messages_from('flexarm_vision/camera_info', CameraInfo, 1, 10,
+                                  qos=latched)[0]
+    assert driver_file['camera_matrix']['data'] == pytest.approx(list(in_use.k), rel=1e-12)
+    assert driver_file['distortion_coefficients']['data'] == pytest.approx(list(in_use.d),
+                                                                           abs=1e-15)
     assert 'camera off its calibration' not in valid_pose().status
     learn_and_reach(client, 12, 'seen', TARGET, collect_timeout=180)

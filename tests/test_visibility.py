@@ -17,9 +17,11 @@ from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
 from flexarm_bringup.bag_tools import read_decoded
+from flexarm_bringup.cli import main
+from flexarm_bringup.outcome_text import Exit
 from flexarm_bringup.stamp_order import backwards_steps, beyond_sent, header_stamps
 from flexarm_core import topics
-from flexarm_core.frames import PLANE_FRAME
+from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_core.stamps import to_ns
@@ -77,6 +79,8 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
 
     description = wait_for(lambda: got['description'], 60.0, '/robot_description')[0]
+    assert main(['urdf', str(tmp_path / 'flexarm.urdf')]) == Exit.OK      # no graph needed
+    assert description.data == (tmp_path / 'flexarm.urdf').read_text()
     robot = ET.fromstring(description.data)
     limits = {j.get('name'): j.find('limit') for j in robot.findall('joint')
               if j.get('type') != 'fixed'}
@@ -85,7 +89,16 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
         assert float(limits[name].get('lower')) == pytest.approx(geometry.lower[i])
         assert float(limits[name].get('upper')) == pytest.approx(geometry.upper[i])
 
-    static = wait_for(lambda: got['static'], 30.0, '/tf_static')[0]
+    def static_frames() -> dict[str, Transform]:
+        """The fixed frames of every /tf_static publisher (the state publisher's, the vision
+        node's calibrated camera), once both have published."""
+        with lock:
+            frames = {t.child_frame_id: as_transform(t) for m in got['static']
+                      for t in m.transforms}
+        return frames if {TIP_FRAME, CALIBRATED_CAMERA_FRAME} <= set(frames) else {}
+
+    static = wait_for(static_frames, 30.0, '/tf_static of the state publisher and vision')
+    assert static[CALIBRATED_CAMERA_FRAME].parent == TIP_FRAME
 
     def matched():
         """A /tf of the four joints and the /joint_states it was computed from."""
@@ -98,7 +111,7 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
         return None
 
     tf, state = wait_for(matched, 30.0, 'a /tf message matching a /joint_states message')
-    by_child = {t.child: t for t in map(as_transform, [*static.transforms, *tf.transforms])}
+    by_child = {**static, **{t.child: t for t in map(as_transform, tf.transforms)}}
     pose = planar_pose(*compose(chain_to(TIP_FRAME, by_child)))
     q = np.array([dict(zip(state.name, state.position))[n] for n in JOINT_NAMES])
     np.testing.assert_allclose(pose, forward(geometry, q), atol=1e-9)

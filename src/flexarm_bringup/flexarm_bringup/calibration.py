@@ -9,7 +9,10 @@ vision node measures with (its ``~/camera_info``), and
 :func:`~flexarm_vision.camera_calibration.calibrate_camera` finds what the plate can tell of
 what is left (focal length over stand-off, k1, k2). The node's correction plus that is stored
 atomically and set on the running vision node (``camera_correction``), which measures through
-it from then on. A tool calibration must follow: the camera's measured poses moved.
+it from then on. The intrinsics it measures through are also written, atomically, beside the
+record as the camera_info YAML a ROS camera driver loads (:func:`camera_info_path`:
+``calibration/camera_info.yaml``), for the site's driver to publish them itself. A tool
+calibration must follow: the camera's measured poses moved.
 
 Tool:
 The arm moves RIGID to the six Table 10 poses; at each one the vision node's measured pose
@@ -56,6 +59,7 @@ from flexarm_vision.camera_calibration import (
     calibrate_camera,
     write_camera_calibration,
 )
+from flexarm_vision.camera_info_file import write_camera_info_file
 from flexarm_vision.camera_model import Intrinsics
 from flexarm_vision.image_encoding import image_to_array
 from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
@@ -110,6 +114,12 @@ def calibrate_tool(client: FlexarmClient, reference_topic: str, path: Path,
     return correction, found, details
 
 
+def camera_info_path(record: Path) -> Path:
+    """The camera_info YAML beside the camera calibration ``record`` (camera.json:
+    camera_info.yaml)."""
+    return record.with_name(f'{record.stem}_info.yaml')
+
+
 def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
                    say: Callable[[str], None] = print,
                    ) -> tuple[CameraCorrection, CameraCalibration, dict[str, Any]]:
@@ -160,10 +170,13 @@ def calibrate_lens(client: FlexarmClient, path: Path, timeout: float = 120.0,
         last = f'; the last pose without one: {problems[-1]}' if problems else ''
         raise ValueError(f'{exc}{last}') from None
     correction = current + found.correction
+    info_file = camera_info_path(path)
     details = {'views': found.views, 'holes': found.holes, 'motion': motion,
                'rms_before_px': found.rms_before_px, 'rms_after_px': found.rms_after_px,
                'determined': found.determined, 'not_determined': found.not_determined,
-               'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
+               'camera_info_file': str(info_file), 'stamp': time.strftime('%Y-%m-%dT%H:%M:%S')}
     write_camera_calibration(path, correction, **details)
+    # what the vision node measures through from now on, for the site's camera driver
+    write_camera_info_file(info_file, found.correction.apply(estimator.camera.intrinsics))
     client.set_node_parameter(vision, 'camera_correction', correction.as_list())
     return correction, found, details

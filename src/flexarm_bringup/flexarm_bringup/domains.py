@@ -15,6 +15,7 @@ from collections.abc import Iterator
 from domain_coordinator.impl import PORT_BASE
 
 FIRST, LAST = 1, 100     # domain_coordinator's range
+MAX_DOMAIN_ID = 232      # the largest ROS_DOMAIN_ID whose DDS ports exist
 
 
 def hold(domain_id: int) -> socket.socket | None:
@@ -28,16 +29,21 @@ def hold(domain_id: int) -> socket.socket | None:
     return sock
 
 
+def first_free() -> tuple[int, socket.socket]:
+    """The first free domain and the socket that reserves it; RuntimeError if none is."""
+    for candidate in range(FIRST, LAST + 1):
+        sock = hold(candidate)
+        if sock is not None:
+            return candidate, sock
+    raise RuntimeError(f'no free ROS domain in {FIRST}..{LAST} on this machine')
+
+
 @contextlib.contextmanager
 def reserved(domain_id: int | None = None) -> Iterator[int]:
     """``domain_id`` as given, or the first free one reserved until the block ends."""
     if domain_id is not None:
         yield domain_id
         return
-    for candidate in range(FIRST, LAST + 1):
-        sock = hold(candidate)
-        if sock is not None:
-            with sock:
-                yield candidate
-            return
-    raise RuntimeError(f'no free ROS domain in {FIRST}..{LAST} on this machine')
+    candidate, sock = first_free()
+    with sock:
+        yield candidate

@@ -22,7 +22,7 @@ from typing import IO, Any
 import yaml
 
 from flexarm_bringup.transport import transport_env
-from flexarm_core.params import config_path
+from flexarm_core.params import config_path, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
@@ -102,6 +102,19 @@ def node_name(role: str, path: Path | None = None) -> str:
     if role not in names:
         raise ValueError(f'graph.yaml has no node of role {role!r}; roles: {sorted(names)}')
     return names[role]
+
+
+def node_parameters(spec: NodeSpec) -> dict[str, Any]:
+    """The parameters the node of ``spec`` starts with (nested), as it is started: its params
+    files under its name, then the robot entry's settings; no per-run overrides."""
+    parameters = load_config(*spec.params_files, node_name=spec.name)
+    for name, value in spec.parameters.items():
+        *parents, leaf = name.split('.')
+        node = parameters
+        for part in parents:
+            node = node.setdefault(part, {})
+        node[leaf] = value
+    return parameters
 
 
 def controllers(path: Path | None = None) -> dict[str, str]:

@@ -48,6 +48,7 @@ from typing import Any
 
 from flexarm_bringup.launcher import (
     NodeProcess,
+    NodeSpec,
     all_nodes,
     load_graph,
     load_optional,
@@ -85,18 +86,8 @@ class Graph:
                  optional: tuple[str, ...] = (), max_restarts: int = 3,
                  report: Callable[[str], None] = print, discovery: str = 'LOCALHOST',
                  namespace: str = '', only: tuple[str, ...] = ()) -> None:
-        specs = load_graph(robot)
-        extra = load_optional(robot)
+        specs, self.remote = graph_specs(robot, optional, only)
         self._published, self._subscribed = ready_topics(robot_settings(robot))
-        here = select_nodes([*(s.name for s in specs), *extra], only) if only else []
-        optional = tuple(dict.fromkeys([*optional, *(n for n in here if n in extra)]))
-        unknown = set(optional) - set(extra)
-        if unknown:
-            raise ValueError(f'unknown optional nodes {sorted(unknown)}; known: {sorted(extra)}')
-        specs += [extra[name] for name in optional]
-        # ``only``: this host's part of the graph; the rest (never an optional node) is remote
-        self.remote = tuple(s.name for s in specs if here and s.name not in here
-                            and s.name not in optional)
         self.domain_id, self.run_dir, self.robot = domain_id, run_dir, robot
         self.namespace = namespace.strip('/')
         self._lock: int | None = None      # file descriptor of the domain lock while started
@@ -286,6 +277,24 @@ class Graph:
 
     def __exit__(self, *exc: object) -> None:
         self.stop()
+
+
+def graph_specs(robot: str, optional: tuple[str, ...] = (), only: tuple[str, ...] = ()
+                ) -> tuple[list[NodeSpec], tuple[str, ...]]:
+    """The nodes of a graph of ``robot`` with the ``optional`` ones, and those of them left to
+    other hosts (``only``: this host's part; the rest, never an optional node, is remote);
+    ValueError naming an unknown robot or node."""
+    specs = load_graph(robot)
+    extra = load_optional(robot)
+    here = select_nodes([*(s.name for s in specs), *extra], only) if only else []
+    optional = tuple(dict.fromkeys([*optional, *(n for n in here if n in extra)]))
+    unknown = set(optional) - set(extra)
+    if unknown:
+        raise ValueError(f'unknown optional nodes {sorted(unknown)}; known: {sorted(extra)}')
+    specs += [extra[name] for name in optional]
+    remote = tuple(s.name for s in specs if here and s.name not in here
+                   and s.name not in optional)
+    return specs, remote
 
 
 def ready_topics(settings: Mapping[str, Any]) -> tuple[tuple[str, ...], tuple[str, ...]]:

@@ -481,13 +481,12 @@ def test_compressed_bag_decodes_fully_with_the_bag_tools(tmp_path: Path,
 
 
 def test_compressed_bag_decodes_fully_with_rosbags(tmp_path: Path) -> None:
-    """rosbags (where installed) reads a zstd bag. Its messages are serialized by rosbags
+    """rosbags reads a zstd bag, every message of it. Its messages are serialized by rosbags
     itself, exactly as they come on the wire: rclpy's serialize_message pads its buffer with
     a few stray bytes, which rosbags' strict CDR reader refuses (a recorded bag's messages,
     taken from the wire, have none)."""
-    highlevel = pytest.importorskip('rosbags.highlevel')
-    typesys = pytest.importorskip('rosbags.typesys')
     import numpy as np
+    from rosbags import highlevel, typesys
 
     store = typesys.get_typestore(typesys.Stores.ROS2_JAZZY)
     joint_state, header, stamp, text = (store.types[name] for name in (
@@ -507,6 +506,9 @@ def test_compressed_bag_decodes_fully_with_rosbags(tmp_path: Path) -> None:
             writer.write(topics.JOINT_STATES, state(i), T0 + 2 * i)
             writer.write(topics.ROBOT_DESCRIPTION, store.serialize_cdr(
                 text(data=f'<robot name="{i}"/>'), 'std_msgs/msg/String'), T0 + 2 * i + 1)
+    with open(tmp_path / 'b' / 'b.mcap', 'rb') as f:
+        chunks = make_reader(f).get_summary().chunk_indexes
+    assert len(chunks) > 1 and {c.compression for c in chunks} == {'zstd'}
     with highlevel.AnyReader([tmp_path / 'b'], default_typestore=store) as reader:
         read = [(c.topic, reader.deserialize(raw, c.msgtype))
                 for c, _, raw in reader.messages()]

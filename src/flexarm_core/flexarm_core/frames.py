@@ -6,7 +6,14 @@ about its x axis so that its x, y are the planar x, y_up of the flexarm messages
 joints' axis (:data:`flexarm_core.plane.PLANE_IN_BASE`). A planar message
 (``flexarm_msgs/TipPose``) names ``arm_plane``: a tf2 user then gets (x, y, 0) in it, the same
 point as (x, 0, y) in ``base_link``. The state publisher puts ``arm_plane`` on ``/tf_static``.
+
+``tip_link`` is the tool of the rigid model (the URDF's chain, flexarm_description.chain).
+``tip_camera_calibrated`` is the tip camera where the tool calibration puts it, in
+``tip_link``, beside the URDF's nominal ``tip_camera_link`` (the vision node publishes it on
+``/tf_static``).
 """
 
 BASE_FRAME = 'base_link'
 PLANE_FRAME = 'arm_plane'
+TIP_FRAME = 'tip_link'
+CALIBRATED_CAMERA_FRAME = 'tip_camera_calibrated'

@@ -49,6 +49,17 @@ class ToolCorrection:
         return np.array([x - c * self.axial + s * self.lateral,
                          y - s * self.axial - c * self.lateral, phi])
 
+    def camera_mount(self, offset: Sequence[float]) -> np.ndarray:
+        """Where the camera is in the tool frame, planar (along, across the tool axis, angle)
+        [m, m, rad]: its nominal mount ``offset`` (config/camera.yaml, the URDF's tip ->
+        camera) moved by this error. The vision node takes the tool from the camera through
+        the nominal mount, so a camera there reports the tool's pose moved by this error,
+        which :meth:`pose` removes."""
+        c, s = math.cos(self.angle), math.sin(self.angle)
+        along, across = (float(v) for v in offset)
+        return np.array([self.axial + c * along - s * across,
+                         self.lateral + s * along + c * across, self.angle])
+
     def apply(self, measurement: Measurement) -> Measurement:
         """The measurement with the correction applied to its pose."""
         return dataclasses.replace(measurement, pose=self.pose(measurement.pose))

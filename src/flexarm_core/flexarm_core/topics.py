@@ -1,8 +1,10 @@
 """Names of the flexarm graph's topics, actions and services (one place for every node).
 
-The controller contract is ros2_control's: joint_state_broadcaster's ``joint_states``,
-forward_command_controller's ``forward_position_controller/commands`` and
-joint_trajectory_controller's ``joint_trajectory`` topic and ``follow_joint_trajectory`` action.
+The controller contract is ros2_control's: joint_state_broadcaster's ``joint_states`` and
+joint_trajectory_controller's, either its ``follow_joint_trajectory`` action (a ros2_control
+arm: accepted or rejected, with a result) or its ``joint_trajectory`` topic (the simulator).
+forward_command_controller's ``forward_position_controller/commands`` (one set-point per move)
+is only the bridge's (config/graph.yaml ``robot_settings``: ``motion.joint_commands``).
 
 Names are relative, so one arm's graph runs under a namespace (``flexarm up --namespace
 arm1``: ``/arm1/joint_states``, ``/arm1/move_to_pose``, ...) and several arms share a ROS

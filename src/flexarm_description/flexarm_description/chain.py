@@ -42,7 +42,7 @@ if TYPE_CHECKING:
 Quaternion = tuple[float, float, float, float]    # (x, y, z, w)
 
 BASE_FRAME = frames.BASE_FRAME
-TIP_FRAME = 'tip_link'
+TIP_FRAME = frames.TIP_FRAME
 CAMERA_FRAME = 'tip_camera_link'
 CAMERA_OPTICAL_FRAME = 'tip_camera_optical_frame'
 

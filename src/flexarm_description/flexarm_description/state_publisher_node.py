@@ -85,7 +85,7 @@ from flexarm_description.chain import (
     planar_transform,
     plane_transform,
 )
-from flexarm_description.urdf_model import MOCK_HARDWARE, robot_description
+from flexarm_description.urdf_model import MOCK_HARDWARE, published_description
 from flexarm_msgs.msg import TipPose
 from tf2_msgs.msg import TFMessage
 
@@ -146,8 +146,9 @@ class StatePublisher(Node):
                            "'': no <ros2_control> block", read_only=True)
         self._joints = arm_joints(geometry, camera['offset'])
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-        self.create_publisher(String, topics.ROBOT_DESCRIPTION, latched).publish(
-            String(data=robot_description(geometry, arm['inertia'], camera['offset'], hardware)))
+        self.create_publisher(String, topics.ROBOT_DESCRIPTION, latched).publish(String(
+            data=published_description({'arm': arm, 'camera': camera,
+                                        'hardware_plugin': hardware})))
         static = [*fixed_transforms(self._joints), plane_transform()]
         self.create_publisher(TFMessage, topics.TF_STATIC, latched).publish(TFMessage(
             transforms=[transform_msg(t, Header()) for t in static]))

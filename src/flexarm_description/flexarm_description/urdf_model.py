@@ -203,3 +203,13 @@ def robot_description(geometry: ArmGeometry, inertia: Mapping[str, Any],
         robot.append(ros2_control(geometry, hardware))
     ET.indent(robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding='unicode') + '\n'
+
+
+def published_description(parameters: Mapping[str, Any]) -> str:
+    """The URDF the state publisher publishes on ``/robot_description``, from its parameters
+    (nested: ``arm``, ``camera``, ``hardware_plugin``): one function for the node and for
+    ``flexarm urdf``, which makes it without a running graph."""
+    arm = parameters['arm']
+    return robot_description(ArmGeometry.from_dict(arm), arm['inertia'],
+                             parameters['camera']['offset'],
+                             parameters.get('hardware_plugin', MOCK_HARDWARE))

@@ -37,6 +37,13 @@ the log and as an ERROR on ``/diagnostics`` (which ``flexarm status`` and ``flex
 log line alone went unseen while every pose was off by the camera's error), and the node runs
 without that correction.
 
+Where the tool correction puts the camera is on ``/tf_static``: ``tip_link`` ->
+``tip_camera_calibrated`` (:func:`calibrated_mount`), beside the URDF's nominal
+``tip_camera_link``, published at start and again whenever the correction changes. This node
+publishes it because it owns the correction: it knows each change the moment it uses it, so
+the frame and the poses it reports never disagree (another node would have to follow the
+parameter, and would lag it).
+
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); its
 ``/diagnostics`` carry the graph's time, the newest ``/clock`` taken when they are published
 (:class:`flexarm_core.stamps.GraphTime`), or wall time in a graph without one.
@@ -53,6 +60,7 @@ import time
 from typing import Any
 
 import numpy as np
+from geometry_msgs.msg import TransformStamped
 from rcl_interfaces.msg import SetParametersResult
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
@@ -63,10 +71,10 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 
-from flexarm_core import topics
+from flexarm_core import plane, topics
 from flexarm_core.demand import Demand, on_matched
 from flexarm_core.diagnostics import DiagnosticsPublisher
-from flexarm_core.frames import PLANE_FRAME
+from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME, TIP_FRAME
 from flexarm_core.health_report import (
     ERROR,
     OK,
@@ -90,6 +98,7 @@ from flexarm_vision.image_encoding import image_to_array
 from flexarm_vision.pose_estimator import Estimate, TipPoseEstimator
 from flexarm_vision.settling import SettleDetector, SettleSettings
 from flexarm_vision.stored_correction import StoredCorrection
+from tf2_msgs.msg import TFMessage
 
 HEALTH_WINDOW = 10.0      # [s, wall] images the measurement health looks back on
 MIN_VALID_RATE = 0.5      # fewer valid images than this: the measurement health warns
@@ -210,6 +219,20 @@ def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info
     return status(node, 'camera_info', OK, f'intrinsics from {source}', values, camera)
 
 
+def calibrated_mount(correction: ToolCorrection, offset: Any) -> TransformStamped:
+    """``tip_link`` -> ``tip_camera_calibrated``: the camera where ``correction`` puts it
+    (:meth:`~flexarm_core.tool_correction.ToolCorrection.camera_mount` of the nominal mount
+    ``offset``), in 3-D as the URDF's frames are (:mod:`flexarm_core.plane`); stamp 0, as
+    every static transform of the graph (tf2 holds it at every time)."""
+    pose = correction.camera_mount(offset)
+    msg = TransformStamped(header=Header(frame_id=TIP_FRAME),
+                           child_frame_id=CALIBRATED_CAMERA_FRAME)
+    t, r = msg.transform.translation, msg.transform.rotation
+    t.x, t.y, t.z = plane.position(pose)
+    r.x, r.y, r.z, r.w = plane.orientation(float(pose[2]))
+    return msg
+
+
 class VisionNode(Node):
 
     def __init__(self) -> None:
@@ -236,6 +259,8 @@ class VisionNode(Node):
             '--camera measured: fx, fy times the scale, k1 and k2 plus theirs; default: '
             'camera_calibration_file'))
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
+        self._mount = self.create_publisher(TFMessage, topics.TF_STATIC, latched)
+        self._publish_mount()
         self._info_pub = self.create_publisher(CameraInfo, '~/camera_info', latched)
         self._use_intrinsics(self._base)
         self.add_on_set_parameters_callback(self._on_set_parameters)
@@ -267,6 +292,10 @@ class VisionNode(Node):
         elif stored.record is not None:
             self.get_logger().info(f'{what} calibration from {path}: {stored.value}')
         return stored
+
+    def _publish_mount(self) -> None:
+        self._mount.publish(TFMessage(transforms=[calibrated_mount(
+            self._tool.value, self._estimator.camera.offset)]))
 
     def _use_intrinsics(self, base: Intrinsics) -> None:
         """Estimate through ``base`` (camera_info's, or config/camera.yaml's) as the camera
@@ -320,6 +349,7 @@ class VisionNode(Node):
             self.get_logger().info(f'{param.name.replace("_", " ")} now {value}')
             if kind is ToolCorrection:
                 self._tool.set(value)       # flexarm calibrate has just rewritten its file
+                self._publish_mount()
             else:
                 self._lens_fix.set(value)
                 self._use_intrinsics(self._base)

@@ -13,6 +13,7 @@ from typing import Any
 from flexarm_bringup.cli.common import IDEAL_HELP, _learner_default
 from flexarm_bringup.cli.experiments import cmd_benchmark, cmd_demo, cmd_study
 from flexarm_bringup.cli.graph import cmd_down, cmd_ps, cmd_status, cmd_up
+from flexarm_bringup.cli.integration import cmd_param, cmd_urdf
 from flexarm_bringup.cli.learning import (
     cmd_collect,
     cmd_model,
@@ -22,6 +23,7 @@ from flexarm_bringup.cli.learning import (
 )
 from flexarm_bringup.cli.motion import cmd_cancel, cmd_move
 from flexarm_bringup.cli.site import cmd_bag, cmd_calibrate, cmd_keygen
+from flexarm_bringup.domains import MAX_DOMAIN_ID
 from flexarm_bringup.outcome_text import (
     EXIT_MEANINGS,
 )
@@ -30,9 +32,6 @@ from flexarm_core import topics
 from flexarm_core.paths import RESULTS_DIR
 
 UINT32_MAX = 2 ** 32 - 1
-
-
-MAX_DOMAIN_ID = 232       # the largest ROS_DOMAIN_ID whose DDS ports exist
 
 
 class UsageError(Exception):
@@ -104,12 +103,15 @@ def _output_options(parser: argparse.ArgumentParser, default: Any) -> None:
 
 
 def _graph_options(parser: argparse.ArgumentParser, graph: str) -> None:
-    """--domain-id: of the graph a command starts ('start': a free one by default) or of the
-    running graph it talks to ('running', 'wait': the environment's, as rclpy takes it); and
-    --wait for the servers of the commands that send them requests ('wait')."""
-    parser.add_argument('--domain-id', type=_domain, default=None, metavar='N', help=(
-        'ROS_DOMAIN_ID to start the graph in (default: a free one)' if graph == 'start' else
-        'ROS_DOMAIN_ID of the running graph (default: the environment\'s, else 0)'))
+    """--domain-id: of the graph a command starts ('start': a free one by default; 'up': the
+    exported one, else a free one) or of the running graph it talks to ('running', 'wait': the
+    environment's, as rclpy takes it); and --wait for the servers of the commands that send
+    them requests ('wait')."""
+    parser.add_argument('--domain-id', type=_domain, default=None, metavar='N', help={
+        'start': 'ROS_DOMAIN_ID to start the graph in (default: a free one)',
+        'up': 'ROS_DOMAIN_ID to start the graph in (default: the exported ROS_DOMAIN_ID, '
+              'refused if another graph or process holds it; a free one if none is exported)',
+    }.get(graph, 'ROS_DOMAIN_ID of the running graph (default: the environment\'s, else 0)'))
     if graph == 'wait':
         parser.add_argument('--wait', type=_positive, default=30.0, metavar='S',
                             help='[s] to wait for the graph\'s servers to answer')
@@ -310,6 +312,22 @@ def _model_arguments(p: argparse.ArgumentParser) -> None:
                         'with --namespace NS)')
 
 
+def _urdf_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('file', nargs='?', default='', metavar='FILE',
+                   help='where to write it (default: stdout)')
+    p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
+
+
+def _param_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('action', choices=['get', 'set', 'list'])
+    p.add_argument('node', help='the node\'s name (e.g. flexarm_learner; under --namespace)')
+    p.add_argument('name', nargs='?', default='',
+                   help='the parameter (list: only those whose names start with it)')
+    p.add_argument('value', nargs='?', default=None,
+                   help='set: the value, read as YAML as ros2 param set reads it (2.5, true, '
+                        'text, "[0.0, 1.0]"); a whole number sets a double parameter')
+
+
 def _keygen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('path', help='key file to create')
 
@@ -329,10 +347,11 @@ def _down_arguments(p: argparse.ArgumentParser) -> None:
 DESCRIPTION = 'flexarm: the command line of the flexarm system.'
 Command = Callable[[argparse.Namespace], dict[str, Any]]
 # subcommand: (what runs it, its arguments, graph options (_graph_options): None = none,
-# 'start' = it starts a graph, 'running' = it asks a running one, 'wait' = it sends requests to
-# a running one). The command's docstring is its help.
+# 'start' = it starts a graph, 'up' = it starts one in the exported domain, 'running' = it asks
+# a running one, 'wait' = it sends requests to a running one). The command's docstring is its
+# help.
 SUBCOMMANDS: dict[str, tuple[Command, Callable[[argparse.ArgumentParser], None], str | None]] = {
-    'up': (cmd_up, _up_arguments, 'start'),
+    'up': (cmd_up, _up_arguments, 'up'),
     'status': (cmd_status, _namespace_option, 'running'),
     'ps': (cmd_ps, lambda p: None, None),
     'down': (cmd_down, _down_arguments, None),
@@ -349,6 +368,8 @@ SUBCOMMANDS: dict[str, tuple[Command, Callable[[argparse.ArgumentParser], None],
     'model': (cmd_model, _model_arguments, 'wait'),
     'keygen': (cmd_keygen, _keygen_arguments, None),
     'calibrate': (cmd_calibrate, _calibrate_arguments, 'wait'),
+    'urdf': (cmd_urdf, _urdf_arguments, None),
+    'param': (cmd_param, _param_arguments, 'wait'),
 }
 
 

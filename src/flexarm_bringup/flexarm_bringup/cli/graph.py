@@ -3,6 +3,7 @@ graph."""
 from __future__ import annotations
 
 import argparse
+import contextlib
 import os
 import re
 import signal
@@ -28,9 +29,11 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     """Start the graph (one process per node), wait until ready, supervise until stopped."""
     import time
 
-    from flexarm_bringup.experiment import reserved_domain
+    from flexarm_bringup import supervisor
     from flexarm_bringup.graph_watch import FirstReports, GraphWatch
+    from flexarm_bringup.running_graphs import running_graphs
     from flexarm_bringup.supervisor import Graph
+    from flexarm_bringup.up_domain import DomainRefused, claim_domain
     from flexarm_core import liveness
 
     if args.link_key and not os.path.isfile(args.link_key):
@@ -56,7 +59,14 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     exposure = transport.warning(os.environ)
     if exposure:
         print(exposure, flush=True)
-    with reserved_domain(args.domain_id) as domain:
+    try:
+        supervisor.graph_specs(args.robot, optional, args.only)     # arguments first
+        claim = claim_domain(args.domain_id, os.environ, args.namespace,
+                             lambda: running_graphs(supervisor.LOCK_DIR, RUNS_DIR))
+    except (ValueError, DomainRefused) as exc:
+        raise usage(str(exc)) from None
+    domain = claim.domain_id
+    with claim.reservation or contextlib.nullcontext():
         try:
             graph = Graph(domain, RUNS_DIR / name, robot=args.robot, parameters=params,
                           optional=optional, discovery=discovery, namespace=args.namespace,
@@ -64,8 +74,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
         except ValueError as exc:
             raise usage(str(exc)) from None
         started, ready = time.monotonic(), None
-        print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain}; logs in '
-              f'{graph.run_dir}', flush=True)
+        print(f'starting {", ".join(graph.nodes)} in ROS_DOMAIN_ID={domain} ({claim.how}); '
+              f'logs in {graph.run_dir}', flush=True)
         if graph.remote:
             print(_remote_text(graph.remote, discovery), flush=True)
         reports = FirstReports(lambda: GraphWatch(domain, args.namespace),
@@ -100,7 +110,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             if hangup:
                 signal.signal(signal.SIGHUP, signal.SIG_DFL)
             print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
-    return {'ok': True, 'domain_id': domain, 'exit_codes': codes, 'run_dir': str(graph.run_dir)}
+    return {'ok': True, 'domain_id': domain, 'domain_chosen': claim.how, 'exit_codes': codes,
+            'run_dir': str(graph.run_dir)}
 
 
 LIFETIME_TEXT = ', and so does the end of the process that started this one (--outlive-parent)'

@@ -53,10 +53,11 @@ def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
             print(f'camera: {change.describe()} (from {lens.views} images, '
                   f'{lens.holes} holes; reprojection {lens.rms_before_px:.3f} px -> '
                   f'{lens.rms_after_px:.3f} px); stored in {camera_path}, the vision node '
-                  f'measures through it from now on.\n  determined: {lens.determined}\n  not '
-                  f'determined from the plate: {lens.not_determined}', flush=True)
+                  f'measures through it from now on; as a camera driver\'s camera_info YAML in '
+                  f'{lens_details["camera_info_file"]}.\n  determined: {lens.determined}\n  '
+                  f'not determined from the plate: {lens.not_determined}', flush=True)
             out.update(camera_correction=change.as_list(), camera_path=str(camera_path),
-                       camera=lens_details)
+                       camera_info_file=lens_details['camera_info_file'], camera=lens_details)
         c, found, details = calibrate_tool(client, args.reference_topic, path, args.timeout,
                                            say)
     print(f'camera error in the tool frame: axial {mm(c.axial):.4f} mm, lateral '

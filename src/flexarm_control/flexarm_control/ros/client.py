@@ -443,12 +443,35 @@ class FlexarmClient(Node):
             f'{node} parameter {name}').values
         return parameter_value_to_python(values[0])
 
+    def node_parameters(self, node: str, names: Iterable[str] | None = None,
+                        timeout: float = 10.0) -> dict[str, Any]:
+        """Parameters of the graph's node ``node`` by name (``names``; all it has if None):
+        their values, None for a name it does not have (rclpy leaves such a name out of its
+        answer: then the names it has are asked for first)."""
+        def listed() -> list[str]:
+            return self._parameter_call(node, lambda client: client.list_parameters(),
+                                        timeout, f'{node} parameter names').result.names
+
+        def values(asked: list[str]) -> list[Any]:
+            return self._parameter_call(node, lambda client: client.get_parameters(asked),
+                                        timeout, f'{node} parameters').values
+
+        wanted = asked = sorted(listed() if names is None else names)
+        answer = values(asked)
+        if len(answer) != len(asked):
+            asked = sorted(set(wanted) & set(listed()))
+            answer = values(asked)
+        found = dict(zip(asked, map(parameter_value_to_python, answer)))
+        return {name: found.get(name) for name in wanted}
+
     def set_node_parameter(self, node: str, name: str, value: Any,
-                           timeout: float = 10.0) -> None:
-        """Set parameter ``name`` of the graph's node ``node``; ValueError with the node's
-        reason if it refuses."""
+                           timeout: float = 10.0, kind: Parameter.Type | None = None) -> None:
+        """Set parameter ``name`` of the graph's node ``node`` (as a ``kind`` value, else of
+        the kind of ``value``); ValueError with the node's reason if it refuses."""
+        parameter = Parameter(name, kind, value) if kind is not None else Parameter(
+            name, value=value)
         result = self._parameter_call(
-            node, lambda client: client.set_parameters([Parameter(name, value=value)]),
+            node, lambda client: client.set_parameters([parameter]),
             timeout, f'{node} parameter {name}').results[0]
         if not result.successful:
             raise ValueError(f'{node} refused {name}: {result.reason}')

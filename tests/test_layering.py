@@ -73,11 +73,11 @@ def test_only_the_simulator_reads_its_truth():
 
 def test_in_the_controller_only_its_ros_shell_imports_rclpy_or_messages():
     """flexarm_control's learning and execution are pure: the nodes, the arm interface and the
-    client (``flexarm_control/ros``) are its only modules that import rclpy or the messages
-    (they convert between messages and the pure cores' types)."""
+    client (``flexarm_control/ros``) are its only modules that import rclpy or any message
+    package (they convert between messages and the pure cores' types)."""
     package = SRC / 'flexarm_control' / 'flexarm_control'
     shell = {path.relative_to(package).parts[0] for path in package.rglob('*.py')
-             if _imports(path, {'rclpy', 'flexarm_msgs'})}
+             if _imports(path, ROS | {'flexarm_msgs'})}
     assert shell == {'ros'}
 
 

@@ -28,7 +28,8 @@ KEYS = {'cv2': 'python3-opencv', 'foxglove': 'python3-foxglove-sdk-pip',
         'mcap_ros2': 'mcap-ros2-support', 'numpy': 'python3-numpy', 'pytest': 'python3-pytest',
         'scipy': 'python3-scipy', 'sklearn': 'python3-sklearn',
         'threadpoolctl': 'python3-threadpoolctl', 'torch': 'python3-torch',
-        'tqdm': 'python3-tqdm', 'yaml': 'python3-yaml'}
+        'tqdm': 'python3-tqdm', 'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags-pip',
+        'urdf_parser_py': 'urdfdom_py'}
 # Test helpers importable by name: pytest.ini puts tests/ on the path.
 TEST_HELPERS = {p.stem for p in (ROOT / 'tests').glob('*.py')}
 

@@ -5,7 +5,7 @@ from action_msgs.msg import GoalStatus
 from trajectory_msgs.msg import JointTrajectory
 
 from control_msgs.action import FollowJointTrajectory
-from flexarm_control.execution.trajectory_goal import (
+from flexarm_control.ros.trajectory_goal import (
     TrajectoryTolerances,
     failure,
     goal_message,

@@ -21,7 +21,7 @@
 * ``follow_joint_trajectory`` (joint_trajectory_controller, as MoveIt drives it): the same
   trajectory as a ``control_msgs/FollowJointTrajectory`` goal on
   ``joint_trajectory_controller/follow_joint_trajectory``, with the path and goal tolerances and
-  the goal time of :mod:`flexarm_control.execution.trajectory_goal`. The controller answers:
+  the goal time of :mod:`flexarm_control.ros.trajectory_goal`. The controller answers:
   a goal it rejects, or one it aborts (a path or goal tolerance violated, an invalid goal, ...),
   is the move's :attr:`~JointCommands.problem` in its words, which ends the move's wait at once
   (:meth:`~flexarm_control.ros.arm_interface.ArmInterface.move`). A goal flexarm's own next move
@@ -54,7 +54,7 @@ from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
 from control_msgs.action import FollowJointTrajectory
 from flexarm_control.execution.shaped_move import MovePlanner, ShapedMove
-from flexarm_control.execution.trajectory_goal import (
+from flexarm_control.ros.trajectory_goal import (
     TrajectoryTolerances,
     failure,
     goal_message,

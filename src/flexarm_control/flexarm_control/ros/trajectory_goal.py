@@ -1,6 +1,6 @@
 """What a move asks of joint_trajectory_controller as a ``control_msgs/FollowJointTrajectory``
-goal, and how its answer reads (pure core of the ``follow_joint_trajectory`` contract,
-:mod:`flexarm_control.ros.joint_commands`).
+goal, and how its answer reads: the messages of the ``follow_joint_trajectory`` contract
+(:mod:`flexarm_control.ros.joint_commands`), built and read without a node.
 
 The goal carries the move's shaped trajectory and, per joint, the tolerances the controller
 holds it to (a value the goal gives overrides the controller's own ``constraints``,

@@ -10,8 +10,8 @@
   ``flexarm up`` reserve one, so other runs on the machine skip it too); the domain is empty
   when the module starts (no process of this machine runs in it).
 - DDS transports: nodes get the Fast DDS profile of their discovery range from the launcher
-  (:mod:`flexarm_bringup.transport`); this process has none of its own, and the one a test's
-  in-process ``flexarm`` command sets is removed when the test ends.
+  (:mod:`flexarm_bringup.orchestration.transport`); this process has none of its own, and the
+  one a test's in-process ``flexarm`` command sets is removed when the test ends.
 - Processes: every test stops the nodes it started and checks they were reaped; every process
   a module started (its scope token is inherited through the environment) is killed and reaped
   when the module ends, and the module fails if one was left behind.
@@ -170,15 +170,15 @@ def _kill_and_reap(pids: list[int]) -> list[int]:
 class DomainPool:
     """ROS domain ids for the run: each handed out once, held until the run ends.
 
-    A domain is taken by reserving it (:mod:`flexarm_bringup.domains`), which ``flexarm up``
-    and parallel runs respect, and only if no process of this machine is in it.
+    A domain is taken by reserving it (:mod:`flexarm_bringup.orchestration.domains`), which
+    ``flexarm up`` and parallel runs respect, and only if no process of this machine is in it.
     """
 
     def __init__(self) -> None:
         self._held: dict[int, socket.socket | None] = {}    # None: lent (:meth:`lent`)
 
     def take(self) -> int:
-        from flexarm_bringup import domains
+        from flexarm_bringup.orchestration import domains
 
         for did in range(domains.FIRST, domains.LAST + 1):
             if did in self._held:
@@ -198,7 +198,7 @@ class DomainPool:
         """The reservation of the run's domain ``did`` released for the block, for a process
         of the test to take (``flexarm up`` refuses an exported domain that another process
         reserves), and taken back after it; no other module of the run gets ``did`` meanwhile."""
-        from flexarm_bringup import domains
+        from flexarm_bringup.orchestration import domains
 
         sock = self._held[did]
         assert sock is not None, f'domain {did} is lent already'
@@ -243,9 +243,9 @@ def _no_process_left_behind(request: pytest.FixtureRequest) -> Iterator[None]:
 @pytest.fixture(autouse=True)
 def _transport_env_restored() -> Iterator[None]:
     """Undo the Fast DDS profile that ``flexarm``'s ``main`` called in this process puts in its
-    environment (:func:`flexarm_bringup.transport.apply`): a later test's processes of another
-    discovery range (tests/test_hosts.py: SUBNET) must not inherit it."""
-    from flexarm_bringup.transport import PROFILES_ENV, SKIP_CWD_ENV
+    environment (:func:`flexarm_bringup.orchestration.transport.apply`): a later test's processes
+    of another discovery range (tests/test_hosts.py: SUBNET) must not inherit it."""
+    from flexarm_bringup.orchestration.transport import PROFILES_ENV, SKIP_CWD_ENV
 
     saved = {key: os.environ.get(key) for key in (PROFILES_ENV, SKIP_CWD_ENV)}
     yield
@@ -282,7 +282,12 @@ class Launcher:
 
     def __call__(self, name: str, robot: str = 'sim', namespace: str = '',
                  arm_owner: bool = True, **parameters: Any) -> Any:
-        from flexarm_bringup.launcher import NodeProcess, load_graph, load_optional, ros_env
+        from flexarm_bringup.orchestration.launcher import (
+            NodeProcess,
+            load_graph,
+            load_optional,
+            ros_env,
+        )
 
         specs = {**load_optional(robot), **{s.name: s for s in load_graph(robot)}}
         owner = next(s for s in specs.values() if s.role == 'arm_owner')
@@ -298,7 +303,7 @@ class Launcher:
         return node
 
     def stop_all(self) -> None:
-        from flexarm_bringup.launcher import stop_all
+        from flexarm_bringup.orchestration.launcher import stop_all
 
         codes = stop_all(self.started, timeout=5.0)
         running = [name for name, code in codes.items() if code is None]
@@ -338,7 +343,7 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     from rclpy.executors import MultiThreadedExecutor
     from rclpy.parameter import Parameter
 
-    from flexarm_core.node_main import Spin
+    from flexarm_core.ros.node_main import Spin
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)

@@ -30,8 +30,8 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
-from flexarm_bringup.experiment import reserved_domain
-from flexarm_bringup.launcher import NodeProcess, load_graph, ros_env, stop_all
+from flexarm_bringup.experiments.experiment import reserved_domain
+from flexarm_bringup.orchestration.launcher import NodeProcess, load_graph, ros_env, stop_all
 from flexarm_core import topics
 
 # link_proxy is a test helper in tests/ (no package, so not importable): put tests/ on the path

@@ -23,8 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from flexarm_bringup.experiment import reserved_domain
-from flexarm_bringup.supervisor import Graph
+from flexarm_bringup.experiments.experiment import reserved_domain
+from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_core.paths import RUNS_DIR
 
 

@@ -74,8 +74,8 @@ from typing import IO
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
-from flexarm_bringup.domains import reserved
-from flexarm_bringup.launcher import (
+from flexarm_bringup.orchestration.domains import reserved
+from flexarm_bringup.orchestration.launcher import (
     NodeProcess,
     load_graph,
     owned_shm,
@@ -263,9 +263,9 @@ def used_shm(pid: int, files: dict[str, int]) -> dict[str, int]:
 
 @dataclass
 class ShmLedger:
-    """The /dev/shm files the processes of one graph (a marker family) created: each file one
-    of them uses (:func:`used_shm`) that was not there (same name and inode) before; with
-    the marker of the process that owns it (:func:`~flexarm_bringup.launcher.owned_shm`: the
+    """The /dev/shm files the processes of one graph (a marker family) created: each file one of
+    them uses (:func:`used_shm`) that was not there (same name and inode) before; with the marker
+    of the process that owns it (:func:`~flexarm_bringup.orchestration.launcher.owned_shm`: the
     files nobody removes once it dies), else of the first that used it.
 
     Sampled every :data:`SAMPLE_S` and before every SIGKILL of the harness: a file is missed

@@ -51,9 +51,9 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
-from flexarm_bringup.bag_tools import bag_info
-from flexarm_bringup.experiment import reserved_domain
-from flexarm_bringup.supervisor import Graph
+from flexarm_bringup.experiments.experiment import reserved_domain
+from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.recording.bag_tools import bag_info
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 

@@ -8,15 +8,15 @@ none yet, which makes two clocks). Each arm runs
 PREDICTIVE goals in a loop from a client of its own (one thread per arm, all starting together)
 until it has run ``--goals`` or ``--seconds`` have passed (wall clock; 0: no limit).
 
-Models: each arm's compensator loads, through its ``model_path`` parameter, a model fitted
-before any graph starts (the learner's default training, ``--kind`` to change it) on 40
-camera-measured samples of ``--region`` at the learner's poses (:class:`flexarm_bringup.study.
-World`; seed k for armK, so every arm has a model of its own). Collecting them through the
-graph would take minutes per arm on two cores and measure the learner, not several arms
-(sample_efficiency.py times collections). Targets: uniform in the region's box, seed
-``TARGET_SEED`` + k for armK, kept when the arm's model plans them offline within the
-compensator's limits (config/compensator.yaml): a refusal would measure the model's coverage
-(robustness.py does), not the throughput. The simulated world is the default one (realistic).
+Models: each arm's compensator loads, through its ``model_path`` parameter, a model fitted before
+any graph starts (the learner's default training, ``--kind`` to change it) on 40 camera-measured
+samples of ``--region`` at the learner's poses (:class:`flexarm_bringup.experiments.study. World`;
+seed k for armK, so every arm has a model of its own). Collecting them through the graph would take
+minutes per arm on two cores and measure the learner, not several arms (sample_efficiency.py times
+collections). Targets: uniform in the region's box, seed ``TARGET_SEED`` + k for armK, kept when
+the arm's model plans them offline within the compensator's limits (config/compensator.yaml): a
+refusal would measure the model's coverage (robustness.py does), not the throughput. The simulated
+world is the default one (realistic).
 
 Crosstalk (must be 0): a monitor node lists the publishers of every topic under ``/armK/``
 (images and actions' hidden topics included) every ``DISCOVERY_PERIOD``; a message received on
@@ -76,10 +76,10 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
-from flexarm_bringup.experiment import reserved_domain
-from flexarm_bringup.study import World
-from flexarm_bringup.supervisor import Graph
-from flexarm_bringup.topic_discovery import request_qos
+from flexarm_bringup.experiments.experiment import reserved_domain
+from flexarm_bringup.experiments.study import World
+from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.recording.topic_discovery import request_qos
 from flexarm_control.execution.compensator import Compensator
 from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
 from flexarm_control.learning.cross_validation import Screening

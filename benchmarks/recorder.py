@@ -30,8 +30,8 @@ from rclpy.context import Context
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image, JointState
 
-from flexarm_bringup.bag_tools import bag_info, read_messages
-from flexarm_bringup.launcher import NodeProcess, load_optional, ros_env, stop_all
+from flexarm_bringup.orchestration.launcher import NodeProcess, load_optional, ros_env, stop_all
+from flexarm_bringup.recording.bag_tools import bag_info, read_messages
 from flexarm_core import topics
 
 WIDTH, HEIGHT = 640, 480

@@ -31,7 +31,7 @@ import time
 
 import numpy as np
 
-from flexarm_bringup.study import World
+from flexarm_bringup.experiments.study import World
 from flexarm_control.execution.compensator import CompensationError, Compensator
 from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
 from flexarm_control.learning.cross_validation import Screening

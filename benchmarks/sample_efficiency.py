@@ -204,9 +204,9 @@ def summary(rows: list[dict[str, Any]], kinds: tuple[str, ...]) -> dict[str, Any
 
 def graph_campaigns(count: int, regions: list[str], frames: int | None) -> dict[str, Any]:
     """Real collections on the running graph (module docstring): per strategy and region."""
-    from flexarm_bringup.calibration import calibrate_tool
-    from flexarm_bringup.experiment import _client, reserved_domain
-    from flexarm_bringup.supervisor import Graph
+    from flexarm_bringup.experiments.experiment import graph_client, reserved_domain
+    from flexarm_bringup.orchestration.supervisor import Graph
+    from flexarm_bringup.site.calibration import calibrate_tool
     from flexarm_core import topics
     from flexarm_msgs.msg import DeflectionSample, TipPose
 
@@ -220,7 +220,7 @@ def graph_campaigns(count: int, regions: list[str], frames: int | None) -> dict[
         parameters = {'flexarm_sim': {'real_time_factor': 10.0}, 'flexarm_learner': learner,
                       'flexarm_vision': {'tool_calibration_file': str(run_dir / 'tool.json')}}
         graph = Graph(domain, run_dir / 'run', parameters=parameters, report=lambda _: None)
-        with graph, _client(domain) as client:
+        with graph, graph_client(domain) as client:
             graph.wait_ready(120.0)
             client.wait_until_ready(timeout=30.0)
             calibrate_tool(client, topics.TIP_POSE_TRUTH, run_dir / 'tool.json',

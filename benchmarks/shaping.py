@@ -119,8 +119,8 @@ def campaigns(kinds: list[str], count: int, rtf: float, payload: float
               ) -> dict[str, dict[str, float]]:
     """Sim seconds per sample of a graph collection of ``count`` per shaper and region, the arm
     carrying ``payload`` [kg] (the learner declares it; the simulator follows)."""
-    from flexarm_bringup.experiment import _client, reserved_domain
-    from flexarm_bringup.supervisor import Graph
+    from flexarm_bringup.experiments.experiment import graph_client, reserved_domain
+    from flexarm_bringup.orchestration.supervisor import Graph
     from flexarm_core import topics
     from flexarm_msgs.msg import DeflectionSample
 
@@ -136,7 +136,7 @@ def campaigns(kinds: list[str], count: int, rtf: float, payload: float
                           'flexarm_compensator': shaping}
             graph = Graph(domain, run_dir / 'run', parameters=parameters,
                           report=lambda _: None)
-            with graph, _client(domain) as client:
+            with graph, graph_client(domain) as client:
                 graph.wait_ready(120.0)
                 client.wait_until_ready(timeout=30.0)
                 samples: list[Any] = []

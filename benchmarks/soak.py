@@ -113,9 +113,9 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from flexarm_bringup.experiment import reserved_domain
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.supervisor import Graph
+from flexarm_bringup.experiments.experiment import reserved_domain
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_control.execution.goal_execution import sanity_bound
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.ros.client import (
@@ -128,7 +128,7 @@ from flexarm_control.ros.client import (
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, inverse
 from flexarm_core.params import load_config
-from flexarm_core.taken import Taken, take
+from flexarm_core.ros.taken import Taken, take
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, TipPose
 

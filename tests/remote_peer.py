@@ -26,7 +26,7 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
-from flexarm_bringup.launcher import ros_env
+from flexarm_bringup.orchestration.launcher import ros_env
 from flexarm_core import liveness
 
 MOVED = 1e-4          # [rad, m] a joint that changed by more than this moved

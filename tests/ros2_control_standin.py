@@ -53,9 +53,9 @@ from flexarm_core import topics
 from flexarm_core.frames import BASE_FRAME
 from flexarm_core.joint_trajectory import SampledTrajectory
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry
-from flexarm_core.node_main import run
 from flexarm_core.params import config_path, load_config, load_node_params
-from flexarm_core.trajectory_message import trajectory_from
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.trajectory_message import trajectory_from
 from flexarm_sim.camera import CameraRenderer
 from flexarm_sim.plant import configured_plant
 from flexarm_vision.camera_info import camera_info

@@ -22,7 +22,7 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.calibration import calibrate_tool
+from flexarm_bringup.site.calibration import calibrate_tool
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.ros.arm_claim import ArmBusy
 from flexarm_control.ros.client import FlexarmClient

@@ -26,11 +26,11 @@ from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import make_key
-from flexarm_bringup.launcher import stop_all
-from flexarm_bringup.supervisor import Graph
+from flexarm_bringup.orchestration.launcher import stop_all
+from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import liveness, topics
-from flexarm_core.node_main import Spin
+from flexarm_core.ros.node_main import Spin
 from flexarm_msgs.action import MoveToPose
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(50)]

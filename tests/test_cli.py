@@ -22,7 +22,7 @@ from run_record import record_supervisor
 from sensor_msgs.msg import JointState
 
 from flexarm_bringup.cli import main
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config

@@ -35,9 +35,9 @@ from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import liveness, topics
 from flexarm_core.health_report import ERROR, WARN
 from flexarm_core.kinematics import ArmGeometry, forward, inverse
-from flexarm_core.node_main import Spin
 from flexarm_core.params import config_path, load_config
 from flexarm_core.regions import regions_from_dict
+from flexarm_core.ros.node_main import Spin
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelHealth, ModelInfo
 from flexarm_sim.plant import Plant

@@ -17,7 +17,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
-from flexarm_bringup.launcher import owned_shm
+from flexarm_bringup.orchestration.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness
 
@@ -147,7 +147,7 @@ def test_a_restarted_learner_keeps_the_declared_payload(learner, learner_graph, 
 
 
 def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_path):
-    from flexarm_bringup.supervisor import Graph
+    from flexarm_bringup.orchestration.supervisor import Graph
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
@@ -165,9 +165,9 @@ def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_p
 
 def test_a_graph_refuses_at_once_a_domain_another_graph_of_this_machine_holds(domain_id,
                                                                               tmp_path):
-    from flexarm_bringup.supervisor import Graph, _lock_domain
+    from flexarm_bringup.orchestration.supervisor import Graph, lock_domain
 
-    held = _lock_domain(domain_id)                  # as a running `flexarm up` holds it
+    held = lock_domain(domain_id)                  # as a running `flexarm up` holds it
     graph = Graph(domain_id, tmp_path / 'run')
     try:
         started = time.monotonic()
@@ -181,7 +181,7 @@ def test_a_graph_refuses_at_once_a_domain_another_graph_of_this_machine_holds(do
         assert time.monotonic() - started < liveness.limit(1.0)
     finally:
         os.close(held)
-    os.close(_lock_domain(domain_id))                # released: free for the next graph
+    os.close(lock_domain(domain_id))                # released: free for the next graph
 
 @pytest.fixture
 def moving_graph(launch, ready_client):

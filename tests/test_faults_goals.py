@@ -27,7 +27,7 @@ from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 from test_cli import A1, Cli, no_cli_left  # noqa: F401  (no_cli_left: autouse fixture)
 
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_control.execution.goal_bounds import SENDER_CHECK
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, forward

@@ -23,8 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.orchestration.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent

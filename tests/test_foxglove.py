@@ -22,11 +22,11 @@ from rclpy.serialization import deserialize_message, serialize_message
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from flexarm_bringup.bag_schema import message_definition
 from flexarm_bringup.cli import build_parser, main
-from flexarm_bringup.cli.graph import _foxglove_text
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.cli.graph import foxglove_text
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.recording.bag_schema import message_definition
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness, topics
 from flexarm_core.frames import PLANE_FRAME
 from flexarm_core.params import config_path, load_config
@@ -65,7 +65,7 @@ def served() -> Iterator[tuple[Any, int]]:
     """(SDK context, port of the front) of an SDK server behind a front, as the node has."""
     import foxglove
 
-    from flexarm_bringup.foxglove_front import SubprotocolFront
+    from flexarm_bringup.viz.foxglove_front import SubprotocolFront
 
     context = foxglove.Context()
     server = foxglove.start_server(host='127.0.0.1', port=0, context=context)
@@ -123,7 +123,7 @@ def _first_message(ws: ClientConnection, channel: Any, advertised: dict[str, Any
     ([FORMER_NAME, SDK_NAME], SDK_NAME), ([SDK_NAME, FORMER_NAME], SDK_NAME)])
 def test_a_channel_carries_cdr_with_the_full_ros2msg_schema_to_either_name(
         served: tuple[Any, int], offer: list[str], agreed: str) -> None:
-    from flexarm_bringup.foxglove_node import ros2_channel
+    from flexarm_bringup.viz.foxglove_node import ros2_channel
 
     context, port = served
     channel = ros2_channel(topics.absolute(topics.TIP_POSE), TIP_POSE_TYPE, context)
@@ -142,7 +142,7 @@ def test_a_channel_carries_cdr_with_the_full_ros2msg_schema_to_either_name(
 
 
 def test_a_camera_sized_message_passes_the_front_whole(served: tuple[Any, int]) -> None:
-    from flexarm_bringup.foxglove_node import ros2_channel
+    from flexarm_bringup.viz.foxglove_node import ros2_channel
 
     context, port = served
     channel = ros2_channel(topics.absolute(topics.CAMERA_IMAGE), 'sensor_msgs/msg/Image',
@@ -180,8 +180,8 @@ def test_the_sdk_itself_still_refuses_the_former_name() -> None:
 def test_the_front_listens_once_made_and_the_node_says_so_for_its_own_process() -> None:
     """What up waits for before it says where to connect: the node's line, logged once the
     SDK's server and the front are made (each listens when made), naming its process."""
-    from flexarm_bringup.foxglove_front import SubprotocolFront
-    from flexarm_bringup.foxglove_node import announcement, listening_url
+    from flexarm_bringup.viz.foxglove_front import SubprotocolFront
+    from flexarm_bringup.viz.foxglove_node import announcement, listening_url
 
     front = SubprotocolFront('127.0.0.1', 0, _free_port())
     try:
@@ -209,8 +209,8 @@ class _NodeLog:
 def test_up_says_where_to_connect_only_once_the_node_said_it_listens(tmp_path: Path) -> None:
     import threading
 
-    from flexarm_bringup.cli.graph import _foxglove_served
-    from flexarm_bringup.foxglove_node import announcement
+    from flexarm_bringup.cli.graph import foxglove_served
+    from flexarm_bringup.viz.foxglove_node import announcement
 
     node = _NodeLog(tmp_path / 'flexarm_foxglove.log', 41)
     node.log_path.write_text(f'{announcement("ws://127.0.0.1:1", 40)}\n')   # its predecessor
@@ -218,19 +218,19 @@ def test_up_says_where_to_connect_only_once_the_node_said_it_listens(tmp_path: P
         f'{announcement("ws://127.0.0.1:9001", 41)}, serving [] (images: False)\n'))
     said.start()
     started = time.monotonic()
-    text = _foxglove_served(node, within=30.0)
+    text = foxglove_served(node, within=30.0)
     assert time.monotonic() - started >= 0.25
     assert text.startswith('Foxglove: open a connection to ws://127.0.0.1:9001 ')
     node.returncode = 1
     node.log_path.write_text('')
-    assert _foxglove_served(node, within=30.0).startswith(
+    assert foxglove_served(node, within=30.0).startswith(
         'Foxglove: not served: flexarm_foxglove exited')
 
 
 def test_unknown_types_have_no_channel() -> None:
     import foxglove
 
-    from flexarm_bringup.foxglove_node import ros2_channel
+    from flexarm_bringup.viz.foxglove_node import ros2_channel
 
     with pytest.raises(FileNotFoundError):
         ros2_channel('/x', 'no_such_msgs/msg/Thing', foxglove.Context())
@@ -279,8 +279,8 @@ def test_foxglove_flag_port_defaults_to_the_config_and_is_checked(capsys) -> Non
     assert parse(['up', '--foxglove', '9001', '--rtf', '2']).foxglove == 9001
     config = load_config('foxglove.yaml', node_name=node_name('foxglove'))
     assert (config['host'], config['port']) == ('127.0.0.1', 8765)
-    assert 'ws://127.0.0.1:9001 ' in _foxglove_text('ws://127.0.0.1:9001')
-    assert 'foxglove_layout.json' in _foxglove_text('ws://127.0.0.1:9001')
+    assert 'ws://127.0.0.1:9001 ' in foxglove_text('ws://127.0.0.1:9001')
+    assert 'foxglove_layout.json' in foxglove_text('ws://127.0.0.1:9001')
     assert main(['up', '--foxglove', '70000']) == Exit.USAGE
     assert 'must be a TCP port 1..65535' in capsys.readouterr().err
 

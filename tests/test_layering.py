@@ -93,7 +93,10 @@ def _imports(path: Path, names: set[str]) -> bool:
 
 
 # Inside a package, sub-packages form layers too: each imports only the ones before it.
-SUBLAYERS = {'flexarm_control': ['learning', 'execution', 'ros']}
+SUBLAYERS = {'flexarm_control': ['learning', 'execution', 'ros'],
+             'flexarm_bringup': ['orchestration', 'results', 'recording', 'viz', 'site',
+                                 'experiments', 'cli'],
+             'flexarm_core': ['ros']}   # its modules outside ros/ are the pure bottom
 
 
 def module_imports(package: str, src: Path = SRC) -> dict[str, set[str]]:
@@ -149,13 +152,92 @@ def test_a_cycle_through_a_function_level_import_is_found(tmp_path):
 
 @pytest.mark.parametrize('package', sorted(SUBLAYERS))
 def test_a_sub_package_imports_only_the_ones_below_it(package):
+    """Inside a package the sub-packages are layers too (SUBLAYERS); a flat module is below
+    them all."""
     order = SUBLAYERS[package]
     wrong = []
     for module, targets in module_imports(package).items():
         parts = module.split('.')
-        if len(parts) < 3 or parts[1] not in order:
+        if len(parts) < 2 or parts[1] == '__init__':
             continue
-        above = order[order.index(parts[1]) + 1:]
+        above = order[order.index(parts[1]) + 1:] if parts[1] in order else order
         wrong += [f'{module} -> {target}' for target in targets
                   if len(target.split('.')) > 1 and target.split('.')[1] in above]
     assert not wrong, f'{package}: arrows up between sub-packages: {wrong}'
+
+
+@pytest.mark.parametrize('package', ['flexarm_bringup'])
+def test_a_package_by_job_keeps_nothing_flat(package):
+    """Every module of the package lives in the sub-package of its job."""
+    flat = {p.name for p in (SRC / package / package).glob('*.py')}
+    assert flat == {'__init__.py'}
+
+
+def test_in_the_core_only_its_ros_helpers_import_rclpy_or_messages():
+    """flexarm_core is the pure bottom every package may use, with the rclpy helpers every node
+    shares apart in ``flexarm_core/ros``."""
+    package = SRC / 'flexarm_core' / 'flexarm_core'
+    ros = {str(path.relative_to(package)) for path in package.rglob('*.py')
+           if _imports(path, ROS | {'flexarm_msgs'})}
+    assert ros and all(name.startswith('ros/') for name in ros), sorted(ros)
+
+
+def public(package: str) -> set[str]:
+    """The modules ``package`` names in its ``__init__``'s ``PUBLIC``."""
+    tree = ast.parse((SRC / package / package / '__init__.py').read_text(encoding='utf-8'))
+    for node in tree.body:
+        if isinstance(node, ast.Assign) and [t.id for t in node.targets
+                                             if isinstance(t, ast.Name)] == ['PUBLIC']:
+            return set(ast.literal_eval(node.value))
+    return set()
+
+
+def imported_modules(folder: Path) -> set[tuple[str, str]]:
+    """(file, flexarm module) of every import under ``folder`` that names a module of another
+    flexarm package (``from a import b`` names ``a.b`` where that is a module)."""
+    found = set()
+    for path in folder.rglob('*.py'):
+        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
+                names = [f'{node.module}.{a.name}' for a in node.names]
+                modules = [n for n in names if _is_module(n)] or [node.module]
+            elif isinstance(node, ast.Import):
+                modules = [a.name for a in node.names]
+            else:
+                continue
+            found |= {(str(path.relative_to(SRC.parent)), m) for m in modules
+                      if m.startswith('flexarm_') and m.split('.')[0] != 'flexarm_msgs'}
+    return found
+
+
+def _is_module(name: str) -> bool:
+    path = SRC / name.split('.')[0] / Path(*name.split('.'))
+    return path.with_suffix('.py').exists() or (path / '__init__.py').exists()
+
+
+@pytest.mark.parametrize('package', LAYERS[1:])
+def test_other_packages_import_only_what_a_package_makes_public(package):
+    outside = {(f, m) for f, m in imported_modules(SRC / package / package)
+               if m.split('.')[0] != package}
+    wrong = sorted(f'{f}: {m}' for f, m in outside if m not in public(m.split('.')[0]))
+    assert not wrong, f'imports of modules their package does not make public: {wrong}'
+
+
+@pytest.mark.parametrize('package', LAYERS[1:-1])
+def test_what_a_package_makes_public_exists(package):
+    missing = sorted(m for m in public(package) if not _is_module(m))
+    assert public(package) and not missing, missing
+
+
+def test_no_module_imports_another_ones_private_names():
+    """A leading underscore says "this module's own": whatever another module (a test or a
+    benchmark too) needs is public."""
+    root = SRC.parent
+    paths = [*SRC.glob('*/*/**/*.py'), *SRC.glob('*/test/*.py'), *root.glob('tests/*.py'),
+             *root.glob('benchmarks/*.py'), root / 'conftest.py']
+    private = sorted(
+        f'{path.relative_to(root)}: {node.module}.{alias.name}'
+        for path in paths for node in ast.walk(ast.parse(path.read_text(encoding='utf-8')))
+        if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('flexarm_')
+        for alias in node.names if alias.name.startswith('_') and not alias.name.startswith('__'))
+    assert not private, private

@@ -21,7 +21,7 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.supervisor import Graph
+from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics

@@ -12,7 +12,7 @@ import pytest
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.cli import main
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness, topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME
 from flexarm_core.params import load_config

@@ -14,7 +14,7 @@ from action_msgs.msg import GoalStatus, GoalStatusArray
 from learned_goal import learn_and_reach
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.launcher import NodeProcess, NodeSpec, ros_env, stop_all
+from flexarm_bringup.orchestration.launcher import NodeProcess, NodeSpec, ros_env, stop_all
 from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 

@@ -19,8 +19,8 @@ from rclpy.context import Context
 from run_record import record_supervisor
 
 from flexarm_bringup.cli import main
-from flexarm_bringup.launcher import stop_all
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.orchestration.launcher import stop_all
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose

@@ -16,16 +16,16 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
-from flexarm_bringup.bag_tools import read_decoded
 from flexarm_bringup.cli import main
-from flexarm_bringup.outcome_text import Exit
-from flexarm_bringup.stamp_order import backwards_steps, beyond_sent, header_stamps
+from flexarm_bringup.recording.bag_tools import read_decoded
+from flexarm_bringup.recording.stamp_order import backwards_steps, beyond_sent, header_stamps
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
 from flexarm_core.params import load_config
-from flexarm_core.stamps import to_ns
-from flexarm_core.taken import Taken
+from flexarm_core.ros.stamps import to_ns
+from flexarm_core.ros.taken import Taken
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
 from flexarm_msgs.msg import DeflectionSample, PlanarPose
 from tf2_msgs.msg import TFMessage

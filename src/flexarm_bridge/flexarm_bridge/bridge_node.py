@@ -45,11 +45,11 @@ from std_msgs.msg import Float64MultiArray
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import PC, LinkAuth, site_key_for
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import ERROR, OK, WARN, CommandLog, Status, status
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare, declare_tree
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare, declare_tree
 
 
 def link_status(node: str, controller: str, linked: bool, down_for: float, last_error: str,

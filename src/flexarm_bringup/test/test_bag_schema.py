@@ -3,7 +3,7 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.bag_schema import (
+from flexarm_bringup.recording.bag_schema import (
     SEPARATOR,
     field_dependencies,
     find_msg_file,

@@ -15,7 +15,7 @@ from pathlib import Path
 import pytest
 
 from flexarm_bringup.cli import arguments, main
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.results.outcome_text import Exit
 
 pytestmark = pytest.mark.duration(13)
 
@@ -145,12 +145,12 @@ def test_quiet_and_json_show_no_progress(flag, domain_id, capsys):
 def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
     """rclpy's C++ layer turns an exception raised in a generated message module into a
     RuntimeError (the goal would not be cancelled): there the signal is sent again later."""
-    from flexarm_bringup.cli.graph import _interrupt
+    from flexarm_bringup.cli.graph import interrupt_handler
 
     delivered = []
     previous = signal.signal(signal.SIGUSR1, lambda signum, frame: delivered.append(signum))
     try:
-        inside = {'interrupt': _interrupt, 'signal': signal, 'sys': sys}
+        inside = {'interrupt': interrupt_handler, 'signal': signal, 'sys': sys}
         exec(compile('interrupt(signal.SIGUSR1, sys._getframe())',
                      '/venv/site-packages/sensor_msgs/msg/_joint_state.py', 'exec'), inside)
         deadline = time.monotonic() + 5.0
@@ -158,7 +158,7 @@ def test_an_interrupt_never_lands_inside_a_ros_message_conversion():
             time.sleep(0.01)
         assert delivered == [signal.SIGUSR1]
         with pytest.raises(KeyboardInterrupt):
-            _interrupt(signal.SIGUSR1, sys._getframe())
+            interrupt_handler(signal.SIGUSR1, sys._getframe())
     finally:
         signal.signal(signal.SIGUSR1, previous)
 
@@ -189,9 +189,9 @@ def test_model_list_marks_the_current_model_and_says_why_one_is_unusable(tmp_pat
 @pytest.mark.parametrize('command', ['up', 'demo', 'benchmark'])
 def test_ideal_switches_every_error_source_off_for_the_simulator(command):
     from flexarm_bringup.cli import build_parser
-    from flexarm_bringup.cli.common import _world
+    from flexarm_bringup.cli.common import world_settings
 
     parser = build_parser()
-    assert _world(parser.parse_args([command])) == {}               # config/sim.yaml's world
-    assert _world(parser.parse_args([command, '--ideal'])) == {
+    assert world_settings(parser.parse_args([command])) == {}         # config/sim.yaml's world
+    assert world_settings(parser.parse_args([command, '--ideal'])) == {
         'error_sources': {'enabled': False}}

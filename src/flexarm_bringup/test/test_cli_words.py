@@ -13,7 +13,7 @@ import pytest
 
 from flexarm_bringup import cli
 from flexarm_bringup.cli import arguments, common, motion
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.results.outcome_text import (
     COLLECT_HINTS,
     EXIT_MEANINGS,
     MOVE_HINTS,
@@ -29,7 +29,7 @@ SUBPARSERS: dict[str, argparse.ArgumentParser] = next(
 # modules whose messages reach the operator through `flexarm`
 CLI = ('arguments', 'common', 'experiments', 'graph', 'learning', 'motion', 'site')
 SPEAKING = ['flexarm_bringup.cli', *(f'flexarm_bringup.cli.{m}' for m in CLI),
-            'flexarm_bringup.outcome_text', 'flexarm_bringup.graph_status',
+            'flexarm_bringup.results.outcome_text', 'flexarm_bringup.orchestration.graph_status',
             'flexarm_control.ros.client', 'flexarm_control.learning.model_store',
             'flexarm_control.learning.model_health', 'flexarm_control.ros.compensator_node',
             'flexarm_control.ros.learner_node', 'flexarm_bridge.link_auth']

@@ -12,8 +12,8 @@ import pytest
 from mcap.reader import make_reader
 from mcap_ros2.decoder import DecoderFactory
 
-from flexarm_bringup.bag_tools import bag_info
-from flexarm_bringup.experiment import Phases, phases_text
+from flexarm_bringup.experiments.experiment import Phases, phases_text
+from flexarm_bringup.recording.bag_tools import bag_info
 from flexarm_core import liveness
 
 DEMO_S = 140.0   # [s, liveness-scaled] a bound for a demo that hangs; it takes about 30 s

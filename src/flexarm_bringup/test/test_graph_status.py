@@ -3,7 +3,7 @@ import json
 import os
 from pathlib import Path
 
-from flexarm_bringup.graph_status import (
+from flexarm_bringup.orchestration.graph_status import (
     ErrorLog,
     arm_status_name,
     file_summary,
@@ -11,8 +11,8 @@ from flexarm_bringup.graph_status import (
     graph_problems,
     supervisor_record,
 )
-from flexarm_bringup.graph_watch import FirstReports
-from flexarm_bringup.status_text import (
+from flexarm_bringup.orchestration.graph_watch import FirstReports
+from flexarm_bringup.orchestration.status_text import (
     Heard,
     calibration_text,
     clock_text,

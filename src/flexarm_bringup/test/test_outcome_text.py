@@ -3,7 +3,7 @@ import math
 
 import pytest
 
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.results.outcome_text import (
     COLLECT_HINTS,
     EXIT_MEANINGS,
     MOVE_HINTS,

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from flexarm_bringup.parameter_text import typed_value, value_text
+from flexarm_bringup.cli.parameter_text import typed_value, value_text
 
 Kind = Parameter.Type
 

@@ -13,11 +13,11 @@ from builtin_interfaces.msg import Time
 from matplotlib.quiver import Quiver, QuiverKey
 from rclpy.serialization import serialize_message
 
-from flexarm_bringup import plots
-from flexarm_bringup.bag_tools import export_figures
-from flexarm_bringup.bag_writer import BagWriter
-from flexarm_bringup.experiment import write_results
-from flexarm_bringup.trials import MOVE_CSV_FIELDS, TRIAL_CSV_FIELDS, Trial, summarise
+from flexarm_bringup.experiments.experiment import write_results
+from flexarm_bringup.recording.bag_tools import export_figures
+from flexarm_bringup.recording.bag_writer import BagWriter
+from flexarm_bringup.results import plots
+from flexarm_bringup.results.trials import MOVE_CSV_FIELDS, TRIAL_CSV_FIELDS, Trial, summarise
 from flexarm_control.learning.dataset import DatasetWriter, Sample
 from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import sample_poses

@@ -25,8 +25,8 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup import bag_tools
-from flexarm_bringup.bag_tools import (
+from flexarm_bringup.recording import bag_tools
+from flexarm_bringup.recording.bag_tools import (
     CSV_FIELDS,
     ERROR_NAMES,
     bag_info,
@@ -34,7 +34,7 @@ from flexarm_bringup.bag_tools import (
     read_messages,
     trials_figure,
 )
-from flexarm_bringup.bag_writer import BagWriter
+from flexarm_bringup.recording.bag_writer import BagWriter
 from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose

@@ -13,7 +13,7 @@ import pytest
 
 from flexarm_bringup import cli, supervisor
 from flexarm_bringup.cli import graph as graph_commands
-from flexarm_bringup.running_graphs import (
+from flexarm_bringup.orchestration.running_graphs import (
     AmbiguousGraph,
     NoSuchGraph,
     RunningGraph,
@@ -23,7 +23,7 @@ from flexarm_bringup.running_graphs import (
     select,
     stop,
 )
-from flexarm_bringup.supervisor import RECORD, lock_name, parse_lock_name
+from flexarm_bringup.orchestration.supervisor import RECORD, lock_name, parse_lock_name
 from flexarm_core.parent_death import terminate_with_parent
 
 # Locks LOCK_FILE as supervisor._lock_domain does, says so, then waits; SIGINT (Python's

@@ -7,7 +7,7 @@ from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
-from flexarm_bringup.stamp_order import backwards_steps, beyond_sent, header_stamps
+from flexarm_bringup.recording.stamp_order import backwards_steps, beyond_sent, header_stamps
 from flexarm_msgs.msg import TipPose
 from tf2_msgs.msg import TFMessage
 

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import pytest
 
-from flexarm_bringup.graph_status import (
-    _latched_in,
+from flexarm_bringup.orchestration.graph_status import (
     graph_node_names,
     joint_state_rate,
+    latched_in,
     record_nodes,
 )
-from flexarm_bringup.status_text import Heard, real_time_factor, status_text
+from flexarm_bringup.orchestration.status_text import Heard, real_time_factor, status_text
 from flexarm_core.health_report import OK
 
 RECORD = {'supervisor_pid': 1, 'robot': 'sim', 'run_dir': 'runs/x', 'remote': ['flexarm_learner'],
@@ -40,14 +40,14 @@ def _model(version: str) -> Heard:
 
 def test_latched_models_are_awaited_only_where_a_node_reports_one():
     none = {'flexarm_learner: model': _model(''), 'flexarm_compensator: model': _model('')}
-    assert _latched_in(none, {}, None)
+    assert latched_in(none, {}, None)
     learner = none | {'flexarm_learner: model': _model('3')}
-    assert not _latched_in(learner, {}, None)
-    assert _latched_in(learner, {'learner': object()}, None)
+    assert not latched_in(learner, {}, None)
+    assert latched_in(learner, {'learner': object()}, None)
     compensator = none | {'flexarm_compensator: model': _model('3')}
-    assert not _latched_in(compensator, {'health': object()}, None)
-    assert not _latched_in(compensator, {}, object())         # its health still to come
-    assert _latched_in(compensator, {'health': object()}, object())
+    assert not latched_in(compensator, {'health': object()}, None)
+    assert not latched_in(compensator, {}, object())         # its health still to come
+    assert latched_in(compensator, {'health': object()}, object())
 
 
 def test_the_simulators_real_time_factor_is_read_from_its_report():

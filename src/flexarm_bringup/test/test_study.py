@@ -5,7 +5,7 @@ import math
 
 import pytest
 
-from flexarm_bringup.study import (
+from flexarm_bringup.experiments.study import (
     PAPER_HIDDEN,
     configurations,
     main,

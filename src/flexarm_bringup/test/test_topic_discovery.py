@@ -3,7 +3,7 @@ from __future__ import annotations
 
 import pytest
 
-from flexarm_bringup.topic_discovery import TopicSelection, message_class
+from flexarm_bringup.recording.topic_discovery import TopicSelection, message_class
 from flexarm_core import topics
 
 IMAGE, INFO, TIP, MODEL = (topics.absolute(t) for t in (

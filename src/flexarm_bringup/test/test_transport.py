@@ -5,8 +5,8 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.launcher import ros_env
-from flexarm_bringup.transport import (
+from flexarm_bringup.orchestration.launcher import ros_env
+from flexarm_bringup.orchestration.transport import (
     PEERS_ENV,
     PROFILES_ENV,
     RANGE_ENV,

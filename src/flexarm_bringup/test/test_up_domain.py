@@ -12,10 +12,9 @@ from typing import Any
 
 import pytest
 
-from flexarm_bringup import domains, supervisor
-from flexarm_bringup.outcome_text import Exit
-from flexarm_bringup.running_graphs import RunningGraph, running_graphs
-from flexarm_bringup.up_domain import (
+from flexarm_bringup.orchestration import domains, supervisor
+from flexarm_bringup.orchestration.running_graphs import RunningGraph, running_graphs
+from flexarm_bringup.orchestration.up_domain import (
     EXPORTED,
     FREE,
     GIVEN,
@@ -23,6 +22,7 @@ from flexarm_bringup.up_domain import (
     claim_domain,
     exported,
 )
+from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness
 from flexarm_core.paths import RUNS_DIR
 

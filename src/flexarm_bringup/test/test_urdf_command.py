@@ -8,7 +8,7 @@ from pathlib import Path
 from urdf_parser_py.urdf import URDF
 
 from flexarm_bringup.cli import main
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.results.outcome_text import Exit
 
 
 def test_urdf_goes_to_stdout_or_to_a_file_that_ros_parses(tmp_path: Path, capsys) -> None:

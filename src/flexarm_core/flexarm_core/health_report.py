@@ -1,5 +1,5 @@
 """A node's health as diagnostic_updater reports it, without ROS (the publishing shell is
-:mod:`flexarm_core.diagnostics`).
+:mod:`flexarm_core.ros.diagnostics`).
 
 A node reports one :class:`Status` per concern: ``name`` is ``"<node name>: <concern>"``, the
 level is diagnostic_msgs/DiagnosticStatus's (OK, WARN degraded, ERROR broken, STALE no

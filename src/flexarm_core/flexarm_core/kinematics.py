@@ -121,8 +121,8 @@ def pose_error(target: np.ndarray, pose: np.ndarray) -> tuple[float, float]:
     return float(math.hypot(d[0], d[1])), float(abs(wrap_angle(float(d[2]))))
 
 
-def _solve_fixed(geometry: ArmGeometry, pose: np.ndarray, extension: float
-                 ) -> np.ndarray | None:
+def solve_fixed(geometry: ArmGeometry, pose: np.ndarray, extension: float
+                ) -> np.ndarray | None:
     """Joints for one θ2, or None: elbow-up branch (θ3 = skew − bend: joint3 above the line from
     the base to joint4 when the arm points forward) first, then elbow-down (scalar math: the
     compensator calls it in its inner loop)."""
@@ -165,13 +165,13 @@ def inverse(geometry: ArmGeometry, pose: np.ndarray, extension: float | None = N
     if extension is not None:
         if not geometry.lower[1] <= extension <= geometry.upper[1]:
             raise UnreachableError(f'joint2 = {extension:.4f} m outside its limits')
-        q = _solve_fixed(geometry, pose, float(extension))
+        q = solve_fixed(geometry, pose, float(extension))
         if q is None:
             raise UnreachableError(f'pose {describe_pose(pose)} is out of reach of the rigid '
                                    f'arm with joint2 = {extension:.4f} m')
         return q
     for candidate in _extension_candidates(geometry, pose):
-        q = _solve_fixed(geometry, pose, candidate)
+        q = solve_fixed(geometry, pose, candidate)
         if q is not None:
             return q
     raise UnreachableError(f'pose {describe_pose(pose)} is out of reach of the rigid arm '

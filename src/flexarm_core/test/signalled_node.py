@@ -1,4 +1,4 @@
-"""A node run by :func:`flexarm_core.node_main.run` that signals itself in the middle of its
+"""A node run by :func:`flexarm_core.ros.node_main.run` that signals itself in the middle of its
 work, for test_node_main: ``python signalled_node.py SIGNAL REPORT``.
 
 Its timer callback sends SIGNAL to its own process and then works on for a while, watching
@@ -15,7 +15,7 @@ import time
 
 from rclpy.node import Node
 
-from flexarm_core.node_main import Offload, run
+from flexarm_core.ros.node_main import Offload, run
 
 WORK = 0.5   # [s] the callback and the job go on after the signal
 

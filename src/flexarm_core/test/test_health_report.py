@@ -14,7 +14,6 @@ from flexarm_control.execution.compensator_status import (
 from flexarm_control.learning.learner_status import learner_statuses
 from flexarm_control.learning.model_health import RegionHealth
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher, diagnostic_array
 from flexarm_core.health_report import (
     ERROR,
     OK,
@@ -25,6 +24,7 @@ from flexarm_core.health_report import (
     status,
     value_text,
 )
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher, diagnostic_array
 from flexarm_msgs.msg import ModelInfo
 
 

@@ -48,7 +48,7 @@ def test_a_trajectory_message_is_read_in_joint_order_or_refused_with_a_reason():
     from builtin_interfaces.msg import Duration
     from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
 
-    from flexarm_core.trajectory_message import trajectory_from
+    from flexarm_core.ros.trajectory_message import trajectory_from
 
     names = ['joint4', 'joint3', 'joint2', 'joint1']
     msg = JointTrajectory(joint_names=names, points=[JointTrajectoryPoint(

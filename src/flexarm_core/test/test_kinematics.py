@@ -78,14 +78,14 @@ def test_far_target_takes_an_extension_with_reach_to_spare(geometry):
 def test_reach_margin_is_the_distance_the_wrist_can_move_out(geometry):
     """Moving the target radially outward by just under the margin stays reachable with the
     same extension; by just over it, it does not."""
-    from flexarm_core.kinematics import _solve_fixed
+    from flexarm_core.kinematics import solve_fixed
 
     rng = np.random.default_rng(7)
     checked = 0
     for pose in rng.uniform([0.9, -0.6, -1.8], [1.6, 0.2, 0.0], (200, 3)):
         extension = 0.7
         margin = reach_margins(geometry, pose, np.array([extension]))[0]
-        if not 0.005 < margin < 0.2 or _solve_fixed(geometry, pose, extension) is None:
+        if not 0.005 < margin < 0.2 or solve_fixed(geometry, pose, extension) is None:
             continue
         wrist = pose[:2] - geometry.link4 * np.array([math.cos(pose[2]), math.sin(pose[2])])
         wrist_from_joint1 = wrist / np.linalg.norm(wrist)
@@ -146,7 +146,7 @@ def test_geometry_rejects_bad_config():
 
 def test_extension_rule_matches_an_exhaustive_search(geometry):
     """The rule picks what trying every grid value in the rule's order would pick."""
-    from flexarm_core.kinematics import _solve_fixed
+    from flexarm_core.kinematics import solve_fixed
 
     lo, hi, step = geometry.lower[1], geometry.upper[1], geometry.extension_step
     grid = np.round(np.linspace(lo, hi, int(round((hi - lo) / step)) + 1), 9)
@@ -158,7 +158,7 @@ def test_extension_rule_matches_an_exhaustive_search(geometry):
                                      if m >= geometry.reach_margin)]
         some = [e for _, e in sorted((-m, e) for e, m in zip(grid, margins)
                                      if 0 <= m < geometry.reach_margin)]
-        expected = next((q for q in (_solve_fixed(geometry, pose, e) for e in full + some)
+        expected = next((q for q in (solve_fixed(geometry, pose, e) for e in full + some)
                          if q is not None), None)
         if expected is None:
             with pytest.raises(UnreachableError):

@@ -1,4 +1,4 @@
-"""How a node ends on SIGINT and SIGTERM (:func:`flexarm_core.node_main.run`): the signal only
+"""How a node ends on SIGINT and SIGTERM (:func:`flexarm_core.ros.node_main.run`): the signal only
 asks for the shutdown; the callback it lands in completes, the context stays up until the
 executor has stopped, work threads end before the node is destroyed, and the exit code is 0.
 
@@ -44,7 +44,7 @@ def test_a_long_spin_keeps_nothing_per_wake_up(domain_id: int) -> None:
     from rclpy.context import Context
     from rclpy.executors import SingleThreadedExecutor
 
-    from flexarm_core.node_main import Spin
+    from flexarm_core.ros.node_main import Spin
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)

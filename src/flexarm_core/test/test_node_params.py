@@ -7,8 +7,8 @@ from rclpy.context import Context
 from rclpy.exceptions import InvalidParameterValueException
 from rclpy.parameter import Parameter
 
-from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.params import config_path, flatten, load_config, unflatten
+from flexarm_core.ros.node_params import declare, declare_tree
 
 
 @pytest.fixture

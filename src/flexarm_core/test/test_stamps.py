@@ -6,7 +6,7 @@ from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Header
 
-from flexarm_core.stamps import DataTime, raw_stamp_ns, to_ns
+from flexarm_core.ros.stamps import DataTime, raw_stamp_ns, to_ns
 
 
 def test_data_time_is_zero_until_data_then_the_newest_stamp_never_back() -> None:
@@ -33,7 +33,7 @@ def test_the_stamp_of_a_serialized_clock_or_header_message() -> None:
 def test_graph_time_is_wall_time_by_default(ros_node) -> None:
     import time
 
-    from flexarm_core.stamps import GraphTime
+    from flexarm_core.ros.stamps import GraphTime
 
     assert abs(to_ns(GraphTime(ros_node).stamp()) * 1e-9 - time.time()) < 5.0
 
@@ -44,7 +44,7 @@ def test_graph_time_on_a_simulated_graph_is_the_newest_clock(ros_node, wait_for)
     """A node off /clock in a simulated graph stamps what is about now with the newest /clock,
     taken unasked; 0 (no time yet) until one is heard, never the wall clock."""
     from flexarm_core import topics
-    from flexarm_core.stamps import GraphTime
+    from flexarm_core.ros.stamps import GraphTime
 
     graph = GraphTime(ros_node)
     assert to_ns(graph.stamp()) == 0

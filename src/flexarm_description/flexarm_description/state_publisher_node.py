@@ -16,7 +16,7 @@ Each stream is published at most ``publish_frequency`` times a second of wall-cl
 simulator publishes joint states and the ground truth at 100 Hz of sim time, 1000 a second
 each at 10x real time), with the stamp of the message it comes from, like
 robot_state_publisher's ``publish_frequency``. No input message wakes the node: the inputs are
-taken raw (:class:`flexarm_core.taken.Taken`) by one wall timer at ``publish_frequency``,
+taken raw (:class:`flexarm_core.ros.taken.Taken`) by one wall timer at ``publish_frequency``,
 which runs while an input is subscribed and publishes the newest of each stream (the newest
 valid measured tip) that came since the last, parsing only that one. Measured at 10x real
 time with a recorder on /tf (benchmarks/footprint.py): a callback per input message (the ground
@@ -24,24 +24,24 @@ truth parsed each time) cost the node 0.30-0.32 of a core, the timer 0.09-0.10, 
 Fast DDS receiving 2000 messages a second and the 30 wake-ups. ``publish_frequency`` <= 0: a
 callback per message, each published.
 
-On demand (:mod:`flexarm_core.demand`'s rule, fed by the publishers' matched events): each
-input is subscribed only while what it makes is watched — ``/joint_states`` while ``/tf`` has
-a subscriber, ``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip`` has one, and
-``/tip_pose`` while ``/tf`` or ``/scene/measured_tip`` has a *viewer*: a subscriber that is not
-a recorder (``recorders``: node names). Decision: watching the arm (rviz, Foxglove, a test)
-asks for the measured tip too, so the vision node and the simulated camera run while someone
-watches (about half a core at 10x real time: rendering and measuring 50 frames a wall second);
-a recorder's subscription asks only for the frames that cost little (the joints and the true
-tip, from streams the recorder takes anyway) and records the measured tip whenever the graph
-measures for someone else (flexarm_bringup.recorder_node: a recording does not make the graph
-measure). A subscriber's node name may be known a moment after its subscription matched (Fast
-DDS); until then it does not count as a viewer (were it a recorder, the graph would measure for
-nothing meanwhile), and the decision is taken again every ``RECHECK`` s until every subscriber
-is known: a viewer's measured tip starts that much later.
+On demand (:mod:`flexarm_core.demand`'s rule, fed by the publishers' matched events): each input is
+subscribed only while what it makes is watched — ``/joint_states`` while ``/tf`` has a subscriber,
+``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip`` has one, and ``/tip_pose`` while
+``/tf`` or ``/scene/measured_tip`` has a *viewer*: a subscriber that is not a recorder
+(``recorders``: node names). Decision: watching the arm (rviz, Foxglove, a test) asks for the
+measured tip too, so the vision node and the simulated camera run while someone watches (about half
+a core at 10x real time: rendering and measuring 50 frames a wall second); a recorder's
+subscription asks only for the frames that cost little (the joints and the true tip, from streams
+the recorder takes anyway) and records the measured tip whenever the graph measures for someone
+else (flexarm_bringup.recording.recorder_node: a recording does not make the graph measure). A
+subscriber's node name may be known a moment after its subscription matched (Fast DDS); until then
+it does not count as a viewer (were it a recorder, the graph would measure for nothing meanwhile),
+and the decision is taken again every ``RECHECK`` s until every subscriber is known: a viewer's
+measured tip starts that much later.
 
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second): ``/tf`` and the
 tips carry the stamp of their message, ``/diagnostics`` the graph's time (the newest ``/clock``
-taken when they are published, :class:`flexarm_core.stamps.GraphTime`), ``/tf_static`` 0 (it is
+taken when they are published, :class:`flexarm_core.ros.stamps.GraphTime`), ``/tf_static`` 0 (it is
 published at start, before any data; tf2 holds a static transform at every time, and a
 robot_state_publisher on sim time stamps it so before ``/clock``).
 
@@ -68,14 +68,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Header, String
 
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, STALE, WARN, Status, status
 from flexarm_core.kinematics import ArmGeometry
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare, declare_tree
-from flexarm_core.scene_msgs import pose_stamped
-from flexarm_core.stamps import GraphTime
-from flexarm_core.taken import Taken, take
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_core.ros.scene_msgs import pose_stamped
+from flexarm_core.ros.stamps import GraphTime
+from flexarm_core.ros.taken import Taken, take
 from flexarm_description.chain import (
     BASE_FRAME,
     Transform,

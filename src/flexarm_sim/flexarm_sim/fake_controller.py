@@ -30,8 +30,8 @@ from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import CONTROLLER, OPEN_KEY, LinkAuth, site_key_for
 from flexarm_core.health_report import OK, WARN, Status, status
 from flexarm_core.kinematics import JOINT_NAMES
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare
 from flexarm_sim.dynamics import ArmState
 from flexarm_sim.sim_node import SimNode
 

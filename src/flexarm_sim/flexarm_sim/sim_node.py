@@ -71,14 +71,14 @@ from std_msgs.msg import Float64, Float64MultiArray, Header
 from trajectory_msgs.msg import JointTrajectory
 
 from flexarm_core import liveness, topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.frames import BASE_FRAME, PLANE_FRAME
 from flexarm_core.goal_owner import full_name
 from flexarm_core.health_report import OK, CommandLog, Status, status
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare, declare_tree
-from flexarm_core.trajectory_message import trajectory_from
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_core.ros.trajectory_message import trajectory_from
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_sim.clock_share import OWN, ClockShare, yields
 from flexarm_sim.dynamics import ArmDynamics, ArmState

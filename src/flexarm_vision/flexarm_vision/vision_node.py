@@ -46,7 +46,7 @@ parameter, and would lag it).
 
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); its
 ``/diagnostics`` carry the graph's time, the newest ``/clock`` taken when they are published
-(:class:`flexarm_core.stamps.GraphTime`), or wall time in a graph without one.
+(:class:`flexarm_core.ros.stamps.GraphTime`), or wall time in a graph without one.
 
 Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
 :func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
@@ -73,7 +73,6 @@ from std_msgs.msg import Header
 
 from flexarm_core import plane, topics
 from flexarm_core.demand import Demand, on_matched
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME, TIP_FRAME
 from flexarm_core.health_report import (
     ERROR,
@@ -85,10 +84,11 @@ from flexarm_core.health_report import (
     WindowSummary,
     status,
 )
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.paths import repo_path
-from flexarm_core.stamps import CDR_STAMP, GraphTime
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_core.ros.stamps import CDR_STAMP, GraphTime
 from flexarm_core.tool_correction import ToolCorrection, read_calibration
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_calibration import CameraCorrection, read_camera_calibration

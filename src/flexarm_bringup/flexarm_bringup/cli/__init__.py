@@ -1,19 +1,18 @@
 """``flexarm``: the command line of the flexarm system.
 
 Humans type millimetres and degrees and read them back (every printed pose carries its units);
-everything below the CLI is SI, and so is the ``--json`` result. Every outcome is said in
-words: results on stdout, anything else (refused, failed, busy, timeout, interrupted) on
-stderr as ``flexarm COMMAND: …``; ``--json`` ends stdout with one line of JSON holding the
-result and its ``exit_code`` (a usage error too). Arguments are checked before anything
-connects; ``--version`` says which flexarm this is. Whatever takes
-more than a moment shows progress on stderr (bars, waiting lines, goal feedback) unless
-``--quiet`` or ``--json``. The graph must be running (``flexarm up``) for move/collect/train,
-in the same ROS_DOMAIN_ID. DDS stays on this machine (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST,
-and transports confined to shared memory and loopback: :mod:`flexarm_bringup.transport`) unless
-the environment sets another range or static peers, or ``flexarm up --discovery subnet`` widens
-it on purpose.
+everything below the CLI is SI, and so is the ``--json`` result. Every outcome is said in words:
+results on stdout, anything else (refused, failed, busy, timeout, interrupted) on stderr as
+``flexarm COMMAND: …``; ``--json`` ends stdout with one line of JSON holding the result and its
+``exit_code`` (a usage error too). Arguments are checked before anything connects; ``--version``
+says which flexarm this is. Whatever takes more than a moment shows progress on stderr (bars,
+waiting lines, goal feedback) unless ``--quiet`` or ``--json``. The graph must be running
+(``flexarm up``) for move/collect/train, in the same ROS_DOMAIN_ID. DDS stays on this machine
+(ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, and transports confined to shared memory and loopback:
+:mod:`flexarm_bringup.orchestration.transport`) unless the environment sets another range or static
+peers, or ``flexarm up --discovery subnet`` widens it on purpose.
 
-Exit codes (:class:`flexarm_bringup.outcome_text.Exit`):
+Exit codes (:class:`flexarm_bringup.results.outcome_text.Exit`):
 
     0    success
     1    the server refused the goal or it failed (its result code by name, and a hint)
@@ -38,11 +37,11 @@ import sys
 from collections.abc import Sequence
 from typing import Any
 
-from flexarm_bringup import transport
 from flexarm_bringup.cli.arguments import SUBCOMMANDS, UsageError, build_parser
 from flexarm_bringup.cli.common import Outcome
-from flexarm_bringup.cli.graph import _interrupt
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.cli.graph import interrupt_handler
+from flexarm_bringup.orchestration import transport
+from flexarm_bringup.results.outcome_text import Exit
 
 
 def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:
@@ -80,8 +79,8 @@ def main(argv: Sequence[str] | None = None) -> int:
     transport.apply(os.environ)    # before any participant: Fast DDS reads its profile once
     # SIGTERM stops a command like Ctrl-C does: a running goal is cancelled and a graph it
     # started is shut down (its nodes run in sessions of their own and do not get the signal).
-    # Both go through _interrupt, which keeps them out of rclpy's message conversions.
-    previous = {s: signal.signal(s, _interrupt) for s in (signal.SIGINT, signal.SIGTERM)}
+    # Both go through interrupt_handler, which keeps them out of rclpy's message conversions.
+    previous = {s: signal.signal(s, interrupt_handler) for s in (signal.SIGINT, signal.SIGTERM)}
     try:
         result, code = _run(args)
     finally:

@@ -10,7 +10,7 @@ from collections.abc import Callable
 from importlib import metadata
 from typing import Any
 
-from flexarm_bringup.cli.common import IDEAL_HELP, _learner_default
+from flexarm_bringup.cli.common import IDEAL_HELP, learner_default
 from flexarm_bringup.cli.experiments import cmd_benchmark, cmd_demo, cmd_study
 from flexarm_bringup.cli.graph import cmd_down, cmd_ps, cmd_status, cmd_up
 from flexarm_bringup.cli.integration import cmd_param, cmd_urdf
@@ -23,8 +23,8 @@ from flexarm_bringup.cli.learning import (
 )
 from flexarm_bringup.cli.motion import cmd_cancel, cmd_move
 from flexarm_bringup.cli.site import cmd_bag, cmd_calibrate, cmd_keygen
-from flexarm_bringup.domains import MAX_DOMAIN_ID
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.orchestration.domains import MAX_DOMAIN_ID
+from flexarm_bringup.results.outcome_text import (
     EXIT_MEANINGS,
 )
 from flexarm_control.execution.modes import MODE_LABELS
@@ -185,15 +185,15 @@ def _collect_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('count', type=_positive_int, metavar='N', help='samples to collect')
     p.add_argument('--region', default='',
                    help='region preset of config/learner.yaml (default: the learner\'s, '
-                        f'{_learner_default("default_region")})')
+                        f'{learner_default("default_region")})')
     p.add_argument('--strategy', default='',
                    help='sobol | halton | lhs | random | active (each pose where the model '
                         'so far is least sure; default: the learner\'s, '
-                        f'{_learner_default("default_strategy")})')
+                        f'{learner_default("default_strategy")})')
     p.add_argument('--seed', type=_natural, default=0, help='seed of the sampling strategy')
     p.add_argument('--dataset', default='',
                    help='dataset name: data/NAME.jsonl (default: the learner\'s, '
-                        f'{_learner_default("default_dataset")})')
+                        f'{learner_default("default_dataset")})')
     p.add_argument('--payload', type=_non_negative, metavar='KG',
                    help='[kg] declare the payload the arm carries first (stored with every '
                         'sample; default: as declared before)')
@@ -225,7 +225,7 @@ KIND_HELP = ('predictor kind: auto (the best of kinematic, greybox and gp by cro
 
 def _kind_help() -> str:
     """KIND_HELP and the learner's default kind, read so that the help cannot drift."""
-    return f"{KIND_HELP} (default: the learner's, {_learner_default('default_kind')})"
+    return f"{KIND_HELP} (default: the learner's, {learner_default('default_kind')})"
 
 
 def _train_arguments(p: argparse.ArgumentParser) -> None:

@@ -10,7 +10,7 @@ import threading
 from collections.abc import Callable, Iterator
 from typing import Any
 
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.results.outcome_text import (
     Exit,
     busy_text,
 )
@@ -43,22 +43,22 @@ def pose_dict(pose: Any) -> dict[str, float]:
     return {'x': pose.x, 'y': pose.y, 'phi': pose.phi}
 
 
-def _progress(args: argparse.Namespace) -> bool:
+def show_progress(args: argparse.Namespace) -> bool:
     return not (args.quiet or args.json)
 
 
-def _progress_lines(args: argparse.Namespace) -> Callable[[str], None]:
+def progress_printer(args: argparse.Namespace) -> Callable[[str], None]:
     """``say(text)``: a progress line on stderr, unless --quiet or --json."""
     def say(text: str) -> None:
-        if _progress(args):
+        if show_progress(args):
             print(text, file=sys.stderr, flush=True)
     return say
 
 
 @contextlib.contextmanager
-def _elapsed(what: str, args: argparse.Namespace) -> Iterator[None]:
+def timed_step(what: str, args: argparse.Namespace) -> Iterator[None]:
     """While the block runs: after a second, 'WHAT ... mm:ss' on stderr, counting."""
-    if not _progress(args):
+    if not show_progress(args):
         yield
         return
     from tqdm import tqdm
@@ -81,7 +81,7 @@ def _elapsed(what: str, args: argparse.Namespace) -> Iterator[None]:
 
 
 @contextlib.contextmanager
-def _steps(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, str], None]]:
+def step_printer(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, str], None]]:
     """A progress bar on stderr fed by ``progress(done, total, step)`` calls."""
     from tqdm import tqdm
 
@@ -89,7 +89,7 @@ def _steps(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, 
 
     def progress(done: int, total: int, step: str) -> None:
         if not bars:
-            bars.append(tqdm(desc=what, total=total, unit='step', disable=not _progress(args)))
+            bars.append(tqdm(desc=what, total=total, unit='step', disable=not show_progress(args)))
         bars[0].set_postfix_str(step, refresh=False)
         bars[0].update(done - bars[0].n)
 
@@ -100,30 +100,30 @@ def _steps(what: str, args: argparse.Namespace) -> Iterator[Callable[[int, int, 
             bar.close()
 
 
-def _learner_config() -> dict[str, Any]:
-    from flexarm_bringup.launcher import node_name
+def learner_settings() -> dict[str, Any]:
+    from flexarm_bringup.orchestration.launcher import node_name
     from flexarm_core.params import load_config
 
     return load_config('learner.yaml', node_name=node_name('learner'))
 
 
-def _learner_default(key: str) -> str:
+def learner_default(key: str) -> str:
     """The learner's default ``key`` for a help text, read so that the help cannot drift; its
     parameter's name where config/ is not beside the code (an install space without it)."""
     try:
-        return str(_learner_config()[key])
+        return str(learner_settings()[key])
     except (OSError, KeyError):
         return f'its {key} parameter'
 
 
-def _check_region(region: str) -> None:
-    presets = _learner_config()['regions']
+def check_region(region: str) -> None:
+    presets = learner_settings()['regions']
     if region and region not in presets:
         raise usage(f'unknown region "{region}"; presets of config/learner.yaml: '
                     f'{", ".join(presets)}')
 
 
-def _check_dataset(name: str) -> None:
+def check_dataset(name: str) -> None:
     if name:
         from flexarm_control.learning.dataset import dataset_name_error
 
@@ -132,7 +132,7 @@ def _check_dataset(name: str) -> None:
             raise usage(reason)
 
 
-def _check_kind(kind: str) -> None:
+def check_kind(kind: str) -> None:
     if kind:
         from flexarm_control.learning.models import KINDS
 
@@ -140,7 +140,7 @@ def _check_kind(kind: str) -> None:
             raise usage(f'unknown predictor kind "{kind}"; known kinds: {", ".join(KINDS)}')
 
 
-def _check_strategy(strategy: str) -> None:
+def check_strategy(strategy: str) -> None:
     if strategy:
         from flexarm_control.learning.sampling import STRATEGIES
 
@@ -148,8 +148,8 @@ def _check_strategy(strategy: str) -> None:
             raise usage(f'unknown strategy "{strategy}"; known: {", ".join(STRATEGIES)}')
 
 
-def _check_bag(path: str) -> None:
-    from flexarm_bringup.bag_tools import MCAP_MAGIC, mcap_path
+def check_bag_path(path: str) -> None:
+    from flexarm_bringup.recording.bag_tools import MCAP_MAGIC, mcap_path
 
     try:
         file = mcap_path(path)
@@ -161,19 +161,19 @@ def _check_bag(path: str) -> None:
 
 
 @contextlib.contextmanager
-def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
+def client_session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
     """A client of the graph once its servers answer (a waiting line meanwhile); shut down
     when the block ends."""
     import rclpy
 
-    from flexarm_bringup.launcher import node_name
+    from flexarm_bringup.orchestration.launcher import node_name
     from flexarm_control.ros.client import init_client
 
     client = init_client(args.domain_id, args.namespace, node_name('learner'))
     try:
         domain = client.context.get_domain_id()
         try:
-            with _elapsed(f'waiting for the flexarm graph in ROS_DOMAIN_ID={domain}', args):
+            with timed_step(f'waiting for the flexarm graph in ROS_DOMAIN_ID={domain}', args):
                 client.wait_until_ready(timeout=args.wait, learner=learner)
         except KeyboardInterrupt:
             raise Outcome('interrupted while waiting for the graph; nothing was sent',
@@ -184,12 +184,13 @@ def _session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
         rclpy.try_shutdown()
 
 
-def _full(args: argparse.Namespace, name: str) -> str:
+def namespaced_name(args: argparse.Namespace, name: str) -> str:
     """The full name of a graph name (:mod:`flexarm_core.topics`) of the arm addressed."""
     return topics.absolute(name, args.namespace)
 
 
-def _goal(run: Callable[[], Any], server: str, interrupted: Callable[[Any], str]) -> Any:
+def run_interruptible_goal(run: Callable[[], Any], server: str,
+                           interrupted: Callable[[Any], str]) -> Any:
     """``run()``'s result; busy, lost and interrupted goals as outcomes
     (``interrupted(result)`` words the cancelled goal's result, None if none arrived)."""
     from flexarm_control.ros.client import GoalInterrupted, GoalRejected, ServerLost
@@ -210,7 +211,7 @@ def _goal(run: Callable[[], Any], server: str, interrupted: Callable[[Any], str]
         raise Outcome(interrupted(exc.result), Exit.INTERRUPTED) from None
 
 
-def _no_result() -> str:
+def no_result_text() -> str:
     from flexarm_control.ros.client import CANCEL_WAIT
 
     return f'cancelled; no result from the server within {CANCEL_WAIT:.0f} s'
@@ -221,6 +222,6 @@ IDEAL_HELP = ('the ideal simulated world: every error source of config/sim.yaml 
               'the paper comparison; default: the realistic world')
 
 
-def _world(args: argparse.Namespace) -> dict[str, Any]:
+def world_settings(args: argparse.Namespace) -> dict[str, Any]:
     """Simulator parameters of the world ``--ideal`` chooses (none: config/sim.yaml's)."""
     return {'error_sources': {'enabled': False}} if args.ideal else {}

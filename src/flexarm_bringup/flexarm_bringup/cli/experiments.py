@@ -7,13 +7,13 @@ from typing import Any
 
 from flexarm_bringup.cli.common import (
     Outcome,
-    _check_kind,
-    _check_region,
-    _progress,
-    _steps,
-    _world,
+    check_kind,
+    check_region,
+    show_progress,
+    step_printer,
+    world_settings,
 )
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.results.outcome_text import (
     Exit,
 )
 
@@ -21,7 +21,7 @@ from flexarm_bringup.outcome_text import (
 def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
     import time
 
-    from flexarm_bringup.experiment import (
+    from flexarm_bringup.experiments.experiment import (
         ExperimentSettings,
         phases_text,
         reserved_domain,
@@ -29,13 +29,13 @@ def _experiment(args: argparse.Namespace, **overrides: Any) -> dict[str, Any]:
         table_text,
     )
 
-    _check_kind(args.kind)
+    check_kind(args.kind)
     settings = ExperimentSettings(
         name=args.name or time.strftime(f'{args.command}-%Y%m%d-%H%M%S'),
         samples=args.samples, kind=args.kind, real_time_factor=args.rtf,
-        record=not args.no_record, seed=args.seed, world=_world(args), **overrides)
+        record=not args.no_record, seed=args.seed, world=world_settings(args), **overrides)
     with reserved_domain(args.domain_id) as domain:
-        summary = run_experiment(settings, domain, progress=_progress(args))
+        summary = run_experiment(settings, domain, progress=show_progress(args))
     print(table_text(summary))
     print(phases_text(summary))
     print(f'results in {summary["results"]}' + (
@@ -61,11 +61,11 @@ def cmd_benchmark(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_study(args: argparse.Namespace) -> dict[str, Any]:
     """Tables 7 and 8 sensitivity study on the simulator (offline, no graph needed)."""
-    _check_region(args.region)
-    from flexarm_bringup.study import QUICK, run_study, table_text, write_study
+    check_region(args.region)
+    from flexarm_bringup.experiments.study import QUICK, run_study, table_text, write_study
 
     overrides = {'region': args.region, 'seeds': args.seeds} | (QUICK if args.quick else {})
-    with _steps('study', args) as progress:
+    with step_printer('study', args) as progress:
         result = run_study(overrides, progress)
     paths = write_study(result, Path(args.out) / args.region)
     print(table_text(result))

@@ -11,10 +11,10 @@ import threading
 from types import FrameType
 from typing import Any
 
-from flexarm_bringup import transport
-from flexarm_bringup.cli.common import Outcome, _elapsed, _world, usage
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.cli.common import Outcome, timed_step, usage, world_settings
+from flexarm_bringup.orchestration import transport
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.results.outcome_text import (
     Exit,
 )
 from flexarm_core.paths import RUNS_DIR
@@ -29,18 +29,18 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     """Start the graph (one process per node), wait until ready, supervise until stopped."""
     import time
 
-    from flexarm_bringup import supervisor
-    from flexarm_bringup.graph_watch import FirstReports, GraphWatch
-    from flexarm_bringup.running_graphs import running_graphs
-    from flexarm_bringup.supervisor import Graph
-    from flexarm_bringup.up_domain import DomainRefused, claim_domain
+    from flexarm_bringup.orchestration import supervisor
+    from flexarm_bringup.orchestration.graph_watch import FirstReports, GraphWatch
+    from flexarm_bringup.orchestration.running_graphs import running_graphs
+    from flexarm_bringup.orchestration.supervisor import Graph
+    from flexarm_bringup.orchestration.up_domain import DomainRefused, claim_domain
     from flexarm_core import liveness
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
     name = args.name or time.strftime('up-%Y%m%d-%H%M%S') + (
         f'-{args.namespace.replace("/", "-")}' if args.namespace else '')
-    simulated = {'real_time_factor': args.rtf, **_world(args)}
+    simulated = {'real_time_factor': args.rtf, **world_settings(args)}
     link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
     params: dict[str, dict[str, Any]] = {node_name('simulator'): simulated,
                                          node_name('fake_controller'): simulated | link,
@@ -95,8 +95,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             if node_name('vision') in graph.nodes:
                 print(_calibration(watch), flush=True)
             if args.foxglove is not None:
-                print(_foxglove_served(graph.nodes[node_name('foxglove')],
-                                       liveness.limit(FOXGLOVE_WAIT)), flush=True)
+                print(foxglove_served(graph.nodes[node_name('foxglove')],
+                                      liveness.limit(FOXGLOVE_WAIT)), flush=True)
             while True:     # what goes wrong: a death, an ERROR in a (re)started node's reports
                 reports.step(0.5)
                 restarted = [n for n in graph.check() if not graph.nodes[n].reported]
@@ -141,7 +141,7 @@ def _bind_lifetime(outlive_parent: bool) -> bool:
     signal_on_parent_death(0 if outlive_parent else signal.SIGTERM)
     if signal.getsignal(signal.SIGHUP) != signal.SIG_DFL:
         return False
-    signal.signal(signal.SIGHUP, _interrupt)   # the default ends the process without a stop
+    signal.signal(signal.SIGHUP, interrupt_handler)   # the default ends the process without a stop
     return True
 
 
@@ -154,13 +154,13 @@ def _remote_text(remote: tuple[str, ...], discovery: str) -> str:
     return text
 
 
-def _foxglove_served(node: Any, within: float) -> str:
+def foxglove_served(node: Any, within: float) -> str:
     """Where Foxglove connects, once the Foxglove node (a :class:`NodeProcess`) has said in its
     log that its server listens (the URL it said), or why it is not said: the node died, or
     did not say so ``within`` seconds."""
     import time
 
-    from flexarm_bringup.foxglove_node import listening_url
+    from flexarm_bringup.viz.foxglove_node import listening_url
 
     deadline = time.monotonic() + within
     while True:
@@ -170,7 +170,7 @@ def _foxglove_served(node: Any, within: float) -> str:
         except OSError:
             url = None
         if url is not None:
-            return _foxglove_text(url)
+            return foxglove_text(url)
         if node.returncode is not None or time.monotonic() > deadline:
             why = ('exited' if node.returncode is not None
                    else f'has not said that it listens after {within:.0f} s')
@@ -178,7 +178,7 @@ def _foxglove_served(node: Any, within: float) -> str:
         time.sleep(0.05)
 
 
-def _foxglove_text(url: str) -> str:
+def foxglove_text(url: str) -> str:
     """Where Foxglove connects (the server's URL) and which layout."""
     from flexarm_core.params import config_path
 
@@ -189,8 +189,8 @@ def _foxglove_text(url: str) -> str:
 def _starting_model(watch: Any, listen: float = 3.0) -> str:
     """Which model the compensator of a just-started graph runs (it loads the learner's
     current one within a moment of start-up), or why there is none."""
-    from flexarm_bringup.graph_status import model_summary
-    from flexarm_bringup.status_text import starting_model_text
+    from flexarm_bringup.orchestration.graph_status import model_summary
+    from flexarm_bringup.orchestration.status_text import starting_model_text
     from flexarm_core import liveness
 
     def learner() -> Any:
@@ -205,15 +205,15 @@ def _starting_model(watch: Any, listen: float = 3.0) -> str:
 def _calibration(watch: Any, listen: float = 3.0) -> str:
     """Whether the camera of a just-started graph is calibrated (its vision node's first
     report)."""
-    from flexarm_bringup.graph_status import calibration_status_name
-    from flexarm_bringup.status_text import calibration_text
+    from flexarm_bringup.orchestration.graph_status import calibration_status_name
+    from flexarm_bringup.orchestration.status_text import calibration_text
     from flexarm_core import liveness
 
     watch.spin(liveness.limit(listen), until=lambda: calibration_status_name() in watch.statuses)
     return calibration_text(watch.statuses.get(calibration_status_name()))
 
 
-def _interrupt(signum: int, frame: FrameType | None) -> None:
+def interrupt_handler(signum: int, frame: FrameType | None) -> None:
     """SIGINT/SIGTERM: raise KeyboardInterrupt, so that a running goal is cancelled.
 
     Never while rclpy converts a ROS message (Python code of a generated message module
@@ -230,8 +230,8 @@ def _interrupt(signum: int, frame: FrameType | None) -> None:
 
 def cmd_ps(args: argparse.Namespace) -> dict[str, Any]:
     """List the flexarm graphs running on this machine: domain, namespace, supervisor, robot."""
-    from flexarm_bringup import supervisor
-    from flexarm_bringup.running_graphs import graph_table, running_graphs
+    from flexarm_bringup.orchestration import supervisor
+    from flexarm_bringup.orchestration.running_graphs import graph_table, running_graphs
 
     graphs = running_graphs(supervisor.LOCK_DIR, RUNS_DIR)
     print(graph_table(graphs) if graphs else 'no flexarm graph runs on this machine')
@@ -240,8 +240,8 @@ def cmd_ps(args: argparse.Namespace) -> dict[str, Any]:
 
 def cmd_down(args: argparse.Namespace) -> dict[str, Any]:
     """Stop a graph of this machine (as Ctrl-C in its shell) and wait until it has ended."""
-    from flexarm_bringup import supervisor
-    from flexarm_bringup.running_graphs import (
+    from flexarm_bringup.orchestration import supervisor
+    from flexarm_bringup.orchestration.running_graphs import (
         AmbiguousGraph,
         NoSuchGraph,
         running_graphs,
@@ -258,7 +258,7 @@ def cmd_down(args: argparse.Namespace) -> dict[str, Any]:
         raise usage(str(exc)) from None
     what = f'the graph in ROS domain {graph.domain_id}' + (
         f' with namespace {graph.namespace}' if graph.namespace else '')
-    with _elapsed(f'stopping {what} (supervisor pid {graph.supervisor_pid})', args):
+    with timed_step(f'stopping {what} (supervisor pid {graph.supervisor_pid})', args):
         ended = stop(graph, args.timeout)
     fields = {'graph': graph.as_dict()}
     if not ended:
@@ -272,18 +272,18 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
     """What runs in the domain, which model drives the arm, and what is wrong (exit 5)."""
     import rclpy
 
-    from flexarm_bringup.graph_status import (
+    from flexarm_bringup.orchestration.graph_status import (
         graph_problems,
         query,
         supervisor_record,
     )
-    from flexarm_bringup.status_text import status_text
+    from flexarm_bringup.orchestration.status_text import status_text
     from flexarm_control.ros.client import init_client
 
     client = init_client(args.domain_id, args.namespace, node_name('learner'))
     try:
         record = supervisor_record(RUNS_DIR, client.context.get_domain_id(), args.namespace)
-        with _elapsed('asking the graph', args):
+        with timed_step('asking the graph', args):
             status = query(client, args.namespace, record)
     finally:
         client.destroy_node()

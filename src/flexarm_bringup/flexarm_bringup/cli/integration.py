@@ -6,14 +6,14 @@ import argparse
 import sys
 from typing import Any
 
-from flexarm_bringup.cli.common import Outcome, _elapsed, usage
-from flexarm_bringup.outcome_text import Exit
+from flexarm_bringup.cli.common import Outcome, timed_step, usage
+from flexarm_bringup.results.outcome_text import Exit
 
 
 def cmd_urdf(args: argparse.Namespace) -> dict[str, Any]:
     """The robot description (URDF) the graph publishes on /robot_description, made as its
     state publisher makes it (no graph needed): to FILE (written atomically), else stdout."""
-    from flexarm_bringup.launcher import load_graph, node_name, node_parameters
+    from flexarm_bringup.orchestration.launcher import load_graph, node_name, node_parameters
     from flexarm_core.atomic_file import atomic_write
     from flexarm_description.urdf_model import published_description
 
@@ -36,14 +36,14 @@ def cmd_param(args: argparse.Namespace) -> dict[str, Any]:
     ros2 param does; a value is read as YAML (a number, true/false, text, a [list])."""
     import rclpy
 
-    from flexarm_bringup.parameter_text import typed_value, value_text
+    from flexarm_bringup.cli.parameter_text import typed_value, value_text
     from flexarm_control.ros.client import init_client
 
     _check_param(args)
     node, name = args.node, args.name
     client = init_client(args.domain_id, args.namespace)
     try:
-        with _elapsed(f'asking {node}', args):
+        with timed_step(f'asking {node}', args):
             current = client.node_parameters(node, [name] if name and args.action != 'list'
                                              else None, args.wait)
             if args.action == 'list':

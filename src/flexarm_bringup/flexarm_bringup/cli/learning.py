@@ -10,23 +10,23 @@ from typing import Any
 
 from flexarm_bringup.cli.common import (
     Outcome,
-    _check_dataset,
-    _check_kind,
-    _check_region,
-    _check_strategy,
-    _elapsed,
-    _full,
-    _goal,
-    _learner_config,
-    _no_result,
-    _progress,
-    _session,
+    check_dataset,
+    check_kind,
+    check_region,
+    check_strategy,
+    client_session,
     deg,
+    learner_settings,
     mm,
+    namespaced_name,
+    no_result_text,
+    run_interruptible_goal,
+    show_progress,
+    timed_step,
     usage,
 )
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.results.outcome_text import (
     COLLECT_HINTS,
     TRAIN_HINT,
     Exit,
@@ -45,11 +45,11 @@ def _collect_kept(result: Any) -> str:
             f'in {result.dataset_path}')
 
 
-def _collect_interrupted(result: Any) -> str:
+def collect_interrupted_text(result: Any) -> str:
     from flexarm_msgs.action import CollectSamples
 
     if result is None:
-        return f'{_no_result()}; the samples collected before are kept in the dataset'
+        return f'{no_result_text()}; the samples collected before are kept in the dataset'
     if result.error_code != CollectSamples.Result.CANCELED:
         return f'interrupted after the collection had ended: {_collect_kept(result)}'
     return f'cancelled; the samples collected are kept: {_collect_kept(result)}'
@@ -57,28 +57,29 @@ def _collect_interrupted(result: Any) -> str:
 
 def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
     """Collect N deflection samples with the learner."""
-    max_count = _learner_config()['max_count']
+    max_count = learner_settings()['max_count']
     if args.count > max_count:
         raise usage(f'count must be 1..{max_count} (max_count of config/learner.yaml), '
                     f'got {args.count}')
-    _check_region(args.region)
-    _check_strategy(args.strategy)
-    _check_dataset(args.dataset)
+    check_region(args.region)
+    check_strategy(args.strategy)
+    check_dataset(args.dataset)
     from tqdm import tqdm
 
     from flexarm_msgs.action import CollectSamples
 
-    with _session(args, learner=True) as client:
+    with client_session(args, learner=True) as client:
         if args.payload is not None:
             client.set_payload(args.payload)
             print(f'payload declared: {args.payload:g} kg')
-        bar = tqdm(total=args.count, unit='sample', desc='collect', disable=not _progress(args))
+        bar = tqdm(total=args.count, unit='sample', desc='collect',
+                   disable=not show_progress(args))
         try:
-            result = _goal(lambda: client.collect(
+            result = run_interruptible_goal(lambda: client.collect(
                 args.count, region=args.region, strategy=args.strategy, seed=args.seed,
                 dataset=args.dataset, timeout=args.timeout,
                 feedback=lambda fb: bar.update(fb.k - bar.n)),
-                _full(args, topics.COLLECT_SAMPLES), _collect_interrupted)
+                namespaced_name(args, topics.COLLECT_SAMPLES), collect_interrupted_text)
         finally:
             bar.close()
     name = code_name(CollectSamples.Result, result.error_code)
@@ -101,24 +102,23 @@ def cmd_collect(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
     """Mend a model the health check reports stale from a few new samples."""
     if args.region:
-        _check_region(args.region)
+        check_region(args.region)
     from tqdm import tqdm
 
     from flexarm_msgs.action import RefreshModel
 
-    with _session(args, learner=True) as client:
-        bar = tqdm(unit='sample', desc='refresh', disable=not _progress(args))
+    with client_session(args, learner=True) as client:
+        bar = tqdm(unit='sample', desc='refresh', disable=not show_progress(args))
 
         def show(fb: Any) -> None:
             bar.total = fb.n
             bar.update(fb.k - bar.n)
 
         try:
-            result = _goal(lambda: client.refresh(args.count, args.region, args.timeout, show,
-                                                  args.force),
-                           _full(args, topics.REFRESH_MODEL),
-                           lambda r: 'interrupted; the model is unchanged unless the refresh '
-                                     'had ended')
+            result = run_interruptible_goal(
+                lambda: client.refresh(args.count, args.region, args.timeout, show, args.force),
+                namespaced_name(args, topics.REFRESH_MODEL),
+                lambda r: 'interrupted; the model is unchanged unless the refresh had ended')
         finally:
             bar.close()
     name = code_name(RefreshModel.Result, result.error_code)
@@ -141,7 +141,7 @@ def cmd_refresh(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_payload(args: argparse.Namespace) -> dict[str, Any]:
     """Show the payload the arm carries, or declare a new one [kg] (a tool picked up)."""
     note = ''
-    with _session(args, learner=True) as client:
+    with client_session(args, learner=True) as client:
         if args.kg is not None:
             client.set_payload(args.kg)
             note = payload_bounds_note(client, args.kg)
@@ -175,12 +175,12 @@ def payload_bounds_note(client: Any, kg: float, wait: float = 2.0) -> str:
 
 def cmd_train(args: argparse.Namespace) -> dict[str, Any]:
     """Train a deflection predictor on a dataset; prints the validation metrics."""
-    _check_kind(args.kind)
-    _check_dataset(args.dataset)
+    check_kind(args.kind)
+    check_dataset(args.dataset)
     what = f'training {args.kind or "the default kind"} on dataset {args.dataset or "default"}'
-    with _session(args, learner=True) as client:
+    with client_session(args, learner=True) as client:
         try:
-            with _elapsed(what, args):
+            with timed_step(what, args):
                 response = client.train(args.kind, args.settings, dataset=args.dataset,
                                         timeout=args.timeout)
         except KeyboardInterrupt:
@@ -227,13 +227,13 @@ def cmd_model(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _model_list(args: argparse.Namespace) -> dict[str, Any]:
-    from flexarm_bringup.graph_status import file_summary
-    from flexarm_bringup.status_text import model_line
+    from flexarm_bringup.orchestration.graph_status import file_summary
+    from flexarm_bringup.orchestration.status_text import model_line
     from flexarm_control.learning.model_store import list_models
-    from flexarm_control.learning.predictors.base import read_model
+    from flexarm_control.learning.models import model_metadata
 
     directory = Path(args.models) if args.models else MODELS_DIR / args.namespace
-    entries = list_models(directory, lambda path: read_model(path)[0])
+    entries = list_models(directory, model_metadata)
     if not entries:
         print(f'no models in {directory}: collect samples and `flexarm train`')
     rows = []
@@ -254,17 +254,17 @@ def _model_list(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _model_use(args: argparse.Namespace) -> dict[str, Any]:
-    from flexarm_bringup.graph_status import model_summary
-    from flexarm_bringup.status_text import model_line
+    from flexarm_bringup.orchestration.graph_status import model_summary
+    from flexarm_bringup.orchestration.status_text import model_line
 
     if not args.version.isdecimal():
         raise usage('model use needs a version number (see flexarm model list), not '
                     f'{args.version!r}')
-    with _session(args, learner=True) as client:
+    with client_session(args, learner=True) as client:
         response = client.use_model(args.version, timeout=args.wait)
         if not response.success:
             raise Outcome(response.message, Exit.FAILED)
-        with _elapsed(f'waiting for the compensator to load v{args.version}', args):
+        with timed_step(f'waiting for the compensator to load v{args.version}', args):
             client.wait_for_model(response.model.version, timeout=args.wait)
     summary = model_summary(response.model)
     print(model_line('model driving the arm now', summary))

@@ -8,18 +8,18 @@ from typing import Any
 
 from flexarm_bringup.cli.common import (
     Outcome,
-    _elapsed,
-    _full,
-    _goal,
-    _no_result,
-    _progress,
-    _session,
+    client_session,
     deg,
     mm,
+    namespaced_name,
+    no_result_text,
     pose_dict,
+    run_interruptible_goal,
+    show_progress,
+    timed_step,
 )
-from flexarm_bringup.cli.learning import _collect_interrupted
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.cli.learning import collect_interrupted_text
+from flexarm_bringup.results.outcome_text import (
     MOVE_HINTS,
     Exit,
     arm_busy_text,
@@ -108,7 +108,7 @@ def _move_interrupted(result: Any) -> str:
     from flexarm_msgs.action import MoveToPose
 
     if result is None:
-        return f'{_no_result()}: where the arm stopped is unknown'
+        return f'{no_result_text()}: where the arm stopped is unknown'
     if result.error_code != MoveToPose.Result.CANCELED:
         return f'interrupted after the goal had ended: {_move_text(result)}'
     geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
@@ -120,16 +120,16 @@ def cmd_move(args: argparse.Namespace) -> dict[str, Any]:
     """Move the tip to X Y PHI [mm mm deg]."""
     from flexarm_msgs.action import MoveToPose
 
-    feedback = _show_feedback if _progress(args) else None
-    with _session(args, learner=False) as client:
-        result = _goal(lambda: client.move_to(
+    feedback = _show_feedback if show_progress(args) else None
+    with client_session(args, learner=False) as client:
+        result = run_interruptible_goal(lambda: client.move_to(
             args.x / 1e3, args.y / 1e3, math.radians(args.phi), mode=args.mode,
             position_tolerance=args.position_tolerance / 1e3,
             angle_tolerance=math.radians(args.angle_tolerance),
             max_corrections=args.max_corrections, trial=args.trial, timeout=args.timeout,
             allow_extrapolation=args.allow_extrapolation, dry_run=args.dry_run,
             feedback=feedback),
-            _full(args, topics.MOVE_TO_POSE), _move_interrupted)
+            namespaced_name(args, topics.MOVE_TO_POSE), _move_interrupted)
     out = {'ok': result.error_code == MoveToPose.Result.SUCCESSFUL,
            'error_code': result.error_code,
            'error_name': code_name(MoveToPose.Result, result.error_code),
@@ -161,10 +161,10 @@ def _cancelled_text(goal: Any) -> str:
            'its server does not record who sent it; clients of the action now: '
            + (', '.join(goal.clients) or 'none'))
     if goal.result is None:
-        text = _no_result()
+        text = no_result_text()
     else:
         words = {topics.MOVE_TO_POSE: _move_interrupted, topics.COLLECT_SAMPLES:
-                 _collect_interrupted, topics.REFRESH_MODEL: lambda r: 'cancelled; the model '
+                 collect_interrupted_text, topics.REFRESH_MODEL: lambda r: 'cancelled; the model '
                  'is unchanged'}
         name = next(n for n in words if goal.action.endswith('/' + n))
         text = words[name](goal.result.result)
@@ -174,8 +174,8 @@ def _cancelled_text(goal: Any) -> str:
 def cmd_cancel(args: argparse.Namespace) -> dict[str, Any]:
     """Cancel whatever goal runs on the arm (move, collect, refresh), whoever sent it, then
     end the motion that still holds the arm (e.g. a calibration between its poses)."""
-    with _session(args, learner=False) as client:
-        with _elapsed('cancelling', args):
+    with client_session(args, learner=False) as client:
+        with timed_step('cancelling', args):
             goals = client.cancel_all(timeout=args.wait)
             ended = client.end_motion()
     rows = [{'action': g.action, 'goal_id': g.goal_id, 'sender': g.sender,
@@ -184,8 +184,8 @@ def cmd_cancel(args: argparse.Namespace) -> dict[str, Any]:
              g.result.result.error_string} for g in goals]
     if not goals and not ended:
         raise Outcome('nothing to cancel: no goal runs on '
-                      f'{_full(args, topics.MOVE_TO_POSE)} or the learner, and no motion holds '
-                      'the arm', Exit.NOTHING_TO_CANCEL, cancelled=rows, motion='')
+                      f'{namespaced_name(args, topics.MOVE_TO_POSE)} or the learner, and no '
+                      'motion holds the arm', Exit.NOTHING_TO_CANCEL, cancelled=rows, motion='')
     for goal in goals:
         print(_cancelled_text(goal))
     if ended:

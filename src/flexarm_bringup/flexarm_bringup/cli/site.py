@@ -7,20 +7,32 @@ import os
 from pathlib import Path
 from typing import Any
 
-from flexarm_bringup.cli.common import Outcome, _check_bag, _progress_lines, _session, deg, mm
-from flexarm_bringup.outcome_text import (
+from flexarm_bringup.cli.common import (
+    Outcome,
+    check_bag_path,
+    client_session,
+    deg,
+    mm,
+    progress_printer,
+)
+from flexarm_bringup.results.outcome_text import (
     Exit,
 )
 
 
 def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
     """Inspect a recorded bag (info) or export its trials and figures as CSV + PNG (export)."""
-    _check_bag(args.path)
+    check_bag_path(args.path)
     from mcap.exceptions import McapError
 
-    from flexarm_bringup.bag_tools import bag_info, export_figures, export_trials, format_bag_info
+    from flexarm_bringup.recording.bag_tools import (
+        bag_info,
+        export_figures,
+        export_trials,
+        format_bag_info,
+    )
 
-    say = _progress_lines(args)
+    say = progress_printer(args)
     try:
         if args.action == 'info':
             info = bag_info(args.path, say)
@@ -39,14 +51,14 @@ def cmd_bag(args: argparse.Namespace) -> dict[str, Any]:
 def cmd_calibrate(args: argparse.Namespace) -> dict[str, Any]:
     """Measure the camera's error in the tool frame against a reference; correct for it. With
     --camera, first the camera's own parameters that the plate shows."""
-    from flexarm_bringup.calibration import calibrate_lens, calibrate_tool
+    from flexarm_bringup.site.calibration import calibrate_lens, calibrate_tool
     from flexarm_core.paths import CALIBRATION_DIR
 
     folder = CALIBRATION_DIR / args.namespace
     path = Path(args.file) if args.file else folder / 'tool_camera.json'
-    say = _progress_lines(args)
+    say = progress_printer(args)
     out: dict[str, Any] = {'ok': True}
-    with _session(args, learner=False) as client:
+    with client_session(args, learner=False) as client:
         if args.camera:
             camera_path = Path(args.camera_file) if args.camera_file else folder / 'camera.json'
             change, lens, lens_details = calibrate_lens(client, camera_path, args.timeout, say)

@@ -41,3 +41,9 @@ def load_model(path: str | Path) -> Predictor:
         return restore(model_class(metadata['kind']), metadata, state)
     except ValueError as exc:
         raise ValueError(f'{path}: {exc}') from exc
+
+
+def model_metadata(path: str | Path) -> dict[str, Any]:
+    """What a saved model says of itself (kind, version, samples, metrics, ...), without
+    restoring it: OSError if the file cannot be read, ValueError for one that is no model."""
+    return read_model(path)[0]

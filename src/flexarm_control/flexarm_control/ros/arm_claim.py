@@ -28,7 +28,7 @@ from rclpy.task import Future
 from flexarm_control.ros.arm_owner_node import LATCHED
 from flexarm_core import liveness, topics
 from flexarm_core.goal_owner import full_name
-from flexarm_core.taken import Taken, take
+from flexarm_core.ros.taken import Taken, take
 from flexarm_msgs.msg import ArmMotion
 from flexarm_msgs.srv import ClaimArm, ReleaseArm
 

@@ -49,7 +49,7 @@ from flexarm_control.ros.joint_commands import ForwardCommands, JointCommands
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import JOINT_NAMES
 from flexarm_core.measurement import Measurement, average_frames
-from flexarm_core.taken import Taken, take
+from flexarm_core.ros.taken import Taken, take
 from flexarm_msgs.msg import TipPose
 
 # A wait of T s of sim time may take at most this many times T (+ slack) of wall time.

@@ -64,7 +64,7 @@ goal gives one: the measured error must be within it (TOLERANCE_NOT_MET otherwis
 MEASUREMENT_FAILED if the tip could not be measured to check it). A ``dry_run`` goal is planned
 and answered with the plan; nothing moves.
 
-A goal executes in a thread of its own (:class:`~flexarm_core.node_main.Offload`), which
+A goal executes in a thread of its own (:class:`~flexarm_core.ros.node_main.Offload`), which
 takes the arm's inputs itself, subscribed only while the goal runs
 (:class:`~flexarm_control.ros.arm_interface.ArmInterface`); the node's single-threaded executor
 serves cancel requests, new goals and ``/clock`` meanwhile.
@@ -124,15 +124,15 @@ from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
 from flexarm_core.health_report import Status
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, forward, pose_error
-from flexarm_core.node_main import Offload, finish_goal, run
-from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.regions import regions_from_dict
-from flexarm_core.scene_msgs import pose_stamped
-from flexarm_core.stamps import to_ns
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import Offload, finish_goal, run
+from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_core.ros.scene_msgs import pose_stamped
+from flexarm_core.ros.stamps import to_ns
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg

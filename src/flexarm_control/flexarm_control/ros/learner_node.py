@@ -59,7 +59,7 @@ dataset), as is one while a timed-out training job still occupies the worker. Ev
 gives an error code or message; nothing escapes a callback. A collection or refresh runs in a
 thread of its own, which takes the arm's inputs itself, subscribed only while it runs
 (:class:`~flexarm_control.ros.arm_interface.ArmInterface`), and training and model changes in
-another, one at a time (:class:`~flexarm_core.node_main.Offload`); the node's
+another, one at a time (:class:`~flexarm_core.ros.node_main.Offload`); the node's
 single-threaded executor serves cancel requests, ``/clock`` and parameters meanwhile.
 
 Health on ``/diagnostics``: :func:`learner_statuses` (activity, training, model).
@@ -122,13 +122,13 @@ from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.goal_owner import ProcTable, owner_at_acceptance, send_goal_writers
 from flexarm_core.kinematics import ArmGeometry
-from flexarm_core.node_main import Offload, finish_goal, run
-from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.paths import repo_path
 from flexarm_core.regions import Region, regions_from_dict
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import Offload, finish_goal, run
+from flexarm_core.ros.node_params import declare, declare_tree
 from flexarm_msgs.action import CollectSamples, RefreshModel
 from flexarm_msgs.msg import (
     DeflectionSample,

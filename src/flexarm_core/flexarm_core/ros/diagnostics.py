@@ -7,7 +7,7 @@ Foxglove's diagnostics panel see the graph's health at a steady rate, and at onc
 subscriber that has just matched (``flexarm status`` answers without waiting up to a period
 for each node). Stamps come from the
 node's clock (sim time under ``use_sim_time``) unless the node gives its own: a node that skips
-``/clock`` gives the graph's time (:class:`flexarm_core.stamps.GraphTime`). ``/diagnostics``
+``/clock`` gives the graph's time (:class:`flexarm_core.ros.stamps.GraphTime`). ``/diagnostics``
 is global: a node in a namespace (one arm of several) names its statuses
 ``<namespace>/<node>: <concern>``.
 """

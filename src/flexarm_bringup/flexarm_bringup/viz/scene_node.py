@@ -21,7 +21,7 @@ diagnostics and what DDS brings it; there is little more to cut.
 Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second). Every marker of
 an array, and ``/diagnostics``, carry the graph's time when they are published (the newest
 ``/clock``, taken without waking the node, or wall time in a graph without one:
-:class:`flexarm_core.stamps.GraphTime`); an array waits until that time is known.
+:class:`flexarm_core.ros.stamps.GraphTime`); an array waits until that time is known.
 
 Health on ``/diagnostics`` (``flexarm_scene: markers``): WARN when the model in use could not
 be loaded for the field (known once the field was needed), else OK, with the samples and
@@ -40,13 +40,13 @@ from visualization_msgs.msg import Marker, MarkerArray
 
 from flexarm_control.learning.deflection_field import deflection_field
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, WARN, Status, status
 from flexarm_core.kinematics import ArmGeometry
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare, declare_tree
 from flexarm_core.regions import regions_from_dict
-from flexarm_core.stamps import GraphTime
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_core.ros.stamps import GraphTime
 from flexarm_description.chain import BASE_FRAME
 from flexarm_description.scene import (
     deflection_arrows,

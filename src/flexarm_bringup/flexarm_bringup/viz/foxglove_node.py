@@ -1,21 +1,21 @@
 """``flexarm_foxglove``: the live graph in Foxglove, over the Foxglove WebSocket protocol.
 
 A WebSocket server of the ``foxglove`` SDK (``ws://host:port``) advertises one channel per
-discovered topic (:mod:`flexarm_bringup.topic_discovery`, as the recorder finds them):
+discovered topic (:mod:`flexarm_bringup.recording.topic_discovery`, as the recorder finds them):
 ``cdr`` messages with the type's full ``ros2msg`` schema
-(:func:`flexarm_bringup.bag_schema.message_definition`, as in the bags), so Foxglove decodes
-them like ``foxglove_bridge``'s or a bag's. A topic is subscribed as the recorder does (raw,
-QoS matching the publishers, latched topics included) while a client subscribes to its
-channel, checked every ``discovery_period``. Each message is sent as it arrives, serialized as
-on the wire, with the wall-clock receive time as its log time (as the recorder's). The server
-only sends: it offers no publishing, services or parameters to its clients, so Foxglove can
-look at the arm but not command it.
+(:func:`flexarm_bringup.recording.bag_schema.message_definition`, as in the bags), so Foxglove
+decodes them like ``foxglove_bridge``'s or a bag's. A topic is subscribed as the recorder does
+(raw, QoS matching the publishers, latched topics included) while a client subscribes to its
+channel, checked every ``discovery_period``. Each message is sent as it arrives, serialized as on
+the wire, with the wall-clock receive time as its log time (as the recorder's). The server only
+sends: it offers no publishing, services or parameters to its clients, so Foxglove can look at the
+arm but not command it.
 
 Decisions: every topic by default (``topics: ['*']``) except /camera/image_raw, which comes
 only with ``images: true`` (~9 MB/s at 30 Hz, and the camera rendering already shares the
 CPU). ROS subscriptions only for watched channels, as ``foxglove_bridge`` does: subscribed to
 every topic, the node took 17 % of a core at 10x real time with no client connected, 0.7 %
-this way. Clients connect to :class:`~flexarm_bringup.foxglove_front.SubprotocolFront`, which
+this way. Clients connect to :class:`~flexarm_bringup.viz.foxglove_front.SubprotocolFront`, which
 relays them to the SDK's server on a loopback port: the SDK speaks only ``foxglove.sdk.v1`` (as
 current Foxglove and ``foxglove_bridge`` 3 do) and refuses the same protocol under its former
 name ``foxglove.websocket.v1``, the only one older Lichtblick and roslibjs-foxglove offer.
@@ -37,16 +37,16 @@ import foxglove
 from rclpy.node import Node
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from flexarm_bringup.bag_schema import message_definition
-from flexarm_bringup.foxglove_front import SubprotocolFront
-from flexarm_bringup.topic_discovery import (
+from flexarm_bringup.recording.bag_schema import message_definition
+from flexarm_bringup.recording.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
     TopicSelection,
 )
+from flexarm_bringup.viz.foxglove_front import SubprotocolFront
 from flexarm_core import topics
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare
 
 SERVER_NAME = 'flexarm'
 LISTENING = 'Foxglove WebSocket server listening on'

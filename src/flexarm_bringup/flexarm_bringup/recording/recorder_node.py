@@ -1,16 +1,16 @@
 """``flexarm_recorder``: record flexarm topics into an MCAP bag (rosbag2 layout).
 
 Writes ``<bag_directory>/<bag_name>/<bag_name>.mcap`` with :class:`BagWriter`, its chunks
-compressed (``compression``, zstd by default: the demo's bag 50-60 bytes a message instead of
-200, for no measurable CPU: benchmarks/recorder.py gives 44-48 us a message with zstd, lz4 or
-none alike). Each wanted topic (names or patterns, :mod:`flexarm_bringup.topic_discovery`) is
-subscribed once a publisher of it is discovered (checked every ``discovery_period``), with its
-type from the graph and a QoS that matches all its publishers (latched topics such as
-/learner/model are recorded even if published before), keep last ``queue_depth``.
+compressed (``compression``, zstd by default: the demo's bag 50-60 bytes a message instead of 200,
+for no measurable CPU: benchmarks/recorder.py gives 44-48 us a message with zstd, lz4 or none
+alike). Each wanted topic (names or patterns, :mod:`flexarm_bringup.recording.topic_discovery`) is
+subscribed once a publisher of it is discovered (checked every ``discovery_period``), with its type
+from the graph and a QoS that matches all its publishers (latched topics such as /learner/model are
+recorded even if published before), keep last ``queue_depth``.
 
 Cost: a recording must not slow the arm it records. The messages are serialized CDR taken from
 the wire and written as they are, never decoded, and no message wakes the node: the
-subscriptions are :class:`~flexarm_core.taken.Taken`, and every ``take_period`` (wall clock)
+subscriptions are :class:`~flexarm_core.ros.taken.Taken`, and every ``take_period`` (wall clock)
 one timer takes what arrived on every topic and writes it in receive order. At 10x real time
 the simulator publishes ``/joint_states`` and the ground truth 1000 times a wall second each.
 Measured here (benchmarks/recorder.py, 2000 joint states a second): an executor callback per
@@ -43,11 +43,11 @@ in one bag; a trial that wants a bag of its own starts (and stops) a recorder fo
 
 Chunks are flushed every ``flush_period`` (wall clock, also under sim time), so after a
 SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close the bag
-cleanly: the signal only stops the spin (:func:`flexarm_core.node_main.run`); what already
+cleanly: the signal only stops the spin (:func:`flexarm_core.ros.node_main.run`); what already
 arrived is taken and written (:func:`_drain`), then the bag is closed.
 
 Health on ``/diagnostics``: :func:`recorder_status`, stamped with the graph's time
-(:class:`flexarm_core.stamps.GraphTime`: the newest ``/clock`` in a simulated graph, taken
+(:class:`flexarm_core.ros.stamps.GraphTime`: the newest ``/clock`` in a simulated graph, taken
 without waking the node; wall time on a real arm): the recorder skips the node's own
 ``/clock`` subscription, which would wake it once more for each ``/clock`` it records.
 """
@@ -67,26 +67,26 @@ from rclpy.node import Node
 from rclpy.qos import QoSProfile
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from flexarm_bringup.bag_writer import (
+from flexarm_bringup.recording.bag_writer import (
     COMPRESSIONS,
     DEFAULT_CHUNK_SIZE,
     DEFAULT_COMPRESSION,
     BagWriter,
     duration_yaml,
 )
-from flexarm_bringup.topic_discovery import (
+from flexarm_bringup.recording.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
     TopicSelection,
 )
 from flexarm_core import topics
-from flexarm_core.diagnostics import DiagnosticsPublisher
 from flexarm_core.health_report import OK, WARN, Status, status
-from flexarm_core.node_main import run
-from flexarm_core.node_params import declare
 from flexarm_core.paths import BAGS_DIR
-from flexarm_core.stamps import GraphTime
-from flexarm_core.taken import Taken
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare
+from flexarm_core.ros.stamps import GraphTime
+from flexarm_core.ros.taken import Taken
 
 DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded

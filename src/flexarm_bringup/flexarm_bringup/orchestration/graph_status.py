@@ -14,8 +14,8 @@ ROS_AUTOMATIC_DISCOVERY_RANGE=SUBNET (or ROS_STATIC_PEERS), and the supervisor r
 machine's, which names its own part and the remote one (a node that died on another host is
 seen only as missing).
 
-:mod:`flexarm_bringup.status_text` makes the lines; :mod:`flexarm_bringup.graph_watch` is the
-same view for ``flexarm up``.
+:mod:`flexarm_bringup.orchestration.status_text` makes the lines;
+:mod:`flexarm_bringup.orchestration.graph_watch` is the same view for ``flexarm up``.
 """
 from __future__ import annotations
 
@@ -36,10 +36,15 @@ from rcl_interfaces.srv import GetParameters
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup.launcher import all_nodes, controllers, load_graph, node_name
-from flexarm_bringup.status_text import Heard, calibration_text, clock_text, real_time_factor
-from flexarm_bringup.supervisor import RECORD
-from flexarm_control.learning.predictors.base import read_model
+from flexarm_bringup.orchestration.launcher import all_nodes, controllers, load_graph, node_name
+from flexarm_bringup.orchestration.status_text import (
+    Heard,
+    calibration_text,
+    clock_text,
+    real_time_factor,
+)
+from flexarm_bringup.orchestration.supervisor import RECORD
+from flexarm_control.learning.models import model_metadata
 from flexarm_core import liveness, topics
 from flexarm_core.health_report import ERROR, LEVEL_NAMES
 from flexarm_msgs.msg import ModelHealth, ModelInfo
@@ -179,7 +184,7 @@ def model_summary(info: ModelInfo | None) -> dict[str, Any] | None:
                              info.metrics.max_error_phi],
                'warning': info.warning, 'path': info.path, 'age_s': None, 'refresh': None}
     try:
-        meta = read_model(info.path)[0]
+        meta = model_metadata(info.path)
         summary['age_s'], summary['refresh'] = _age(meta), _refresh(meta)
     except (OSError, ValueError):
         pass              # another machine's path, or a damaged file: no age
@@ -263,7 +268,7 @@ def query(client: Any, namespace: str = '', record: Mapping[str, Any] | None = N
         def complete() -> bool:
             reported = (time.monotonic() >= reports_end
                         or (not reporting - reporting_nodes(statuses)
-                            and _latched_in(statuses, got, client.active_model)))
+                            and latched_in(statuses, got, client.active_model)))
             return (reported and parameters.done()
                     and (controller is None or _rate_known(joint_states, since)))
 
@@ -389,7 +394,7 @@ def _rate_known(sent: list[float], since: float) -> bool:
     return time.monotonic() - since >= liveness.limit(JOINT_STATES_WAIT)
 
 
-def _latched_in(statuses: Mapping[str, Heard], got: Mapping[str, Any], active: Any) -> bool:
+def latched_in(statuses: Mapping[str, Heard], got: Mapping[str, Any], active: Any) -> bool:
     """Whether the latched model messages the nodes' reports announce have come: the
     learner's model, the compensator's active one and its health (each published once a
     model exists, which the node's ``model`` status names)."""

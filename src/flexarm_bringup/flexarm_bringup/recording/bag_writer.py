@@ -2,7 +2,7 @@
 
 A bag is a directory ``<dir>/`` holding ``<dir.name>.mcap`` and ``metadata.yaml``, as
 ``ros2 bag record -s mcap`` makes it: profile ``ros2``, one ``ros2msg`` schema per type with
-its full text (:mod:`flexarm_bringup.bag_schema`), one ``cdr`` channel per topic with the
+its full text (:mod:`flexarm_bringup.recording.bag_schema`), one ``cdr`` channel per topic with the
 ``offered_qos_profiles`` (a YAML string) and ``topic_type_hash`` metadata, and on close the
 ``rosbag2`` metadata record whose ``serialized_metadata`` is the bag metadata (version 9,
 Jazzy), the same mapping that ``metadata.yaml`` holds under ``rosbag2_bagfile_information``.
@@ -32,11 +32,11 @@ import mcap
 import yaml
 from mcap.writer import CompressionType, Writer
 
-from flexarm_bringup.bag_schema import message_definition
+from flexarm_bringup.recording.bag_schema import message_definition
 
 METADATA_VERSION = 9            # rosbag2 bag metadata version of ROS 2 Jazzy
 ROS_DISTRO = 'jazzy'
-LIBRARY = f'flexarm_bringup.bag_writer (mcap {mcap.__version__})'
+LIBRARY = f'flexarm_bringup.recording.bag_writer (mcap {mcap.__version__})'
 DEFAULT_CHUNK_SIZE = 512 * 1024
 COMPRESSIONS = {'zstd': CompressionType.ZSTD, 'lz4': CompressionType.LZ4,
                 'none': CompressionType.NONE}

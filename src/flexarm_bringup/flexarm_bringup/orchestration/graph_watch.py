@@ -8,14 +8,14 @@ from collections.abc import Callable, Iterable
 
 from diagnostic_msgs.msg import DiagnosticArray
 
-from flexarm_bringup.graph_status import (
+from flexarm_bringup.orchestration.graph_status import (
     LATCHED,
     ErrorLog,
     diagnosed,
     heard,
     reporting_nodes,
 )
-from flexarm_bringup.status_text import Heard
+from flexarm_bringup.orchestration.status_text import Heard
 from flexarm_core import topics
 from flexarm_msgs.msg import ModelInfo
 

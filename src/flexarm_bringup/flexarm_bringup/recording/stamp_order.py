@@ -24,7 +24,7 @@ from bisect import bisect_left
 from collections.abc import Iterable, Iterator, Sequence
 from typing import Any
 
-from flexarm_core.stamps import to_ns
+from flexarm_core.ros.stamps import to_ns
 from flexarm_core.topics import CLOCK, DIAGNOSTICS
 
 Stream = tuple[str, str]        # (topic, source)

@@ -21,7 +21,7 @@ from typing import IO, Any
 
 import yaml
 
-from flexarm_bringup.transport import transport_env
+from flexarm_bringup.orchestration.transport import transport_env
 from flexarm_core.params import config_path, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 
@@ -147,7 +147,7 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     ``discovery`` (ROS_AUTOMATIC_DISCOVERY_RANGE) is LOCALHOST unless the caller widens it on
     purpose: the DDS of the PyPI wheels has no security plugins, so every participant that
     reaches the graph can publish commands to it. With LOCALHOST every transport stays on
-    this machine too (:mod:`flexarm_bringup.transport`).
+    this machine too (:mod:`flexarm_bringup.orchestration.transport`).
     """
     if discovery not in DISCOVERY_RANGES:
         raise ValueError(f'discovery range {discovery!r}; choose one of {DISCOVERY_RANGES}')

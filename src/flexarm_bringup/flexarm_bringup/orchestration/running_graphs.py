@@ -19,7 +19,7 @@ from dataclasses import asdict, dataclass
 from datetime import datetime
 from pathlib import Path
 
-from flexarm_bringup.supervisor import RECORD, parse_lock_name
+from flexarm_bringup.orchestration.supervisor import RECORD, parse_lock_name
 
 PROC_LOCKS = Path('/proc/locks')
 

@@ -31,12 +31,11 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_bringup.bag_tools import ACCURACY_CODES
-from flexarm_bringup.calibration import calibrate_tool
-from flexarm_bringup.domains import reserved
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.supervisor import Graph
-from flexarm_bringup.trials import (
+from flexarm_bringup.orchestration.domains import reserved
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.recording.bag_tools import ACCURACY_CODES
+from flexarm_bringup.results.trials import (
     MOVE_CSV_FIELDS,
     TRIAL_CSV_FIELDS,
     Trial,
@@ -44,6 +43,7 @@ from flexarm_bringup.trials import (
     run_trials,
     summarise,
 )
+from flexarm_bringup.site.calibration import calibrate_tool
 from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.learning.sampling import random_targets
@@ -119,7 +119,7 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
     graph = Graph(domain_id, run_dir, parameters=parameters, optional=optional, report=say)
     say(f'starting the graph in ROS domain {domain_id}; logs in {run_dir}')
     watchdog = _Watchdog(graph)
-    with graph, _client(domain_id) as client, contextlib.closing(watchdog):
+    with graph, graph_client(domain_id) as client, contextlib.closing(watchdog):
         graph.wait_ready(settings.ready_timeout)
         watchdog.start()
         say(f'graph ready after {time.monotonic() - started:.1f} s')
@@ -197,13 +197,13 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
 
 class SimTime:
     """The graph's simulated time [s], the newest ``/clock`` taken from a raw keep-last-1
-    subscription that never wakes the client (:class:`flexarm_core.taken.Taken`)."""
+    subscription that never wakes the client (:class:`flexarm_core.ros.taken.Taken`)."""
 
     def __init__(self, node: Any) -> None:
         from rclpy.qos import QoSProfile
         from rosgraph_msgs.msg import Clock
 
-        from flexarm_core.taken import Taken
+        from flexarm_core.ros.taken import Taken
 
         self._subscription = node.create_subscription(
             Clock, topics.CLOCK, lambda _: None, QoSProfile(depth=1), callback_group=Taken(),
@@ -213,8 +213,8 @@ class SimTime:
     def now(self, timeout: float = 5.0) -> float | None:
         """The newest ``/clock`` [s]; waits up to ``timeout`` for the first one (None if none
         came: a graph on wall time)."""
-        from flexarm_core.stamps import raw_stamp_ns
-        from flexarm_core.taken import take
+        from flexarm_core.ros.stamps import raw_stamp_ns
+        from flexarm_core.ros.taken import take
 
         deadline = time.monotonic() + timeout
         while True:
@@ -284,7 +284,7 @@ class _Watchdog:
 
 
 @contextlib.contextmanager
-def _client(domain_id: int):
+def graph_client(domain_id: int):
     import rclpy
     from rclpy.context import Context
 
@@ -371,9 +371,9 @@ def write_results(summary: dict, trials: list[Trial], out_dir: Path, geometry: A
     """The run's files in ``out_dir``, each written atomically: summary.json, table.md,
     trials.csv (one row per goal), moves.csv (one row per measured move), deflections.csv
     (learning samples and PREDICTIVE goals: measured and predicted deflection), and the
-    figures of :mod:`flexarm_bringup.plots` — errors.png (ours beside the paper),
+    figures of :mod:`flexarm_bringup.results.plots` — errors.png (ours beside the paper),
     deflection_field.png, prediction.png and iterations.png (CLOSED_LOOP goals)."""
-    from flexarm_bringup import plots
+    from flexarm_bringup.results import plots
     from flexarm_core.atomic_file import atomic_write
 
     out_dir.mkdir(parents=True, exist_ok=True)

@@ -1,5 +1,5 @@
 """What ``flexarm status`` and ``flexarm up`` say of a graph, for humans (mm and deg): the
-lines made from the plain data :mod:`flexarm_bringup.graph_status` reads, and the
+lines made from the plain data :mod:`flexarm_bringup.orchestration.graph_status` reads, and the
 ``/diagnostics`` status (:class:`Heard`) they are made from. No rclpy."""
 from __future__ import annotations
 
@@ -8,7 +8,7 @@ from collections.abc import Iterable, Mapping
 from dataclasses import dataclass, field
 from typing import Any
 
-from flexarm_bringup.launcher import node_name
+from flexarm_bringup.orchestration.launcher import node_name
 from flexarm_core.health_report import ERROR
 
 

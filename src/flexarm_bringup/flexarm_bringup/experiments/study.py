@@ -16,7 +16,7 @@ model, the learned ``mlp``, ``rbf`` and ``gp``, and ``auto`` (the learner's defa
 chooses among them by cross-validation; the row says what it chose per seed); the rigid model
 (no prediction: the error is the whole deflection) is the reference. Pure core (no rclpy)::
 
-    python -m flexarm_bringup.study [--region paper] [--seeds 3] [--quick] [--json]
+    python -m flexarm_bringup.experiments.study [--region paper] [--seeds 3] [--quick] [--json]
         [--kinds auto,gp] [--samples 10,20,40] [--no-paper-tables]
 """
 from __future__ import annotations
@@ -34,8 +34,8 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.plots import write_csv
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.results.plots import write_csv
 from flexarm_control.learning.models import KINDS, make_model
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_control.learning.selection import AutoPredictor

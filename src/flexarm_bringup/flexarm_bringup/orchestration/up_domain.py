@@ -1,13 +1,13 @@
 """Which ROS domain ``flexarm up`` starts its graph in.
 
 ``--domain-id N`` wins: exactly N, refused only by another graph's lock on N and the namespace
-(:class:`flexarm_bringup.supervisor.Graph`); a harness that reserved N for itself passes it so.
-Else an exported ``ROS_DOMAIN_ID``: the domain that ``move``, ``status`` and ``collect`` of the
-same shell talk to, so two shells that export one id meet. It is refused, before anything
-starts, when a graph of this machine runs there in the same namespace, or when another process
-reserved it (:mod:`flexarm_bringup.domains`: a test run, a benchmark, ``flexarm demo``) and no
-flexarm graph runs there (an arm of another namespace shares its domain, and holds its
-reservation). A free domain only when none is exported.
+(:class:`flexarm_bringup.orchestration.supervisor.Graph`); a harness that reserved N for itself
+passes it so. Else an exported ``ROS_DOMAIN_ID``: the domain that ``move``, ``status`` and
+``collect`` of the same shell talk to, so two shells that export one id meet. It is refused, before
+anything starts, when a graph of this machine runs there in the same namespace, or when another
+process reserved it (:mod:`flexarm_bringup.orchestration.domains`: a test run, a benchmark,
+``flexarm demo``) and no flexarm graph runs there (an arm of another namespace shares its domain,
+and holds its reservation). A free domain only when none is exported.
 
 The domain used is reserved while the graph runs whenever its reservation is free, so that
 whoever looks for a free domain skips it.
@@ -18,8 +18,8 @@ import socket
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass
 
-from flexarm_bringup import domains
-from flexarm_bringup.running_graphs import RunningGraph
+from flexarm_bringup.orchestration import domains
+from flexarm_bringup.orchestration.running_graphs import RunningGraph
 
 ENV = 'ROS_DOMAIN_ID'
 # How the domain was chosen, as ``flexarm up`` says it.
@@ -57,7 +57,7 @@ def exported(environ: Mapping[str, str]) -> int | None:
 def claim_domain(given: int | None, environ: Mapping[str, str], namespace: str,
                  graphs: Callable[[], Sequence[RunningGraph]]) -> Claim:
     """The domain of the graph of the arm in ``namespace``; ``graphs``: the graphs running on
-    this machine (:func:`flexarm_bringup.running_graphs.running_graphs`)."""
+    this machine (:func:`flexarm_bringup.orchestration.running_graphs.running_graphs`)."""
     if given is not None:
         return Claim(given, GIVEN, domains.hold(given))
     domain = exported(environ)

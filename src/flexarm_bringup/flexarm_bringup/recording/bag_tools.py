@@ -1,5 +1,5 @@
 """Read flexarm bags (MCAP, rosbag2 layout): summary info, the trials' error export and the
-figures of :mod:`flexarm_bringup.plots` the bag's content allows.
+figures of :mod:`flexarm_bringup.results.plots` the bag's content allows.
 
 Bags are read with the ``mcap`` readers and decoded with ``mcap_ros2``, independently of
 the writer. A bag whose recorder was killed has no summary or footer: it is read linearly
@@ -20,7 +20,7 @@ Not every goal outcome is a goal reached (column ``kind``): a dry run only plann
 has no dry-run flag: a goal that succeeded without a move can only be one), and the moves of
 ``flexarm calibrate`` (untitled RIGID goals to the Table 10 poses, in the table's order) only
 serve the camera's calibration. Both stay in the CSV but out of the goal figures. Untitled
-goals are named as :func:`flexarm_bringup.trials.trial_name` names trials, after the paper
+goals are named as :func:`flexarm_bringup.results.trials.trial_name` names trials, after the paper
 target at their pose if any.
 
 One module of ~600 lines: reading a bag and the trial rows and batches made from it share the
@@ -43,9 +43,9 @@ from mcap.records import Channel, Message, Schema
 from mcap.stream_reader import StreamReader
 from mcap_ros2.decoder import DecoderFactory
 
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.outcome_text import code_names
-from flexarm_bringup.trials import trial_name, trial_target
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.results.outcome_text import code_names
+from flexarm_bringup.results.trials import trial_name, trial_target
 from flexarm_core import topics
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.kinematics import ArmGeometry, wrap_angle
@@ -456,7 +456,7 @@ def export_figures(path: str | Path, out_dir: str | Path, namespace: str = '',
     ``<bag>_errors.png`` (goals at the paper's targets), ``<bag>_deflection_field.png``,
     ``<bag>_prediction.png`` and ``<bag>_deflections.csv``; ``say`` hears the progress.
     Returns the paths written."""
-    from flexarm_bringup import plots
+    from flexarm_bringup.results import plots
 
     file = mcap_path(path)
     outcomes, truths, samples, models = [], [], [], []

@@ -18,8 +18,8 @@ from rclpy.subscription import Subscription
 from rosgraph_msgs.msg import Clock
 
 from flexarm_core import topics
-from flexarm_core.node_params import declare
-from flexarm_core.taken import Taken, take
+from flexarm_core.ros.node_params import declare
+from flexarm_core.ros.taken import Taken, take
 
 NS = 1_000_000_000
 CDR_STAMP = slice(4, 12)    # serialized: 4-byte CDR encapsulation, then the stamp (8 bytes)

@@ -46,7 +46,7 @@ from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from typing import Any
 
-from flexarm_bringup.launcher import (
+from flexarm_bringup.orchestration.launcher import (
     NodeProcess,
     NodeSpec,
     all_nodes,
@@ -103,7 +103,7 @@ class Graph:
     def start(self) -> None:
         """Start every node; RuntimeError, and nothing started, if another graph of this
         machine holds the domain or the domain already runs a node of one of their names."""
-        self._lock = _lock_domain(self.domain_id, self.namespace)
+        self._lock = lock_domain(self.domain_id, self.namespace)
         try:
             self._started_probe = self._discovery.enter_context(self._probe())
             self._check_domain_free(self._started_probe)
@@ -343,7 +343,7 @@ def parse_lock_name(name: str) -> tuple[int, str] | None:
     return (int(domain), ns.replace('.', '/')) if domain.isdigit() else None
 
 
-def _lock_domain(domain_id: int, namespace: str = '') -> int:
+def lock_domain(domain_id: int, namespace: str = '') -> int:
     """An exclusive lock on ``domain_id`` (and ``namespace``) for this process (a file
     descriptor, held until closed, released by the kernel if the process dies); RuntimeError
     naming the holder."""

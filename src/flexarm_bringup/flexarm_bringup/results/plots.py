@@ -41,7 +41,7 @@ from matplotlib.figure import Figure
 from matplotlib.patches import Patch, Rectangle
 from matplotlib.ticker import FormatStrFormatter, MaxNLocator, NullFormatter
 
-from flexarm_bringup.launcher import node_name
+from flexarm_bringup.orchestration.launcher import node_name
 from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_control.learning.deflection_field import deflection_field
 from flexarm_control.learning.models import load_model

@@ -12,7 +12,7 @@ from builtin_interfaces.msg import Time
 from rclpy.serialization import serialize_message
 
 from flexarm_bringup.cli import main
-from flexarm_bringup.recording import bag_tools, plots
+from flexarm_bringup.recording import bag_tools
 from flexarm_bringup.recording.bag_tools import (
     CALIBRATION,
     DRY_RUN,
@@ -22,6 +22,7 @@ from flexarm_bringup.recording.bag_tools import (
     export_trials,
 )
 from flexarm_bringup.recording.bag_writer import BagWriter
+from flexarm_bringup.results import plots
 from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core import topics

@@ -205,7 +205,7 @@ def test_the_help_builds_where_config_is_not_beside_the_code(monkeypatch):
     """An install space (colcon) holds the code without config/: --help must still work."""
     def missing() -> None:
         raise FileNotFoundError('config/learner.yaml')
-    monkeypatch.setattr(common, '_learner_config', missing)
+    monkeypatch.setattr(common, 'learner_settings', missing)
     train = cli.build_parser()._subparsers._group_actions[0].choices['train']
     text = ' '.join(train.format_help().split())
     assert "(default: the learner's, its default_kind parameter)" in text

@@ -11,8 +11,9 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup import cli, supervisor
+from flexarm_bringup import cli
 from flexarm_bringup.cli import graph as graph_commands
+from flexarm_bringup.orchestration import supervisor
 from flexarm_bringup.orchestration.running_graphs import (
     AmbiguousGraph,
     NoSuchGraph,

@@ -41,8 +41,8 @@ import numpy as np
 from rclpy.qos import DurabilityPolicy, QoSProfile, qos_profile_sensor_data
 from sensor_msgs.msg import CameraInfo, Image
 
-from flexarm_bringup.launcher import node_name
-from flexarm_bringup.trials import trial_name
+from flexarm_bringup.orchestration.launcher import node_name
+from flexarm_bringup.results.trials import trial_name
 from flexarm_control.execution.tool_calibration import (
     ReferenceCalibration,
     calibrate_against_reference,

@@ -16,7 +16,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import sys
 import tempfile
 import threading
 import time
@@ -24,6 +23,7 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
+from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
@@ -33,10 +33,6 @@ from flexarm_bridge import controller_protocol as proto
 from flexarm_bringup.experiments.experiment import reserved_domain
 from flexarm_bringup.orchestration.launcher import NodeProcess, load_graph, ros_env, stop_all
 from flexarm_core import topics
-
-# link_proxy is a test helper in tests/ (no package, so not importable): put tests/ on the path
-sys.path.insert(0, str(Path(__file__).resolve().parents[1] / 'tests'))
-from link_proxy import TO_CONTROLLER, TO_PC, LinkProxy  # noqa: E402
 
 STEP = 0.01          # [rad] joint4
 SETTLE = 0.4         # [s] between steps (a 0.01 rad joint4 step takes 0.24 s)

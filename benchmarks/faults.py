@@ -72,6 +72,9 @@ from pathlib import Path
 from types import FrameType
 from typing import IO
 
+from flexarm_test_support.link_attacks import replay_accepted
+from flexarm_test_support.remote_peer import remote_attack, unavailable
+
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_bringup.orchestration.domains import reserved
@@ -88,12 +91,6 @@ from flexarm_control.learning.dataset import load_dataset
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import RUNS_DIR, repo_path
-
-# The attackers are test tooling in tests/ (no package): put tests/ on the path.
-TESTS = Path(__file__).resolve().parents[1] / 'tests'
-sys.path.insert(0, str(TESTS))
-from link_attacks import replay_accepted  # noqa: E402
-from remote_peer import remote_attack, unavailable  # noqa: E402
 
 FLEXARM = str(Path(sys.executable).with_name('flexarm'))
 MARKER = 'FLEXARM_FAULT_RUN'
@@ -742,9 +739,10 @@ def remote_peer(graph: Graph, row: Row) -> None:
 
 def abandoned_goal(graph: Graph, row: Row) -> None:
     """A raw client sends a long CLOSED_LOOP goal and is killed while the arm moves: the
-    compensator must cancel the goal (tests/abandoned_goal.py, in a process of its own)."""
+    compensator must cancel the goal (flexarm_test_support.abandoned_goal, in a process of its
+    own)."""
     done = subprocess.run(
-        [sys.executable, str(TESTS / 'abandoned_goal.py'), '--domain-id',
+        [sys.executable, '-m', 'flexarm_test_support.abandoned_goal', '--domain-id',
          str(graph.domain)], env={**graph.env, MARKER: f'{graph.marker}-client'},
         capture_output=True, text=True, timeout=MOVE_S, stdin=subprocess.DEVNULL,
         preexec_fn=terminate_with_parent)

@@ -10,7 +10,7 @@ import math
 
 import pytest
 import yaml
-from learned_goal import learn_and_reach
+from flexarm_test_support.learned_goal import learn_and_reach
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo
 

@@ -18,7 +18,7 @@ import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from link_proxy import TO_CONTROLLER, LinkProxy
+from flexarm_test_support.link_proxy import TO_CONTROLLER, LinkProxy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState

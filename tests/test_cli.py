@@ -17,8 +17,8 @@ from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from joint_watch import JointWatch
-from run_record import record_supervisor
+from flexarm_test_support.joint_watch import JointWatch
+from flexarm_test_support.run_record import record_supervisor
 from sensor_msgs.msg import JointState
 
 from flexarm_bringup.cli import main

@@ -1,13 +1,13 @@
 """Node-level: no goal holds the arm for ever, and a bad goal never moves it.
 
-A goal whose only client was killed mid-move is cancelled by the compensator within seconds,
-the arm held where it was, and the next `flexarm move` runs; a goal beyond the bounds (the
-tester's: 10**9 corrections, a 1e-12 m tolerance, phi = 1e9 rad) is refused with INVALID_GOAL
-and nothing moves; `flexarm cancel` ends a goal another process sent, says who sent it, and
-exits 6 when nothing runs. The goals' senders are raw rclpy action clients in processes of
-their own (tests/abandoned_goal.py); this process holds no MoveToPose client while they run,
-or it would be one of the goal's possible senders. No camera: the goals end mid-move, and a
-goal that completes its move waits for a tip measurement that never comes.
+A goal whose only client was killed mid-move is cancelled by the compensator within seconds, the
+arm held where it was, and the next `flexarm move` runs; a goal beyond the bounds (the tester's:
+10**9 corrections, a 1e-12 m tolerance, phi = 1e9 rad) is refused with INVALID_GOAL and nothing
+moves; `flexarm cancel` ends a goal another process sent, says who sent it, and exits 6 when
+nothing runs. The goals' senders are raw rclpy action clients in processes of their own
+(flexarm_test_support.abandoned_goal); this process holds no MoveToPose client while they run, or
+it would be one of the goal's possible senders. No camera: the goals end mid-move, and a goal that
+completes its move waits for a tip measurement that never comes.
 
 The tests that leave the arm at rest and no goal running share one graph (:class:`Graph`, at
 real time): the abandoned goal runs first, while no client of this process has ever been in
@@ -21,7 +21,7 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 import rclpy
-from abandoned_goal import B4, GoalSender, abandoned_goal_s
+from flexarm_test_support.abandoned_goal import B4, GoalSender, abandoned_goal_s
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState

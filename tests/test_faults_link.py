@@ -9,7 +9,7 @@ import threading
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from link_attacks import (
+from flexarm_test_support.link_attacks import (
     KeylessController,
     Recording,
     exchange,
@@ -18,7 +18,7 @@ from link_attacks import (
     replay_attacks,
     split_frames,
 )
-from link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
+from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 from sensor_msgs.msg import JointState
 
 from flexarm_bridge import controller_protocol as proto

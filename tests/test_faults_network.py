@@ -16,7 +16,7 @@ import sys
 from collections.abc import Iterator
 
 import pytest
-from remote_peer import RemoteHost, Unavailable, remote_attack
+from flexarm_test_support.remote_peer import RemoteHost, Unavailable, remote_attack
 
 from flexarm_core import liveness
 

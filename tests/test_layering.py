@@ -14,7 +14,8 @@ import pytest
 SRC = Path(__file__).resolve().parents[1] / 'src'
 # Lowest first: a package may import only the ones before it.
 LAYERS = ['flexarm_msgs', 'flexarm_core', 'flexarm_description', 'flexarm_vision',
-          'flexarm_bridge', 'flexarm_sim', 'flexarm_control', 'flexarm_bringup']
+          'flexarm_bridge', 'flexarm_sim', 'flexarm_control', 'flexarm_bringup',
+          'flexarm_test_support']
 ROS = {'rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'rosgraph_msgs', 'builtin_interfaces',
        'action_msgs', 'unique_identifier_msgs', 'rcl_interfaces', 'diagnostic_msgs',
        'visualization_msgs', 'tf2_msgs', 'control_msgs'}
@@ -223,7 +224,7 @@ def test_other_packages_import_only_what_a_package_makes_public(package):
     assert not wrong, f'imports of modules their package does not make public: {wrong}'
 
 
-@pytest.mark.parametrize('package', LAYERS[1:-1])
+@pytest.mark.parametrize('package', LAYERS[1:])
 def test_what_a_package_makes_public_exists(package):
     missing = sorted(m for m in public(package) if not _is_module(m))
     assert public(package) and not missing, missing
@@ -241,3 +242,14 @@ def test_no_module_imports_another_ones_private_names():
         if isinstance(node, ast.ImportFrom) and (node.module or '').startswith('flexarm_')
         for alias in node.names if alias.name.startswith('_') and not alias.name.startswith('__'))
     assert not private, private
+
+
+@pytest.mark.parametrize('package', LAYERS[1:])
+def test_a_packages_tests_import_it_and_what_lies_below_only(package):
+    """A package's tests run with it and the packages below (``colcon test --packages-select``
+    works); tests across packages, of the graph or of one package against another's, live in
+    tests/."""
+    below = set(LAYERS[:LAYERS.index(package) + 1])
+    above = sorted({f'{f}: {m}' for f, m in imported_modules(SRC / package / 'test')
+                    if m.split('.')[0] not in below})
+    assert not above, above

@@ -7,11 +7,10 @@ hardware limits (narrower than flexarm's) fails with the controller's reason. Th
 one graph (learning it is what takes the time).
 """
 import math
-from pathlib import Path
 
 import pytest
 from action_msgs.msg import GoalStatus, GoalStatusArray
-from learned_goal import learn_and_reach
+from flexarm_test_support.learned_goal import learn_and_reach
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.orchestration.launcher import NodeProcess, NodeSpec, ros_env, stop_all
@@ -33,10 +32,10 @@ def stand_in(domain_id, tmp_path_factory):
     """The stand-in arm as a node process of its own, on the module's domain."""
     folder = tmp_path_factory.mktemp('stand_in')
     env = ros_env(domain_id, folder / 'ros_log')
-    env['PYTHONPATH'] = f'{Path(__file__).parent}:{env.get("PYTHONPATH", "")}'
     upper = [JOINT1_LIMIT, 0.80, 1.0471975511965976, 2.0943951023931953]
-    node = NodeProcess(NodeSpec(name='ros2_control_standin', module='ros2_control_standin'),
-                       env, folder / 'ros2_control_standin.log', {'upper': upper})
+    spec = NodeSpec(name='ros2_control_standin',
+                    module='flexarm_test_support.ros2_control_standin')
+    node = NodeProcess(spec, env, folder / 'ros2_control_standin.log', {'upper': upper})
     node.start()
     yield node
     assert stop_all([node])[node.spec.name] is not None, 'the stand-in could not be stopped'

@@ -30,8 +30,8 @@ KEYS = {'cv2': 'python3-opencv', 'foxglove': 'python3-foxglove-sdk-pip',
         'threadpoolctl': 'python3-threadpoolctl', 'torch': 'python3-torch',
         'tqdm': 'python3-tqdm', 'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags-pip',
         'urdf_parser_py': 'urdfdom_py'}
-# Test helpers importable by name: pytest.ini puts tests/ on the path.
-TEST_HELPERS = {p.stem for p in (ROOT / 'tests').glob('*.py')}
+# A package's own test helpers, importable by name (pytest.ini puts their folder on the path).
+TEST_HELPERS = {p.stem for p in SRC.glob('*/test/*.py') if not p.stem.startswith('test_')}
 
 
 def jazzy_keys() -> set[str]:

@@ -15,8 +15,8 @@ import math
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
+from flexarm_test_support.run_record import record_supervisor
 from rclpy.context import Context
-from run_record import record_supervisor
 
 from flexarm_bringup.cli import main
 from flexarm_bringup.orchestration.launcher import stop_all

@@ -10,6 +10,7 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
+from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -18,7 +19,6 @@ from visualization_msgs.msg import MarkerArray
 
 from flexarm_bringup.cli import main
 from flexarm_bringup.recording.bag_tools import read_decoded
-from flexarm_bringup.recording.stamp_order import backwards_steps, beyond_sent, header_stamps
 from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME

@@ -171,12 +171,3 @@ def test_a_link_off_loopback_needs_a_key(tmp_path):
         site_key_for('0.0.0.0', '')
     key = make_key(tmp_path / 'k')
     assert site_key_for('10.1.2.3', str(key)) == load_key(key)
-
-
-def test_keygen_writes_a_key_and_never_overwrites_one(tmp_path, capsys):
-    from flexarm_bringup.cli import main
-    path = tmp_path / 'site.key'
-    assert main(['keygen', str(path)]) == 0
-    key = load_key(path)
-    assert main(['keygen', str(path)]) == 1                # would lock out its users
-    assert 'exists' in capsys.readouterr().err and load_key(path) == key

@@ -1,20 +1,15 @@
 """The URDF feeds a simulator, a planner and ros2_control: every massive link can collide, every
-joint has an effort limit sized by the gravity model, the ``<ros2_control>`` system and
-config/controllers.yaml name the joints of config/arm.yaml."""
+joint has an effort limit (held against the gravity model in flexarm_control's tests), the
+``<ros2_control>`` system and config/controllers.yaml name the joints of config/arm.yaml."""
 import xml.etree.ElementTree as ET
 
-import numpy as np
 import pytest
 
-from flexarm_control.learning.gravity_moments import GRAVITY, ArmMasses
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry
 from flexarm_core.params import config_path, load_config, load_node_params
 from flexarm_description.urdf_model import (
-    EFFORT_MARGIN,
     MOCK_HARDWARE,
-    PAYLOAD,
     SYSTEM_NAME,
-    joint_efforts,
     robot_description,
 )
 
@@ -63,25 +58,6 @@ def test_joints_have_efforts_and_arm_yaml_speeds(robot, geometry) -> None:
         assert float(limit.get('velocity')) == ARM['velocity'][i]
         assert (float(limit.get('lower')), float(limit.get('upper'))) == (ARM['lower'][i],
                                                                            ARM['upper'][i])
-
-
-def test_efforts_are_the_margin_over_the_gravity_model_at_full_extension(geometry) -> None:
-    efforts = joint_efforts(geometry, INERTIA)
-    masses = ArmMasses.from_description(ARM)
-    stretched = np.array([0.0, geometry.upper[1], 0.0, 0.0])
-    moments = masses.moments(stretched, PAYLOAD)        # about joint1, the guide, joint3, joint4
-    for name, moment in zip(('joint1', 'joint3', 'joint4'), moments[[0, 2, 3]]):
-        assert efforts[name] == pytest.approx(EFFORT_MARGIN * abs(moment))
-    lifted = sum(INERTIA['masses'].values()) - INERTIA['masses']['second_axis'] + PAYLOAD
-    assert efforts['joint2'] == pytest.approx(EFFORT_MARGIN * GRAVITY * lifted)
-
-
-def test_the_drives_hold_the_loaded_arm_anywhere_in_its_limits(geometry) -> None:
-    efforts = joint_efforts(geometry, INERTIA)
-    poses = np.random.default_rng(5).uniform(geometry.lower, geometry.upper, (2000, 4))
-    moments = np.abs(ArmMasses.from_description(ARM).moments(poses, PAYLOAD))
-    held = [efforts[n] for n in ('joint1', 'joint3', 'joint4')]
-    assert np.all(moments[:, [0, 2, 3]].max(axis=0) < held)
 
 
 def test_ros2_control_system_commands_positions_within_the_limits(robot) -> None:

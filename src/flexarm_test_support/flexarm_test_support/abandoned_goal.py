@@ -9,7 +9,7 @@ domain (the vision node is not needed: the goal ends mid-move). For tests/test_f
 and benchmarks (which put tests/ on sys.path); as a script, for a caller that keeps DDS out of
 its own process::
 
-    python tests/abandoned_goal.py --domain-id N [--namespace NS]   # last line: JSON
+    python -m flexarm_test_support.abandoned_goal --domain-id N [--namespace NS]  # last: JSON
 """
 from __future__ import annotations
 

@@ -29,7 +29,7 @@ so it accepts the goal and aborts it at once with INVALID_GOAL and an ``error_st
 the joint and its limit; the running goal goes on. A test narrows them to have goals refused.
 Run as a node process::
 
-    python -m ros2_control_standin --ros-args ...   # with tests/ on PYTHONPATH
+    python -m flexarm_test_support.ros2_control_standin --ros-args ...
 """
 from __future__ import annotations
 

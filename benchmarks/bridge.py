@@ -23,7 +23,6 @@ from pathlib import Path
 
 import numpy as np
 import rclpy
-from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
@@ -33,6 +32,7 @@ from flexarm_bridge import controller_protocol as proto
 from flexarm_bringup.experiments.experiment import reserved_domain
 from flexarm_bringup.orchestration.launcher import NodeProcess, load_graph, ros_env, stop_all
 from flexarm_core import topics
+from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 
 STEP = 0.01          # [rad] joint4
 SETTLE = 0.4         # [s] between steps (a 0.01 rad joint4 step takes 0.24 s)

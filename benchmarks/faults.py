@@ -72,9 +72,6 @@ from pathlib import Path
 from types import FrameType
 from typing import IO
 
-from flexarm_test_support.link_attacks import replay_accepted
-from flexarm_test_support.remote_peer import remote_attack, unavailable
-
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_bringup.orchestration.domains import reserved
@@ -91,6 +88,8 @@ from flexarm_control.learning.dataset import load_dataset
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import RUNS_DIR, repo_path
+from flexarm_test_support.link_attacks import replay_accepted
+from flexarm_test_support.remote_peer import remote_attack, unavailable
 
 FLEXARM = str(Path(sys.executable).with_name('flexarm'))
 MARKER = 'FLEXARM_FAULT_RUN'

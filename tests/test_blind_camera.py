@@ -10,7 +10,6 @@ import math
 
 import pytest
 import yaml
-from flexarm_test_support.learned_goal import learn_and_reach
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo
 
@@ -20,6 +19,7 @@ from flexarm_core import topics
 from flexarm_core.params import load_config
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import TipPose
+from flexarm_test_support.learned_goal import learn_and_reach
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(60)]
 SOURCES = ('repeatability', 'hysteresis', 'thermal', 'payload')

@@ -18,7 +18,6 @@ import numpy as np
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from flexarm_test_support.link_proxy import TO_CONTROLLER, LinkProxy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
@@ -32,6 +31,7 @@ from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import liveness, topics
 from flexarm_core.ros.node_main import Spin
 from flexarm_msgs.action import MoveToPose
+from flexarm_test_support.link_proxy import TO_CONTROLLER, LinkProxy
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 

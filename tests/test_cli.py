@@ -6,19 +6,12 @@ processes, as an operator runs them; refusals call ``main`` in this process.
 from __future__ import annotations
 
 import math
-import os
 import re
 import signal
-import subprocess
-import sys
-import threading
 import time
-from collections.abc import Iterator
 
 import numpy as np
 import pytest
-from flexarm_test_support.joint_watch import JointWatch
-from flexarm_test_support.run_record import record_supervisor
 from sensor_msgs.msg import JointState
 
 from flexarm_bringup.cli import main
@@ -26,75 +19,14 @@ from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
+from flexarm_test_support.cli_process import Cli, no_cli_left  # noqa: F401  (autouse fixture)
+from flexarm_test_support.joint_watch import JointWatch
+from flexarm_test_support.run_record import record_supervisor
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(75)]
 B4 = ('1000', '-500', '-100')      # [mm, mm, deg] Table 10: a long move from the start pose
 A1 = ('1450', '-150', '-45')
 STOPPED = re.compile(r'cancelled; arm stopped at x=(\S+) mm, y=(\S+) mm, phi=(\S+) deg')
-
-
-class Cli:
-    """A ``flexarm`` process; its stdout and stderr lines as they arrive. Every one still
-    running when its test ends is killed and reaped (:func:`no_cli_left`)."""
-
-    running: list[Cli] = []
-
-    def __init__(self, *args: str, domain_id: int) -> None:
-        Cli.running.append(self)
-        self.process = subprocess.Popen(
-            [sys.executable, '-m', 'flexarm_bringup.cli', *args, '--domain-id', str(domain_id)],
-            stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-            env={**os.environ, 'PYTHONUNBUFFERED': '1'})
-        self.out: list[str] = []
-        self.err: list[str] = []
-        self._readers = [threading.Thread(target=self._read, args=(stream, lines), daemon=True)
-                         for stream, lines in ((self.process.stdout, self.out),
-                                               (self.process.stderr, self.err))]
-        for reader in self._readers:
-            reader.start()
-
-    @staticmethod
-    def _read(stream, lines: list[str]) -> None:
-        for line in stream:
-            lines.append(line.rstrip('\n'))
-
-    def wait_line(self, text: str, timeout: float) -> None:
-        """Until a line of stdout or stderr (goal feedback) holds ``text``."""
-        deadline = time.monotonic() + liveness.limit(timeout)
-        while not any(text in line for line in self.out + self.err):
-            ended = self.process.poll() is not None
-            if ended:          # its last lines may still be on their way to the readers
-                self._join_readers()
-            if ended and any(text in line for line in self.out + self.err):
-                return
-            if time.monotonic() > deadline or ended:
-                self.process.kill()
-                pytest.fail(f'no line with {text!r} within {timeout} s: {self.out} {self.err}')
-            time.sleep(0.02)
-
-    def _join_readers(self) -> None:
-        for reader in self._readers:
-            reader.join(timeout=liveness.limit(5.0))
-
-    def finish(self, timeout: float) -> tuple[int, str]:
-        """Exit code and stderr, once the process has ended (killed after ``timeout``)."""
-        try:
-            code = self.process.wait(liveness.limit(timeout))
-        except subprocess.TimeoutExpired:
-            self.process.kill()
-            pytest.fail(f'flexarm still ran after {timeout} s: {self.out} {self.err}')
-        self._join_readers()
-        return code, '\n'.join(self.err)
-
-
-@pytest.fixture(autouse=True)
-def no_cli_left() -> Iterator[None]:
-    yield
-    while Cli.running:
-        process = Cli.running.pop().process
-        if process.poll() is None:
-            process.kill()
-        process.wait(10.0)
 
 
 class Arm:

@@ -21,11 +21,9 @@ from collections.abc import Iterator
 import numpy as np
 import pytest
 import rclpy
-from flexarm_test_support.abandoned_goal import B4, GoalSender, abandoned_goal_s
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
-from test_cli import A1, Cli, no_cli_left  # noqa: F401  (no_cli_left: autouse fixture)
 
 from flexarm_bringup.results.outcome_text import Exit
 from flexarm_control.execution.goal_bounds import SENDER_CHECK
@@ -33,8 +31,11 @@ from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_msgs.action import MoveToPose
+from flexarm_test_support.abandoned_goal import B4, GoalSender, abandoned_goal_s
+from flexarm_test_support.cli_process import Cli, no_cli_left  # noqa: F401  (autouse fixture)
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
+A1 = ('1450', '-150', '-45')   # [mm, mm, deg] Table 10, as the command line takes it
 Result = MoveToPose.Result
 # [s, wall, scaled] from the kill to the goal's end: a look for its sender every SENDER_CHECK
 # s, the hold, the outcome on its way

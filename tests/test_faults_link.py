@@ -9,6 +9,11 @@ import threading
 
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
+from sensor_msgs.msg import JointState
+
+from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge.link_auth import load_key, make_key
+from flexarm_core import liveness, topics
 from flexarm_test_support.link_attacks import (
     KeylessController,
     Recording,
@@ -19,11 +24,6 @@ from flexarm_test_support.link_attacks import (
     split_frames,
 )
 from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
-from sensor_msgs.msg import JointState
-
-from flexarm_bridge import controller_protocol as proto
-from flexarm_bridge.link_auth import load_key, make_key
-from flexarm_core import liveness, topics
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(30)]
 

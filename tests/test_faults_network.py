@@ -16,9 +16,9 @@ import sys
 from collections.abc import Iterator
 
 import pytest
-from flexarm_test_support.remote_peer import RemoteHost, Unavailable, remote_attack
 
 from flexarm_core import liveness
+from flexarm_test_support.remote_peer import RemoteHost, Unavailable, remote_attack
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
 

@@ -10,12 +10,12 @@ import math
 
 import pytest
 from action_msgs.msg import GoalStatus, GoalStatusArray
-from flexarm_test_support.learned_goal import learn_and_reach
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.orchestration.launcher import NodeProcess, NodeSpec, ros_env, stop_all
 from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
+from flexarm_test_support.learned_goal import learn_and_reach
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
 TARGET = (1.30, -0.20, math.radians(-61))            # Table 10, B6

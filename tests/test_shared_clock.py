@@ -15,7 +15,6 @@ import math
 import pytest
 import rclpy
 from diagnostic_msgs.msg import DiagnosticArray
-from flexarm_test_support.run_record import record_supervisor
 from rclpy.context import Context
 
 from flexarm_bringup.cli import main
@@ -24,6 +23,7 @@ from flexarm_bringup.results.outcome_text import Exit
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
+from flexarm_test_support.run_record import record_supervisor
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(25)]
 SIM = {'real_time_factor': 10.0, 'error_sources': {'enabled': False}}

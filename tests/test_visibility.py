@@ -10,7 +10,6 @@ import xml.etree.ElementTree as ET
 import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
-from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from sensor_msgs.msg import JointState
@@ -28,6 +27,7 @@ from flexarm_core.ros.stamps import to_ns
 from flexarm_core.ros.taken import Taken
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
 from flexarm_msgs.msg import DeflectionSample, PlanarPose
+from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.node

@@ -9,6 +9,7 @@ its test folder); this package sits above every other."""
 # What other packages may import (tests/test_layering.py holds every import to it).
 PUBLIC = (
     'flexarm_test_support.abandoned_goal',
+    'flexarm_test_support.cli_process',
     'flexarm_test_support.joint_watch',
     'flexarm_test_support.learned_goal',
     'flexarm_test_support.link_attacks',

@@ -2,13 +2,13 @@
 and against the graph's time when each message was sent."""
 from builtin_interfaces.msg import Time
 from diagnostic_msgs.msg import DiagnosticArray, DiagnosticStatus
-from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
 from geometry_msgs.msg import PoseStamped, TransformStamped
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Header
 from visualization_msgs.msg import Marker, MarkerArray
 
 from flexarm_msgs.msg import TipPose
+from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
 from tf2_msgs.msg import TFMessage
 
 

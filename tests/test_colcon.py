@@ -29,7 +29,8 @@ PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / 'package.xml').exists())
 MSGS = 'flexarm_msgs'                     # built by scripts/setup.sh (module docstring)
 PYTHON_PACKAGES = [p for p in PACKAGES if p != MSGS]
 # Executables that are not `<package>/<name>_node.py` modules with a main().
-OTHER_EXECUTABLES = {'flexarm_sim': {'fake_controller'}, 'flexarm_bringup': {'flexarm'}}
+OTHER_EXECUTABLES = {'flexarm_sim': {'fake_controller'}, 'flexarm_bringup': {'flexarm'},
+                     'flexarm_test_support': {'ros2_control_standin'}}
 OUTER_ROS = ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH', 'COLCON_PREFIX_PATH', 'PYTHONPATH',
              'LD_LIBRARY_PATH', 'VIRTUAL_ENV', '_ROS_WHEELS_BOOTSTRAP_COMPLETE',
              'COLCON_DEFAULTS_FILE')

@@ -39,6 +39,7 @@ from __future__ import annotations
 import contextlib
 import json
 import os
+import threading
 import time
 import uuid
 from collections.abc import Callable, Iterable, Mapping
@@ -196,8 +197,7 @@ class GoalRun:
         """Whether the goal has ended; spins the client for up to ``spin`` seconds meanwhile
         (as nav2_simple_commander's ``isTaskComplete``: every callback that comes in that time
         is served, feedback included), less when the goal's next step completes."""
-        self._client._executor.spin_until_future_complete(
-            self._result if self._result is not None else self._sent, timeout_sec=spin)
+        self._client.serve(self._result if self._result is not None else self._sent, spin)
         if self._handle is None:
             if not self._sent.done():
                 return False
@@ -291,6 +291,7 @@ class FlexarmClient(Node):
         self._refresh = ActionClient(self, RefreshModel, topics.REFRESH_MODEL)
         self._arm = ArmClaim(self, self._waited)
         self._executor = SingleThreadedExecutor(context=self.context)
+        self._serving = threading.Lock()     # one thread at a time in the executor (serve)
         # One per node, made on first use; its service clients go with destroy_node.
         self._parameter_clients: dict[str, AsyncParameterClient] = {}
         self._executor.add_node(self)
@@ -516,7 +517,19 @@ class FlexarmClient(Node):
 
     def spin_once(self, timeout: float) -> None:
         """Process this client's pending callbacks for up to ``timeout`` seconds."""
-        self._executor.spin_once(timeout_sec=timeout)
+        self.serve(None, timeout)
+
+    def serve(self, future: Future | None, timeout: float) -> None:
+        """Serve this client's callbacks for up to ``timeout`` s, less once ``future`` is done
+        (None: one callback), one thread at a time: a goal waited for in one thread and a
+        cancel sent from another (a stop button) take turns in the executor, whose callbacks
+        complete either's futures, instead of entering it together (rclpy raises "generator
+        already executing")."""
+        with self._serving:
+            if future is None:
+                self._executor.spin_once(timeout_sec=timeout)
+            else:
+                self._executor.spin_until_future_complete(future, timeout_sec=timeout)
 
     def cancel(self, timeout: float = 10.0) -> None:
         """Cancel the goal in progress (if any) and wait for the server to acknowledge."""
@@ -582,7 +595,7 @@ class FlexarmClient(Node):
             if remaining <= 0:
                 raise TimeoutError(f'action server {client._action_name} does not answer')
             future = probe.cancel_goal_async()
-            self._executor.spin_until_future_complete(future, timeout_sec=min(1.0, remaining))
+            self.serve(future, min(1.0, remaining))
             if future.done():
                 return
 
@@ -607,8 +620,7 @@ class FlexarmClient(Node):
             reason = lost()
             if reason is not None:
                 raise ServerLost(reason)
-            self._executor.spin_until_future_complete(
-                future, timeout_sec=min(remaining, _SPIN_SLICE))
+            self.serve(future, min(remaining, _SPIN_SLICE))
         return future.result()
 
 

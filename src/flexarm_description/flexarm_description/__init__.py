@@ -5,5 +5,6 @@ marker geometry and the robot-state publisher node."""
 PUBLIC = (
     'flexarm_description.chain',
     'flexarm_description.scene',
+    'flexarm_description.tf_message',
     'flexarm_description.urdf_model',
 )

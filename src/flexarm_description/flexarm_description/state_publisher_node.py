@@ -56,7 +56,7 @@ import time
 from collections.abc import Callable
 from functools import partial
 
-from geometry_msgs.msg import PoseStamped, TransformStamped
+from geometry_msgs.msg import PoseStamped
 from rclpy.clock import Clock, ClockType
 from rclpy.event_handler import PublisherEventCallbacks
 from rclpy.node import Node
@@ -78,13 +78,13 @@ from flexarm_core.ros.stamps import GraphTime
 from flexarm_core.ros.taken import Taken, take
 from flexarm_description.chain import (
     BASE_FRAME,
-    Transform,
     arm_joints,
     fixed_transforms,
     moving_transforms,
     planar_transform,
     plane_transform,
 )
+from flexarm_description.tf_message import transform_msg
 from flexarm_description.urdf_model import MOCK_HARDWARE, published_description
 from flexarm_msgs.msg import TipPose
 from tf2_msgs.msg import TFMessage
@@ -117,16 +117,6 @@ def not_viewers(count: int, names: list[str], recorders: set[str]) -> int:
     docstring)."""
     known = [name for name in names if name != UNKNOWN_NODE]
     return sum(name in recorders for name in known) + max(0, count - len(known))
-
-
-def transform_msg(t: Transform, header: Header) -> TransformStamped:
-    msg = TransformStamped(header=Header(stamp=header.stamp, frame_id=t.parent),
-                           child_frame_id=t.child)
-    msg.transform.translation.x, msg.transform.translation.y, msg.transform.translation.z = (
-        t.translation)
-    r = msg.transform.rotation
-    r.x, r.y, r.z, r.w = t.rotation
-    return msg
 
 
 class StatePublisher(Node):

@@ -71,7 +71,7 @@ from rclpy.subscription import Subscription
 from sensor_msgs.msg import CameraInfo, Image, JointState
 from std_msgs.msg import Header
 
-from flexarm_core import plane, topics
+from flexarm_core import topics
 from flexarm_core.demand import Demand, on_matched
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME, TIP_FRAME
 from flexarm_core.health_report import (
@@ -90,6 +90,8 @@ from flexarm_core.ros.node_main import run
 from flexarm_core.ros.node_params import declare, declare_tree
 from flexarm_core.ros.stamps import CDR_STAMP, GraphTime
 from flexarm_core.tool_correction import ToolCorrection, read_calibration
+from flexarm_description.chain import planar_transform
+from flexarm_description.tf_message import transform_msg
 from flexarm_msgs.msg import PlanarPose, TipPose
 from flexarm_vision.camera_calibration import CameraCorrection, read_camera_calibration
 from flexarm_vision.camera_info import camera_info, info_intrinsics
@@ -222,15 +224,10 @@ def camera_info_status(node: str, camera: str, intrinsics: Intrinsics, from_info
 def calibrated_mount(correction: ToolCorrection, offset: Any) -> TransformStamped:
     """``tip_link`` -> ``tip_camera_calibrated``: the camera where ``correction`` puts it
     (:meth:`~flexarm_core.tool_correction.ToolCorrection.camera_mount` of the nominal mount
-    ``offset``), in 3-D as the URDF's frames are (:mod:`flexarm_core.plane`); stamp 0, as
-    every static transform of the graph (tf2 holds it at every time)."""
-    pose = correction.camera_mount(offset)
-    msg = TransformStamped(header=Header(frame_id=TIP_FRAME),
-                           child_frame_id=CALIBRATED_CAMERA_FRAME)
-    t, r = msg.transform.translation, msg.transform.rotation
-    t.x, t.y, t.z = plane.position(pose)
-    r.x, r.y, r.z, r.w = plane.orientation(float(pose[2]))
-    return msg
+    ``offset``), in 3-D as the URDF's frames are; stamp 0, as every static transform of the
+    graph (tf2 holds it at every time)."""
+    return transform_msg(planar_transform(TIP_FRAME, CALIBRATED_CAMERA_FRAME,
+                                          correction.camera_mount(offset)), Header())
 
 
 class VisionNode(Node):

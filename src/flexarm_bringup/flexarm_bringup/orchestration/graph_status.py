@@ -31,8 +31,8 @@ from typing import Any
 
 import numpy as np
 from diagnostic_msgs.msg import DiagnosticArray
-from rcl_interfaces.msg import ParameterType
 from rcl_interfaces.srv import GetParameters
+from rclpy.parameter import parameter_value_to_python
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 
@@ -358,7 +358,8 @@ class ParameterReads:
         for key, (node, name) in self._wanted.items():
             answer = self._answer(node)
             values[key] = (None if not answer
-                           else _parameter_value(answer[self._names[node].index(name)]))
+                           else parameter_value_to_python(
+                               answer[self._names[node].index(name)]))
         return values
 
     def __enter__(self) -> ParameterReads:
@@ -367,12 +368,6 @@ class ParameterReads:
     def __exit__(self, *exc: object) -> None:
         for service in self._services.values():
             self._node.destroy_client(service)
-
-
-def _parameter_value(value: Any) -> Any:
-    return {ParameterType.PARAMETER_DOUBLE: value.double_value,
-            ParameterType.PARAMETER_INTEGER: value.integer_value,
-            ParameterType.PARAMETER_STRING: value.string_value}.get(value.type)
 
 
 def joint_state_rate(sent: list[float]) -> float:

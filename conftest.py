@@ -20,12 +20,14 @@ from __future__ import annotations
 
 import contextlib
 import os
+import resource
 import shutil
 import signal
 import socket
 import tempfile
 import time
 import uuid
+from collections import Counter
 from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
@@ -53,10 +55,22 @@ def pytest_sessionfinish(session: pytest.Session) -> None:
 
 
 _STARTED = pytest.StashKey[float]()
+_CPU_AT_SETUP = pytest.StashKey[float]()
+CPU_SHOWN = 15    # test modules in the run's CPU summary
 
 
+def _cpu_seconds() -> float:
+    """CPU time [s] of this process and of the processes it has reaped (user and system): a
+    test's nodes, started by it or by a ``flexarm up`` it ran, are reaped when they end."""
+    own, reaped = (resource.getrusage(who)
+                   for who in (resource.RUSAGE_SELF, resource.RUSAGE_CHILDREN))
+    return own.ru_utime + own.ru_stime + reaped.ru_utime + reaped.ru_stime
+
+
+@pytest.hookimpl(tryfirst=True)
 def pytest_runtest_setup(item: pytest.Item) -> None:
     item.stash[_STARTED] = time.time()
+    item.stash[_CPU_AT_SETUP] = _cpu_seconds()
 
 
 @pytest.hookimpl(wrapper=True)
@@ -67,6 +81,8 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
     started in its own folder. A node's own reason (or the stack a crash dumps) is what tells
     a slow graph from a broken one."""
     report = yield
+    if call.when == 'teardown' and _CPU_AT_SETUP in item.stash:
+        report.user_properties.append(('cpu_s', _cpu_seconds() - item.stash[_CPU_AT_SETUP]))
     if report.failed and call.when == 'call':
         started = item.stash.get(_STARTED, 0.0)
         folders = [_STATE / 'runs', getattr(item, 'funcargs', {}).get('tmp_path')]
@@ -76,6 +92,24 @@ def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
                 report.sections.append((f'node log {path.parent.name}/{path.name}',
                                         '\n'.join(lines)))
     return report
+
+
+def pytest_terminal_summary(terminalreporter: Any) -> None:
+    """Where the run's CPU went, by test module (the suite is CPU-bound on two cores: its time
+    follows its CPU, and ``--durations`` shows wall time inflated by whatever ran alongside).
+    A module's figure holds its fixtures' setup and teardown and the nodes it started."""
+    by_module: Counter[str] = Counter()
+    for reports in terminalreporter.stats.values():
+        for report in reports:
+            for name, value in getattr(report, 'user_properties', ()):
+                if name == 'cpu_s':
+                    by_module[report.nodeid.split('::', 1)[0]] += value
+    if not by_module:
+        return
+    terminalreporter.write_sep('=', f'CPU by test module: {sum(by_module.values()):.0f} '
+                                    f'core-s in all, the {CPU_SHOWN} largest')
+    for module, seconds in by_module.most_common(CPU_SHOWN):
+        terminalreporter.write_line(f'{seconds:7.1f} core-s  {module}')
 
 
 DEFAULT_NODE_SECONDS = 10.0   # a node module without a ``duration`` mark

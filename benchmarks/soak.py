@@ -82,7 +82,7 @@ JSON (last line):
   ``camera_error_mm`` (|measured - true| of measured successes).
 
     python benchmarks/soak.py [--arm-hours 2] [--goals 500] [--seed 1] [--json]
-    python benchmarks/soak.py --smoke --json          (about 30 s: 0.02 h, a goal a mode)
+    python benchmarks/soak.py --smoke --json          (about 40 s alone: 0.02 h, a goal a mode)
 """
 from __future__ import annotations
 

@@ -30,7 +30,7 @@ from flexarm_core import liveness, topics
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ArmMotion
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(35)]
 
 B4 = (1.0, -0.5, math.radians(-100))      # Table 10 B4: seconds away from the start pose
 A1 = (1.4, -0.2, math.radians(-5))

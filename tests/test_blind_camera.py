@@ -21,7 +21,7 @@ from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import TipPose
 from flexarm_test_support.learned_goal import learn_and_reach
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(60)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(55)]
 SOURCES = ('repeatability', 'hysteresis', 'thermal', 'payload')
 BLIND = {'error_sources': {'enabled': True, **{s: {'enabled': False} for s in SOURCES},
                            'camera': {'enabled': True, 'focal_length': 0.08}}}

@@ -33,7 +33,7 @@ from flexarm_core.ros.node_main import Spin
 from flexarm_msgs.action import MoveToPose
 from flexarm_test_support.link_proxy import TO_CONTROLLER, LinkProxy
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(65)]
 
 
 def settle(condition: Callable[[], object], timeout: float, what: str) -> None:

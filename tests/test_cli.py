@@ -23,7 +23,7 @@ from flexarm_test_support.cli_process import Cli, no_cli_left  # noqa: F401  (au
 from flexarm_test_support.joint_watch import JointWatch
 from flexarm_test_support.run_record import record_supervisor
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(75)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(95)]
 B4 = ('1000', '-500', '-100')      # [mm, mm, deg] Table 10: a long move from the start pose
 A1 = ('1450', '-150', '-45')
 STOPPED = re.compile(r'cancelled; arm stopped at x=(\S+) mm, y=(\S+) mm, phi=(\S+) deg')

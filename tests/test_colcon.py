@@ -22,7 +22,7 @@ from pathlib import Path
 
 import pytest
 
-pytestmark = [pytest.mark.colcon, pytest.mark.timeout(300), pytest.mark.duration(15)]
+pytestmark = [pytest.mark.colcon, pytest.mark.timeout(300), pytest.mark.duration(20)]
 SRC = Path(__file__).resolve().parents[1] / 'src'
 CONFIG = SRC.parent / 'config'
 PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / 'package.xml').exists())

@@ -42,7 +42,7 @@ from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelHealth, ModelInfo
 from flexarm_sim.plant import Plant
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(35)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
 # The goal behaviour is checked in the ideal world: the realistic arm's repeatability (some
 # 0.03 mm at the tip per move) can keep CLOSED_LOOP from its 0.05 mm tolerance now and then
 # (benchmarks/error_budget.py counts it), which a behaviour test must not depend on.

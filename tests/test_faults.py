@@ -21,7 +21,7 @@ from flexarm_bringup.orchestration.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(80)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(100)]
 
 
 def children(pid: int) -> set[int]:

@@ -34,7 +34,7 @@ from flexarm_msgs.action import MoveToPose
 from flexarm_test_support.abandoned_goal import B4, GoalSender, abandoned_goal_s
 from flexarm_test_support.cli_process import Cli, no_cli_left  # noqa: F401  (autouse fixture)
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 A1 = ('1450', '-150', '-45')   # [mm, mm, deg] Table 10, as the command line takes it
 Result = MoveToPose.Result
 # [s, wall, scaled] from the kill to the goal's end: a look for its sender every SENDER_CHECK

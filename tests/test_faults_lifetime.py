@@ -30,7 +30,7 @@ from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import CALIBRATION_DIR, MODELS_DIR, RUNS_DIR, repo_path
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(105)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
 REPO = Path(__file__).resolve().parents[1]
 HARNESS_ENV = 'FLEXARM_TEST_HARNESS'    # inherited by every process of one harness run
 READY_S = 60.0     # [s, liveness-scaled] for a graph to be ready

@@ -25,7 +25,7 @@ from flexarm_test_support.link_attacks import (
 )
 from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(30)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 
 TIMEOUT = 1.0                       # [s] heartbeat timeout of both ends (config/bridge.yaml)
 LINK = 'flexarm_bridge: controller link'

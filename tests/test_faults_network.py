@@ -20,7 +20,7 @@ import pytest
 from flexarm_core import liveness
 from flexarm_test_support.remote_peer import RemoteHost, Unavailable, remote_attack
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(40)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 
 
 @pytest.fixture

@@ -33,7 +33,7 @@ from flexarm_core.params import config_path, load_config
 from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.msg import PlanarPose, TipPose
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(17)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(15)]
 
 SDK_NAME = 'foxglove.sdk.v1'
 FORMER_NAME = 'foxglove.websocket.v1'    # the only one Lichtblick <= 1.22.0 offers

@@ -8,7 +8,7 @@ from flexarm_bringup.orchestration.launcher import owned_shm
 from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_core import liveness
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(25)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(20)]
 
 
 def alive(pid: int) -> bool:

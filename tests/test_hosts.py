@@ -30,7 +30,7 @@ import pytest
 
 from flexarm_core.paths import CONFIG_DIR
 
-pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(50)]
+pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(35)]
 SUBNET = '10.200.20.{}/30'
 ROBOT_SIDE = 'sim,vision,state_publisher'
 LEARNING_SIDE = 'arm_owner,learner,compensator,scene'

@@ -24,7 +24,7 @@ from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(30)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(80)]
 DAMAGED_RECORD = '{"version": "2"}'    # current.json without kind and path: no record
 
 

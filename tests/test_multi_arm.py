@@ -28,7 +28,7 @@ from flexarm_core import topics
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo
 
-pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(35)]
+pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(95)]
 IDEAL = {'error_sources': {'enabled': False}}
 ARMS = {'arm1': ('A', 1), 'arm2': ('B', 2)}    # namespace: region and seed of its samples
 SAMPLES = 8

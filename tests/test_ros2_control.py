@@ -17,7 +17,7 @@ from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_test_support.learned_goal import learn_and_reach
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(65)]
 TARGET = (1.30, -0.20, math.radians(-61))            # Table 10, B6
 ROBOT = 'ros2_control'
 # The stand-in's joint1 stops at 1 rad (flexarm's at pi): region B and TARGET lie within,

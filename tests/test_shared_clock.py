@@ -25,7 +25,7 @@ from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_test_support.run_record import record_supervisor
 
-pytestmark = [pytest.mark.node, pytest.mark.duration(25)]
+pytestmark = [pytest.mark.node, pytest.mark.duration(35)]
 SIM = {'real_time_factor': 10.0, 'error_sources': {'enabled': False}}
 ARM1, ARM2 = '/arm1/flexarm_sim', '/arm2/flexarm_sim'
 B6 = (1.30, -0.20, math.radians(-61))     # Table 10

@@ -17,7 +17,7 @@ import pytest
 from flexarm_bringup.cli import arguments, main
 from flexarm_bringup.results.outcome_text import Exit
 
-pytestmark = pytest.mark.duration(13)
+pytestmark = pytest.mark.duration(25)
 
 README = str(Path(__file__).resolve().parents[3] / 'README.md')
 A1 = ['1450', '-150', '-45']

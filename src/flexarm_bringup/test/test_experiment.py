@@ -63,7 +63,7 @@ def test_a_graph_without_clock_has_no_factor() -> None:
 
 
 @pytest.mark.node
-@pytest.mark.duration(30)
+@pytest.mark.duration(100)
 @pytest.mark.timeout(liveness.limit(DEMO_S + 30.0))
 def test_recorded_demo_json_ends_with_its_time_and_real_time_factor(
         domain_id: int, tmp_path: Path) -> None:

@@ -39,7 +39,7 @@ from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
 
-pytestmark = pytest.mark.duration(17)
+pytestmark = pytest.mark.duration(35)
 
 QOS = {'history': 'keep_last', 'depth': 10, 'reliability': 'reliable',
        'durability': 'transient_local', 'deadline': {'sec': 0, 'nsec': 0},

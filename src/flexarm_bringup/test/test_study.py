@@ -15,7 +15,7 @@ from flexarm_bringup.experiments.study import (
 )
 from flexarm_core.paper import TABLE_7, TABLE_8
 
-pytestmark = pytest.mark.duration(13)
+pytestmark = pytest.mark.duration(25)
 
 
 def test_grid_holds_the_paper_tables_then_the_extended_grid_without_repeats():

@@ -15,7 +15,7 @@ import pytest
 
 from flexarm_control.learning.models import KINDS, make_model
 
-pytestmark = pytest.mark.duration(17)
+pytestmark = pytest.mark.duration(25)
 
 CHECK = '''
 import sys

@@ -11,7 +11,7 @@ from flexarm_sim.dynamics import ArmDynamics, NaturalFrequency
 from flexarm_sim.errors import ArmErrors, Thermal
 from flexarm_sim.plant import Plant
 
-pytestmark = pytest.mark.duration(17)
+pytestmark = pytest.mark.duration(25)
 
 CONFIG = load_config('arm.yaml', 'sim.yaml')
 SOURCES = CONFIG['error_sources']

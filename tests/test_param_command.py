@@ -59,7 +59,7 @@ def test_set_changes_the_value_and_the_calibrated_camera_frame(capsys, ros_node:
     ros_node.create_subscription(
         TFMessage, topics.TF_STATIC, lambda m: frames.extend(
             t for t in m.transforms if t.child_frame_id == CALIBRATED_CAMERA_FRAME),
-        QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))
+        QoSProfile(depth=100, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))   # as tf2_ros
 
     def mount_at(correction: ToolCorrection) -> Any:
         along, across, _ = correction.camera_mount(OFFSET)

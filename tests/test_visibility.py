@@ -31,6 +31,10 @@ from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, heade
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.node
+# /tf_static as tf2_ros's static listener takes it: two latched publishers (the state publisher
+# and the vision node) each send theirs on joining, and a depth of 1 kept only the later one
+# when both came before the executor took the first.
+STATIC = QoSProfile(depth=100, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 
 NODES = ('flexarm_sim', 'flexarm_vision', 'flexarm_learner', 'flexarm_compensator',
          'flexarm_state_publisher', 'flexarm_scene', 'flexarm_recorder')
@@ -64,7 +68,7 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
         return store
 
     ros_node.create_subscription(String, topics.ROBOT_DESCRIPTION, keep('description'), latched)
-    ros_node.create_subscription(TFMessage, topics.TF_STATIC, keep('static'), latched)
+    ros_node.create_subscription(TFMessage, topics.TF_STATIC, keep('static'), STATIC)
     ros_node.create_subscription(TFMessage, topics.TF, keep('tf'), 100)
     ros_node.create_subscription(JointState, topics.JOINT_STATES, keep('joints'), 100)
     ros_node.create_subscription(DiagnosticArray, '/diagnostics', keep('diagnostics'), 50)

@@ -9,7 +9,6 @@ import math
 from typing import Any
 
 import pytest
-from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.cli import main
 from flexarm_bringup.results.outcome_text import Exit
@@ -17,6 +16,7 @@ from flexarm_core import liveness, topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME
 from flexarm_core.params import load_config
 from flexarm_core.tool_correction import ToolCorrection
+from flexarm_test_support.tf_listening import STATIC_TF_QOS
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.node
@@ -59,7 +59,7 @@ def test_set_changes_the_value_and_the_calibrated_camera_frame(capsys, ros_node:
     ros_node.create_subscription(
         TFMessage, topics.TF_STATIC, lambda m: frames.extend(
             t for t in m.transforms if t.child_frame_id == CALIBRATED_CAMERA_FRAME),
-        QoSProfile(depth=100, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))   # as tf2_ros
+        STATIC_TF_QOS)
 
     def mount_at(correction: ToolCorrection) -> Any:
         along, across, _ = correction.camera_mount(OFFSET)

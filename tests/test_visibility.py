@@ -28,13 +28,10 @@ from flexarm_core.ros.taken import Taken
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
 from flexarm_msgs.msg import DeflectionSample, PlanarPose
 from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
+from flexarm_test_support.tf_listening import STATIC_TF_QOS
 from tf2_msgs.msg import TFMessage
 
 pytestmark = pytest.mark.node
-# /tf_static as tf2_ros's static listener takes it: two latched publishers (the state publisher
-# and the vision node) each send theirs on joining, and a depth of 1 kept only the later one
-# when both came before the executor took the first.
-STATIC = QoSProfile(depth=100, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
 
 NODES = ('flexarm_sim', 'flexarm_vision', 'flexarm_learner', 'flexarm_compensator',
          'flexarm_state_publisher', 'flexarm_scene', 'flexarm_recorder')
@@ -68,7 +65,7 @@ def test_robot_model_frames_markers_and_diagnostics(launch, ros_node, wait_for, 
         return store
 
     ros_node.create_subscription(String, topics.ROBOT_DESCRIPTION, keep('description'), latched)
-    ros_node.create_subscription(TFMessage, topics.TF_STATIC, keep('static'), STATIC)
+    ros_node.create_subscription(TFMessage, topics.TF_STATIC, keep('static'), STATIC_TF_QOS)
     ros_node.create_subscription(TFMessage, topics.TF, keep('tf'), 100)
     ros_node.create_subscription(JointState, topics.JOINT_STATES, keep('joints'), 100)
     ros_node.create_subscription(DiagnosticArray, '/diagnostics', keep('diagnostics'), 50)

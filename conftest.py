@@ -77,15 +77,17 @@ def pytest_runtest_setup(item: pytest.Item) -> None:
 def pytest_runtest_makereport(item: pytest.Item, call: pytest.CallInfo[None]
                               ) -> Iterator[pytest.TestReport]:
     """A failed test shows the tails of the node logs written during it: of the graphs
-    ``flexarm up`` ran (the run's state folder is removed when the run ends) and of those it
-    started in its own folder. A node's own reason (or the stack a crash dumps) is what tells
-    a slow graph from a broken one."""
+    ``flexarm up`` ran (the run's state folder is removed when the run ends), of those it
+    started in its own folder and of its module's graph (``module_launch``). A node's own
+    reason (or the stack a crash dumps) is what tells a slow graph from a broken one."""
     report = yield
     if call.when == 'teardown' and _CPU_AT_SETUP in item.stash:
         report.user_properties.append(('cpu_s', _cpu_seconds() - item.stash[_CPU_AT_SETUP]))
     if report.failed and call.when == 'call':
         started = item.stash.get(_STARTED, 0.0)
-        folders = [_STATE / 'runs', getattr(item, 'funcargs', {}).get('tmp_path')]
+        funcargs = getattr(item, 'funcargs', {})
+        folders = [_STATE / 'runs', funcargs.get('tmp_path'),
+                   *(v.folder for v in funcargs.values() if isinstance(v, Launcher))]
         for path in sorted(p for f in folders if f is not None for p in Path(f).rglob('*.log')):
             if path.stat().st_mtime >= started:
                 lines = path.read_text(errors='replace').splitlines()[-LOG_TAIL:]
@@ -311,7 +313,7 @@ class Launcher:
     MOVERS = frozenset({'learner', 'compensator'})
 
     def __init__(self, domain_id: int, folder: Path) -> None:
-        self._domain_id, self._folder = domain_id, folder
+        self._domain_id, self.folder = domain_id, folder
         self.started: list[Any] = []
 
     def __call__(self, name: str, robot: str = 'sim', namespace: str = '',
@@ -329,8 +331,8 @@ class Launcher:
                 n.spec.name == owner.name and n.namespace == namespace.strip('/')
                 and n.returncode is None for n in self.started):
             self(owner.name, robot, namespace)
-        log = self._folder / (f'{namespace}_{name}.log' if namespace else f'{name}.log')
-        node = NodeProcess(specs[name], ros_env(self._domain_id, self._folder / 'ros_log'),
+        log = self.folder / (f'{namespace}_{name}.log' if namespace else f'{name}.log')
+        node = NodeProcess(specs[name], ros_env(self._domain_id, self.folder / 'ros_log'),
                            log, parameters, namespace)
         node.start()
         self.started.append(node)

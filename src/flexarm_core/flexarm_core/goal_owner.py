@@ -147,6 +147,10 @@ class Owner:
             if '?' in c.name.split(', ') and c.participant in known else c
             for c in self.candidates))
 
+    def by_discovery_only(self) -> list[str]:
+        """Names of the candidates known by discovery alone (no process of this machine)."""
+        return sorted({c.name for c in self.candidates if not c.processes})
+
     def gone(self, writers: Iterable[Endpoint], alive: Callable[[Process], bool]) -> bool:
         """Whether no candidate remains among the action's ``writers`` (never for an owner
         without candidates: nothing to judge by)."""

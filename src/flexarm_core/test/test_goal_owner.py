@@ -49,6 +49,7 @@ def test_a_sole_client_is_the_sender_and_gone_when_its_process_ends():
     table = Table(p4242=7)
     owner = owner_at_acceptance([(gid(4242), '/raw_client')], gid(1, entity=9), table)
     assert owner.names == ['/raw_client'] and owner.text() == 'goal sent by /raw_client'
+    assert owner.by_discovery_only() == []
     writers = [(gid(4242), '/raw_client'), (gid(5000), '/later_client')]
     assert not owner.gone(writers, table.alive)
     del table.running[4242]                              # killed: discovery still lists it
@@ -61,6 +62,7 @@ def test_a_client_is_gone_when_discovery_drops_it():
     table = Table()                                      # its process not visible here
     owner = owner_at_acceptance([(gid(4242), '/raw_client')], gid(1), table)
     assert owner.candidates[0].processes == frozenset()
+    assert owner.by_discovery_only() == ['/raw_client']
     assert not owner.gone([(gid(4242), '/raw_client')], table.alive)
     assert owner.gone([(gid(5000), '/other')], table.alive)
 

@@ -36,9 +36,11 @@ from flexarm_msgs.msg import GoalOutcome
 B4 = (1.0, -0.5, math.radians(-100))   # [m, m, rad] Table 10: a long move from the start pose
 READY = 30.0   # [s, wall, scaled] for the sender to reach the server or the arm to move
 # The sender: sends one CLOSED_LOOP goal with the most corrections the server allows and says
-# 'accepted', then 'moving' at the first moving feedback, and 'result CODE REASON' at the end.
+# 'accepted', then 'moving' at the first moving feedback (each with its time.monotonic()), and
+# 'result CODE REASON' at the end.
 SENDER = r'''
 import sys
+import time
 import rclpy
 from rclpy.action import ActionClient
 from flexarm_msgs.action import MoveToPose
@@ -55,7 +57,7 @@ said = set()
 def feedback(msg):
     if msg.feedback.phase == 'moving' and 'moving' not in said:
         said.add('moving')
-        print('moving', flush=True)
+        print('moving', time.monotonic(), flush=True)
 
 goal = MoveToPose.Goal(target=PlanarPose(x=float(x), y=float(y), phi=float(phi)),
                        mode=MoveToPose.Goal.MODE_CLOSED_LOOP, max_corrections=10, trial=trial)
@@ -63,7 +65,7 @@ sent = client.send_goal_async(goal, feedback_callback=feedback)
 rclpy.spin_until_future_complete(node, sent)
 if not sent.result().accepted:
     sys.exit('rejected')
-print('accepted', flush=True)
+print('accepted', time.monotonic(), flush=True)
 done = sent.result().get_result_async()
 rclpy.spin_until_future_complete(node, done)
 print('result', done.result().result.error_code, done.result().result.error_string, flush=True)
@@ -167,7 +169,7 @@ def abandoned_goal_s(domain_id: int, namespace: str = '', timeout: float = 60.0)
     try:
         outcomes.wait_for_server(liveness.limit(READY))
         sender = GoalSender(domain_id, namespace, 'abandoning_client')
-        sender.wait_for('moving', liveness.limit(READY))
+        moving = float(sender.wait_for('moving', liveness.limit(READY)).split()[1])
         sender.kill()
         killed = time.monotonic()
         ended, outcome = outcomes.of(sender.trial, liveness.limit(timeout))
@@ -175,8 +177,11 @@ def abandoned_goal_s(domain_id: int, namespace: str = '', timeout: float = 60.0)
         outcomes.close()
     if (outcome.error_code != MoveToPose.Result.CANCELED
             or 'canceled by the server' not in outcome.error_string):
-        raise RuntimeError(f'the abandoned goal ended otherwise ({outcome.error_code}): '
-                           f'{outcome.error_string}')
+        raise RuntimeError(
+            f'the abandoned goal ended otherwise ({outcome.error_code}) {ended - killed:.1f} s '
+            f'after the kill: {outcome.error_string} (the sender was killed '
+            f'{killed - moving:.1f} s after it heard the arm move; it said '
+            f'{" | ".join(sender.said)})')
     return ended - killed
 
 

@@ -323,8 +323,14 @@ class CompensatorNode(Node):
             self._host = next((bytes(i.endpoint_gid) for i in self.get_publishers_info_by_topic(
                 f'{self._action}/_action/status') if i.node_name == self.get_name()
                 and i.node_namespace == self.get_namespace()), None)
-        self._owners[bytes(handle.goal_id.uuid)] = owner_at_acceptance(
-            send_goal_writers(self, self._action), self._host, self._processes)
+        owner = owner_at_acceptance(send_goal_writers(self, self._action), self._host,
+                                    self._processes)
+        if by_discovery := owner.by_discovery_only():
+            self.get_logger().info(
+                f'goal {handle.request.trial or "(no trial name)"}: {", ".join(by_discovery)} '
+                'known by discovery alone (no process of this machine): its leaving is seen '
+                "only once DDS's lease on it ends")
+        self._owners[bytes(handle.goal_id.uuid)] = owner
         handle.execute()
 
     def _sender_left(self, owner: Owner) -> bool:

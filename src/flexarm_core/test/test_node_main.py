@@ -12,6 +12,7 @@ import os
 import subprocess
 import sys
 from pathlib import Path
+from types import SimpleNamespace
 
 import pytest
 
@@ -69,3 +70,56 @@ def test_a_long_spin_keeps_nothing_per_wake_up(domain_id: int) -> None:
         node.destroy_node()
         rclpy.try_shutdown(context=context)
     assert stopped and ended.is_set()
+
+
+@pytest.mark.node
+def test_a_job_failing_after_the_shutdown_is_logged_not_left_to_the_garbage_collector(
+        domain_id: int, capfd: pytest.CaptureFixture[str],
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Once the executor has stopped nothing awaits an offloaded call: its error is logged
+    when it ends, and one that met the node destroyed under it is the expected end of a job
+    that outlived the shutdown's wait. rclpy's future otherwise printed "The following
+    exception was never retrieved" whenever the garbage collector freed it, in whatever ran
+    then."""
+    import gc
+    import threading
+
+    import rclpy
+    from rclpy.context import Context
+    from rclpy.exceptions import InvalidHandle
+    from rclpy.executors import SingleThreadedExecutor
+
+    from flexarm_core.ros.node_main import Offload, Spin
+
+    context = Context()
+    rclpy.init(context=context, domain_id=domain_id)
+    node = rclpy.create_node('offloading', context=context)
+    executor = SingleThreadedExecutor(context=context)
+    executor.add_node(node)
+    logged: list[str] = []
+    monkeypatch.setattr(node, 'get_logger', lambda: SimpleNamespace(error=logged.append))
+    work = Offload(node, 2)
+    entered, release = threading.Semaphore(0), threading.Event()
+
+    def job(error: Exception) -> None:
+        entered.release()
+        release.wait(TIMEOUT)
+        raise error
+
+    spin = Spin(executor, lambda: None)
+    for error in (ValueError('the late failure'), InvalidHandle('node destroyed')):
+        executor.create_task(work.wrap(job), error)
+    assert all(entered.acquire(timeout=TIMEOUT) for _ in range(2)), 'the jobs did not start'
+    assert spin.stop(TIMEOUT)
+    executor.shutdown(timeout_sec=0.0)
+    assert not work.shutdown(0.0)            # both still run
+    release.set()
+    assert work.shutdown(TIMEOUT)
+    node.destroy_node()
+    rclpy.try_shutdown(context=context)
+    del executor, spin              # the last holders of the tasks that await the jobs
+    gc.collect()
+    out, err = capfd.readouterr()
+    assert 'never retrieved' not in out + err, out + err
+    assert logged == ["a job that ended during the shutdown failed: ValueError('the late "
+                      "failure')"]

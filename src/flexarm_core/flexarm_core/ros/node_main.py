@@ -22,6 +22,7 @@ from typing import Any, TypeVar
 
 import rclpy
 from rclpy.action.server import ServerGoalHandle
+from rclpy.exceptions import InvalidHandle
 from rclpy.executors import Executor, ExternalShutdownException, SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.signals import SignalHandlerOptions
@@ -154,12 +155,17 @@ class Offload:
 
     More calls than threads wait for a free one, in order: one thread makes one at a time.
     When a call ends the node's executor is woken, so the awaiting callback ends at once.
+    Once the executor has stopped nothing awaits a call any more: from :meth:`shutdown` on, a
+    call's error is logged when it ends (one that met the node destroyed under it, rclpy's
+    ``InvalidHandle``, is the expected end of a job that outlived ``shutdown``'s wait), not
+    printed by the garbage collector as a future's "exception was never retrieved".
     """
 
     def __init__(self, node: Node, threads: int) -> None:
         self._node = node
         self._pool = ThreadPoolExecutor(threads, thread_name_prefix=node.get_name())
         self._jobs: set[JobFuture] = set()
+        self._awaited: set[Future] = set()    # calls' results a callback still awaits
 
     def wrap(self, call: Callable[..., T]) -> Callable[..., Coroutine[Any, Any, T]]:
         """``call`` as a coroutine function that runs it in the pool: its result, or its
@@ -179,9 +185,13 @@ class Offload:
 
             job = self._pool.submit(call, *args)
             self._jobs.add(job)
+            self._awaited.add(ended)
             job.add_done_callback(self._jobs.discard)
             job.add_done_callback(hand_over)
-            return await ended
+            try:
+                return await ended
+            finally:
+                self._awaited.discard(ended)
         return apart
 
     def shutdown(self, timeout: float | None = None) -> bool:
@@ -189,10 +199,19 @@ class Offload:
         :data:`STOP_WAIT`, liveness-scaled) for the running ones to end: the node is destroyed
         after this, and a thread still in a call would use it. Whether all ended."""
         self._pool.shutdown(wait=False, cancel_futures=True)
+        awaited, self._awaited = self._awaited, set()
+        for ended in awaited:
+            ended.add_done_callback(self._log_error)     # now, if it has ended already
         running = list(self._jobs)
         _, pending = wait_jobs(running, liveness.limit(STOP_WAIT) if timeout is None
                                else timeout)
         return not pending
+
+    def _log_error(self, ended: Future) -> None:
+        error = ended.exception()       # retrieved: nothing awaits it any more
+        if error is not None and not isinstance(error, InvalidHandle):
+            self._node.get_logger().error(f'a job that ended during the shutdown failed: '
+                                          f'{error!r}')
 
 
 def finish_goal(handle: ServerGoalHandle, code: int, canceled_code: int) -> None:

@@ -222,7 +222,7 @@ class DomainPool:
             sock = domains.hold(did)
             if sock is None:
                 continue
-            if _processes_with('ROS_DOMAIN_ID', str(did)):   # used without a reservation
+            if did in domains.in_use():          # used without a reservation
                 sock.close()
                 continue
             self._held[did] = sock
@@ -233,7 +233,10 @@ class DomainPool:
     def lent(self, did: int) -> Iterator[None]:
         """The reservation of the run's domain ``did`` released for the block, for a process
         of the test to take (``flexarm up`` refuses an exported domain that another process
-        reserves), and taken back after it; no other module of the run gets ``did`` meanwhile."""
+        reserves), and taken back after it. Start that process in ``did`` before the block (it
+        takes the reservation once the block has begun): no other module of the run, and no
+        free-domain search (``domains.first_free``), takes a domain a process runs in, and a
+        domain nobody runs in and nobody reserves is free for anyone."""
         from flexarm_bringup.orchestration import domains
 
         sock = self._held[did]

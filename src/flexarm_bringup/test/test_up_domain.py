@@ -76,6 +76,36 @@ def test_a_free_domain_only_when_none_is_exported() -> None:
         assert claim.how == FREE and domains.FIRST <= claim.domain_id <= domains.LAST
 
 
+def test_a_free_domain_is_one_no_process_runs_in() -> None:
+    """A process started in a domain (a ``ros2`` tool, another vendor's node) reserves
+    nothing: the free-domain search passes over the domain while it runs there."""
+    did, sock = domains.first_free()
+    sleeper = subprocess.Popen([sys.executable, '-c', 'import sys; sys.stdin.read()'],
+                               env={**os.environ, 'ROS_DOMAIN_ID': str(did)},
+                               stdin=subprocess.PIPE)
+    try:
+        sock.close()                      # nobody reserves it now; the process runs in it
+        assert did in domains.in_use()
+        other, other_sock = domains.first_free()
+        other_sock.close()
+        assert other != did
+    finally:
+        sleeper.communicate(timeout=30)
+    assert did not in domains.in_use()
+
+
+def test_the_domains_in_use_are_read_from_live_processes(tmp_path) -> None:
+    for pid, environ, state in [(11, b'A=1\0ROS_DOMAIN_ID=7\0', 'S'),
+                                (12, b'ROS_DOMAIN_ID=8', 'Z'),          # a zombie: dead
+                                (13, b'ROS_DOMAIN_ID=\0', 'R'),         # empty: none
+                                (14, b'ROS_DOMAIN_ID= 9\0', 'R')]:      # as rcl reads it
+        (tmp_path / str(pid)).mkdir()
+        (tmp_path / str(pid) / 'environ').write_bytes(environ)
+        (tmp_path / str(pid) / 'stat').write_text(f'{pid} (python) {state} 1 2 3')
+    (tmp_path / '15').mkdir()                                              # not ours to read
+    assert domains.in_use(tmp_path) == {7, 9}
+
+
 def test_an_exported_domain_that_runs_the_arm_already_is_refused_naming_its_graph(
         unreserved: int) -> None:
     with pytest.raises(DomainRefused, match=(
@@ -101,15 +131,22 @@ def test_another_arm_shares_its_exported_domain(unreserved: int) -> None:
     assert (claim.domain_id, claim.how, claim.reservation) == (unreserved, EXPORTED, None)
 
 
-def up(did: int, *args: str, **kwargs: Any) -> subprocess.Popen:
+# Runs the command line of its arguments in this process (the same pid and environment) once
+# a line came on stdin.
+GATED = 'import os, sys; sys.stdin.readline(); os.execv(sys.argv[1], sys.argv[1:])'
+
+
+def up(did: int, *args: str, gated: bool = False) -> subprocess.Popen:
     """``ROS_DOMAIN_ID=did flexarm up --only sim ARGS``: one node is enough to see where the
-    graph runs (the rest of it would be expected from other hosts)."""
+    graph runs (the rest of it would be expected from other hosts). ``gated``: the process
+    runs in ``did`` from now on, and starts ``flexarm up`` when a line comes on its stdin."""
+    command = ['-m', 'flexarm_bringup.cli', 'up', '--only', 'sim', '--name',
+               f'exported-{did}-{os.getpid()}', *args]
     return subprocess.Popen(
-        [sys.executable, '-m', 'flexarm_bringup.cli', 'up', '--only', 'sim', '--name',
-         f'exported-{did}-{os.getpid()}', *args],
+        [sys.executable, *(('-c', GATED, sys.executable) if gated else ()), *command],
         env={**os.environ, 'ROS_DOMAIN_ID': str(did), 'PYTHONUNBUFFERED': '1'},
-        stdin=subprocess.DEVNULL, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
-        **kwargs)
+        stdin=subprocess.PIPE if gated else subprocess.DEVNULL, stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE, text=True)
 
 
 def refusal(did: int) -> str:
@@ -130,11 +167,14 @@ def test_up_runs_in_the_exported_domain_and_a_held_one_is_refused(
     err = refusal(domain_id)          # this run reserves the module's domain
     assert (f'flexarm up: ROS_DOMAIN_ID={domain_id} (exported) is reserved by another process '
             'of this machine') in err, err
+    first = up(domain_id, '--timeout', str(liveness.limit(UP_S)), gated=True)
     with domain_pool.lent(domain_id):
-        first = up(domain_id, '--timeout', str(liveness.limit(UP_S)))
+        first.stdin.write('go\n')
+        first.stdin.flush()
         try:
             line = first.stdout.readline()
-            assert f' in ROS_DOMAIN_ID={domain_id} (exported); logs in ' in line, line
+            assert f' in ROS_DOMAIN_ID={domain_id} (exported); logs in ' in line, (
+                line, first.stderr.read() if not line else '')
             wait_for(lambda: 'flexarm_sim' in ros_node.get_node_names(), UP_S,
                      f'the simulator in ROS domain {domain_id}')
             mine = wait_for(lambda: [g for g in running_graphs(supervisor.LOCK_DIR, RUNS_DIR)

@@ -9,8 +9,10 @@ becomes "generator didn't stop after throw()", and its selector starts at 1 on e
 from __future__ import annotations
 
 import contextlib
+import os
 import socket
 from collections.abc import Iterator
+from pathlib import Path
 
 from domain_coordinator.impl import PORT_BASE
 
@@ -29,9 +31,34 @@ def hold(domain_id: int) -> socket.socket | None:
     return sock
 
 
+def in_use(proc: Path = Path('/proc')) -> set[int]:
+    """The domains live processes of this machine run in, as their environment's
+    ROS_DOMAIN_ID says (this process and those not ours to read left out): a process started
+    in a domain holds no reservation of it, a ``ros2`` tool or another vendor's node, say."""
+    found: set[int] = set()
+    for entry in proc.glob('[0-9]*'):
+        if entry.name == str(os.getpid()):
+            continue
+        try:
+            variables = (entry / 'environ').read_bytes().split(b'\0')
+            if (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z':
+                continue                     # a zombie: dead already
+        except (OSError, IndexError):
+            continue                         # ended meanwhile, or not ours to read
+        for variable in variables:
+            if variable.startswith(b'ROS_DOMAIN_ID='):
+                with contextlib.suppress(ValueError):
+                    found.add(int(variable.split(b'=', 1)[1]))
+    return found
+
+
 def first_free() -> tuple[int, socket.socket]:
-    """The first free domain and the socket that reserves it; RuntimeError if none is."""
+    """The first domain nobody reserved and no process of this machine runs in
+    (:func:`in_use`), and the socket that reserves it; RuntimeError if none is."""
+    busy = in_use()
     for candidate in range(FIRST, LAST + 1):
+        if candidate in busy:
+            continue
         sock = hold(candidate)
         if sock is not None:
             return candidate, sock

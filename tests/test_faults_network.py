@@ -18,7 +18,7 @@ from collections.abc import Iterator
 import pytest
 
 from flexarm_core import liveness
-from flexarm_test_support.remote_peer import RemoteHost, Unavailable, remote_attack
+from flexarm_test_support.remote_peer import RemoteHost, remote_attack
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 
@@ -26,15 +26,8 @@ pytestmark = [pytest.mark.node, pytest.mark.duration(50)]
 @pytest.fixture
 def remote_host() -> Iterator[RemoteHost]:
     """Another host on this machine's network, removed when the test ends."""
-    host = RemoteHost()
-    try:
-        host.create()
-    except Unavailable as exc:
-        pytest.skip(str(exc))
-    try:
+    with RemoteHost.made() as host:
         yield host
-    finally:
-        host.remove()
 
 
 def test_a_peer_on_another_host_neither_sees_nor_moves_the_arm(launch, domain_id, remote_host):

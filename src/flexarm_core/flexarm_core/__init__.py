@@ -7,6 +7,7 @@ imports none of them."""
 PUBLIC = (
     'flexarm_core.atomic_file',
     'flexarm_core.calibration_record',
+    'flexarm_core.dds_profile',
     'flexarm_core.demand',
     'flexarm_core.frames',
     'flexarm_core.goal_owner',

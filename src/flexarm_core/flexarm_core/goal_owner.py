@@ -16,10 +16,15 @@ A candidate is gone when discovery no longer lists its writer, or when its proce
 DDS forgets a killed participant only after its lease (Fast DDS: 20 s), but a client on this
 machine is known dead at once from its process: Fast DDS (vendor id 01.0f) puts a host id in
 bytes 2-3 of the GUID prefix and the low 16 bits of the process id in bytes 4-5. A candidate
-with the server's host id is remembered at acceptance with the live processes whose id has
-those low bits (id and start time, so a reused id is not taken for it), and is gone once they
-have all ended. A client on another host, or in a process this machine's ``/proc`` does not
-show (another PID namespace), is judged by discovery alone.
+on this machine is remembered at acceptance with the live processes whose id has those low
+bits (id and start time, so a reused id is not taken for it), and is gone once they have all
+ended. A candidate is on this machine when the server's transports reach no other (flexarm's
+localhost profile: :mod:`flexarm_core.dds_profile`), else when its GUID has the server's host
+id. That id is a hash of the host name and of the IPv4 addresses the process saw when it
+started, so a process started while a network interface was up (a VPN, a container's bridge, a
+test's veth) has another: the server cannot tell it from a remote client by it. A client on
+another host, or in a process this machine's ``/proc`` does not show (another PID namespace),
+is judged by discovery alone.
 """
 from __future__ import annotations
 
@@ -62,10 +67,11 @@ def participant(gid: bytes) -> bytes:
     return bytes(gid[:12])
 
 
-def process_bits(gid: bytes, host: bytes) -> int | None:
+def process_bits(gid: bytes, host: bytes | None) -> int | None:
     """The low 16 bits of the process id of a Fast DDS endpoint of the host whose gid starts
-    with ``host`` (any gid of that host), or None (another vendor or host)."""
-    if gid[:2] != FASTDDS or host[:2] != FASTDDS or gid[2:4] != host[2:4]:
+    with ``host`` (any gid of that host; None: any host), or None (another vendor or host)."""
+    if gid[:2] != FASTDDS or host is not None and (host[:2] != FASTDDS
+                                                   or gid[2:4] != host[2:4]):
         return None
     return gid[4] | gid[5] << 8
 
@@ -160,16 +166,18 @@ class Owner:
 
 
 def owner_at_acceptance(writers: Iterable[Endpoint], host: bytes | None,
-                        processes: Processes) -> Owner:
+                        processes: Processes, this_machine_only: bool = False) -> Owner:
     """The owner of a goal accepted now: the action's ``writers`` (one per client) by
     participant, each with its processes when it runs on the host of the gid ``host`` (the
-    server's own; None: unknown)."""
+    server's own; None: unknown), or on any host when ``this_machine_only`` (the server's
+    transports reach this machine alone, so every client runs here)."""
     names: dict[bytes, set[str]] = {}
     bits: dict[bytes, int | None] = {}
     for gid, name in writers:
         key = participant(gid)
         names.setdefault(key, set()).add(name)
-        bits[key] = None if host is None else process_bits(gid, host)
+        bits[key] = (process_bits(gid, None) if this_machine_only else
+                     None if host is None else process_bits(gid, host))
     return Owner(tuple(
         Candidate(key, ', '.join(sorted(names[key])),
                   frozenset() if bits[key] is None else processes.with_bits(bits[key]))

@@ -4,6 +4,7 @@ import subprocess
 import sys
 from types import SimpleNamespace
 
+from flexarm_core.dds_profile import PROFILES_ENV, localhost_profile, on_this_machine_only
 from flexarm_core.goal_owner import (
     Owner,
     ProcTable,
@@ -65,6 +66,26 @@ def test_a_client_is_gone_when_discovery_drops_it():
     assert owner.by_discovery_only() == ['/raw_client']
     assert not owner.gone([(gid(4242), '/raw_client')], table.alive)
     assert owner.gone([(gid(5000), '/other')], table.alive)
+
+
+def test_a_client_with_another_host_id_is_judged_by_its_process_when_all_run_here():
+    """A process started while a network interface was up has another host id in its GUID:
+    where the server's transports reach this machine alone, it runs here all the same."""
+    table = Table(p4242=7)
+    writers = [(gid(4242, host=bytes.fromhex('010f1234')), '/raw_client')]
+    anywhere = owner_at_acceptance(writers, gid(1), table)
+    here = owner_at_acceptance(writers, gid(1), table, this_machine_only=True)
+    assert anywhere.by_discovery_only() == ['/raw_client'] and here.by_discovery_only() == []
+    del table.running[4242]                              # killed: discovery still lists it
+    assert here.gone(writers, table.alive) and not anywhere.gone(writers, table.alive)
+    other_vendor = [(gid(4242, vendor=b'\x01\x10'), '/raw_client')]
+    assert owner_at_acceptance(other_vendor, gid(1), table, True).by_discovery_only()
+
+
+def test_the_localhost_profile_says_every_participant_runs_here(tmp_path):
+    assert on_this_machine_only({PROFILES_ENV: localhost_profile()})
+    assert not on_this_machine_only({})
+    assert not on_this_machine_only({PROFILES_ENV: str(tmp_path / 'site.xml')})
 
 
 def test_several_candidates_keep_the_goal_while_any_remains():

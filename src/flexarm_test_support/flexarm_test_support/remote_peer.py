@@ -26,6 +26,8 @@ from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
 
+import pytest
+
 from flexarm_bringup.orchestration.launcher import ros_env
 from flexarm_core import liveness
 
@@ -202,6 +204,21 @@ class RemoteHost:
 
     def __exit__(self, *exc: object) -> None:
         self.remove()
+
+    @classmethod
+    @contextmanager
+    def made(cls) -> Iterator[RemoteHost]:
+        """A host for the block, removed after it; the test is skipped on a machine that
+        cannot make one."""
+        host = cls()
+        try:
+            host.create()
+        except Unavailable as exc:
+            pytest.skip(str(exc))
+        try:
+            yield host
+        finally:
+            host.remove()
 
     def python(self, code: str, args: list[str], env: dict[str, str], timeout: float
                ) -> subprocess.CompletedProcess[str]:

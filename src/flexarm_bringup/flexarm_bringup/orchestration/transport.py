@@ -14,20 +14,14 @@ from __future__ import annotations
 
 from collections.abc import Mapping, MutableMapping
 
-from flexarm_core.params import config_path
+from flexarm_core.dds_profile import PROFILES_ENV, localhost_profile
 
 RANGE_ENV = 'ROS_AUTOMATIC_DISCOVERY_RANGE'
 PEERS_ENV = 'ROS_STATIC_PEERS'
-PROFILES_ENV = 'FASTRTPS_DEFAULT_PROFILES_FILE'   # the name Fast DDS 2.14 (Jazzy) reads
 # '1': Fast DDS skips DEFAULT_FASTRTPS_PROFILES.xml of the working directory, which it would
 # load after PROFILES_ENV's file and whose default profile would then win.
 SKIP_CWD_ENV = 'SKIP_DEFAULT_XML_FILE'
 CONFINED_RANGES = ('LOCALHOST', 'OFF')
-
-
-def localhost_profile() -> str:
-    """Path of the profile that keeps every transport on this machine."""
-    return str(config_path('fastdds/localhost.xml'))
 
 
 def exposed(env: Mapping[str, str]) -> bool:

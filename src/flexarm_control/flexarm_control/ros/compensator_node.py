@@ -75,6 +75,7 @@ Health on ``/diagnostics``: :func:`model_status`, :func:`model_health_status` an
 from __future__ import annotations
 
 import math
+import os
 import threading
 import traceback
 from contextlib import ExitStack
@@ -124,6 +125,7 @@ from flexarm_control.ros.arm_interface import ArmInterface
 from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
+from flexarm_core.dds_profile import on_this_machine_only
 from flexarm_core.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
 from flexarm_core.health_report import Status
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, forward, pose_error
@@ -221,6 +223,7 @@ class CompensatorNode(Node):
         self._action = topics.absolute(topics.MOVE_TO_POSE, self.get_namespace())
         self._owners: dict[bytes, Owner] = {}    # of accepted goals, by goal id, until run
         self._processes = ProcTable()
+        self._local = on_this_machine_only(os.environ)    # every client runs on this machine
         self._host: bytes | None = None          # a gid of this node (its host, for owners)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
@@ -324,7 +327,7 @@ class CompensatorNode(Node):
                 f'{self._action}/_action/status') if i.node_name == self.get_name()
                 and i.node_namespace == self.get_namespace()), None)
         owner = owner_at_acceptance(send_goal_writers(self, self._action), self._host,
-                                    self._processes)
+                                    self._processes, self._local)
         if by_discovery := owner.by_discovery_only():
             self.get_logger().info(
                 f'goal {handle.request.trial or "(no trial name)"}: {", ".join(by_discovery)} '

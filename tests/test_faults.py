@@ -17,6 +17,7 @@ import pytest
 import rclpy
 from rclpy.context import Context
 
+from flexarm_bridge import tcp_link
 from flexarm_bringup.orchestration.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness
@@ -278,7 +279,7 @@ def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait
         deadline = time.monotonic() + 20
         while True:
             try:
-                conn = socket.create_connection(('127.0.0.1', port), timeout=1.0)
+                conn = tcp_link.connect('127.0.0.1', port, timeout=1.0)
                 return conn, proto.Decoder()
             except OSError:
                 if time.monotonic() > deadline:
@@ -326,7 +327,7 @@ class RawPC:
         deadline = time.monotonic() + 20
         while True:
             try:
-                self.conn = socket.create_connection(('127.0.0.1', port), timeout=0.1)
+                self.conn = tcp_link.connect('127.0.0.1', port, timeout=0.1)
                 break
             except OSError:
                 assert time.monotonic() < deadline, 'the fake controller does not listen'

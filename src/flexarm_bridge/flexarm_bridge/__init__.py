@@ -5,4 +5,5 @@ bridge node between ROS and a robot controller."""
 PUBLIC = (
     'flexarm_bridge.controller_protocol',
     'flexarm_bridge.link_auth',
+    'flexarm_bridge.tcp_link',
 )

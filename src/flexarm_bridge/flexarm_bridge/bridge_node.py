@@ -44,6 +44,7 @@ from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import PC, LinkAuth, site_key_for
+from flexarm_bridge.tcp_link import connect
 from flexarm_core import topics
 from flexarm_core.health_report import ERROR, OK, WARN, CommandLog, Status, status
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
@@ -170,7 +171,7 @@ class BridgeNode(Node):
         delay = self._retry_min
         while self._running:
             try:
-                sock = socket.create_connection((self._host, self._port), timeout=2.0)
+                sock = connect(self._host, self._port, timeout=2.0)
             except OSError as exc:
                 self._last_error = f'unreachable ({exc})'
                 self.get_logger().error(

@@ -14,6 +14,7 @@ import time
 from dataclasses import dataclass, field
 
 from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge import tcp_link
 from flexarm_bridge.link_auth import PC, LinkAuth
 
 # What a controller sends only once it accepted a handshake: its proof, or session frames.
@@ -55,7 +56,7 @@ def connect(port: int, host: str = '127.0.0.1', timeout: float = 20.0) -> socket
     deadline = time.monotonic() + timeout
     while True:
         try:
-            conn = socket.create_connection((host, port), timeout=1.0)
+            conn = tcp_link.connect(host, port, timeout=1.0)
         except OSError:
             if time.monotonic() > deadline:
                 raise

@@ -11,6 +11,7 @@ import time
 from collections.abc import Callable
 
 from flexarm_bridge import controller_protocol as proto
+from flexarm_bridge import tcp_link
 
 TO_CONTROLLER, TO_PC = 'to_controller', 'to_pc'
 FrameObserver = Callable[[str, float, proto.Frame], None]
@@ -40,7 +41,7 @@ class LinkProxy:
             except OSError:
                 continue
             try:
-                controller = socket.create_connection(('127.0.0.1', self._target), timeout=2)
+                controller = tcp_link.connect('127.0.0.1', self._target, timeout=2)
             except OSError:
                 pc.close()                    # controller not there: the PC sees a refusal
                 continue

@@ -21,6 +21,7 @@ from flexarm_bridge import tcp_link
 from flexarm_bringup.orchestration.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness
+from flexarm_test_support import link_attacks
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(100)]
 
@@ -276,15 +277,7 @@ def test_a_second_pc_is_refused_at_once_and_never_queued(launch, domain_id, wait
     launch('flexarm_fake_controller', robot='bridge', port=port)
 
     def connect() -> tuple[socket.socket, proto.Decoder]:
-        deadline = time.monotonic() + 20
-        while True:
-            try:
-                conn = tcp_link.connect('127.0.0.1', port, timeout=1.0)
-                return conn, proto.Decoder()
-            except OSError:
-                if time.monotonic() > deadline:
-                    raise
-                time.sleep(0.2)
+        return link_attacks.connect(port), proto.Decoder()
 
     def first_frame(conn: socket.socket, decoder: proto.Decoder) -> proto.Frame | None:
         """The first frame from the controller, or None if it closed the connection."""

@@ -49,6 +49,14 @@ def _faults_ran(figures: dict[str, Any]) -> None:
     assert not [row for row in rows if 'error:' in row['note']], rows
 
 
+def _graph_stop_judged(figures: dict[str, Any]) -> None:
+    """The cycle's node and then every node of the graph at its stop were judged."""
+    assert figures['graph_stops'] == 1, figures
+    stops = {name: node['stops'] for name, node in figures['per_node'].items()}
+    assert stops.pop('flexarm_state_publisher') == 2 and len(stops) >= 6, stops
+    assert set(stops.values()) == {1}, stops
+
+
 # Offline: the control core on the static simulated arm, no ROS node.
 OFFLINE = [
     Smoke('plant', (), ('pose_us', 'batch_10000_ms', 'table10'),
@@ -121,7 +129,8 @@ NODE = [
           ('curves.sobol.A.0.worst_max_mm', 'campaign_s_per_sample.sobol',
            'campaign_s_per_sample.active'), timeout=150.0, seconds=45),
     Smoke('lifecycle', ('--cycles', '1', '--nodes', 'state_publisher'),
-          ('crashes', 'hung', 'signal_exits', 'stops', 'per_node'), ('crashes', 'stops'),
+          ('crashes', 'hung', 'signal_exits', 'stops', 'graph_stops', 'per_node'),
+          ('crashes', 'stops', 'graph_stops'), check=_graph_stop_judged,
           timeout=150.0, domain='--domain-id', seconds=30),
     Smoke('soak', ('--smoke',),
           ('goals', 'succeeded', 'unfinished_goals', 'false_success', 'concurrent_motion',

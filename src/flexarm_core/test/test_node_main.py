@@ -4,7 +4,7 @@ executor has stopped, work threads end before the node is destroyed, and the exi
 
 rclpy's own handling raised KeyboardInterrupt inside the running callback and shut the
 context down from its signal thread while the executor and the work threads still used the
-node: the segmentation faults in ``destroy_node`` seen now and then at a graph's stop.
+node.
 """
 from __future__ import annotations
 

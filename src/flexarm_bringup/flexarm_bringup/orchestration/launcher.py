@@ -22,7 +22,7 @@ from typing import IO, Any
 import yaml
 
 from flexarm_bringup.orchestration.transport import transport_env
-from flexarm_core.params import config_path, load_config
+from flexarm_core.params import SAFE_LOADER, config_path, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
@@ -52,7 +52,7 @@ class NodeSpec:
 
 def _graph_file(path: Path | None) -> dict[str, Any]:
     with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
-        return yaml.safe_load(f)
+        return yaml.load(f, Loader=SAFE_LOADER)
 
 
 def load_graph(robot: str = 'sim', path: Path | None = None) -> list[NodeSpec]:

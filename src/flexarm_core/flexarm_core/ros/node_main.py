@@ -54,11 +54,12 @@ def run(make_node: Callable[[], N], args: list[str] | None = None,
     on-demand subscriptions of the vision node and the state publisher change exactly when a
     graph stops and its subscribers leave) — while rclpy's signal thread shuts the context
     down concurrently, and the nodes' work threads still use the node while ``destroy_node``
-    finalises it underneath them: a segmentation fault in ``destroy_node``, now and then.
-    Here the executor spins in a thread of its own and a signal only wakes this thread (a
-    no-op handler and the wakeup fd: whichever thread the kernel hands it to, nothing is
-    interrupted and nothing is killed), so the teardown runs in one order whatever the threads
-    were doing. The node exits 0 on SIGINT and SIGTERM, idle or mid-goal.
+    finalises it underneath them. Here the executor spins in a thread of its own and a
+    signal only wakes this thread (a no-op handler and the wakeup fd: whichever thread the
+    kernel hands it to, nothing is interrupted and nothing is killed), so the teardown runs in
+    one order whatever the threads were doing. The node exits 0 on SIGINT and SIGTERM, idle
+    or mid-goal, except for a crash inside Fast DDS's deletion of the participant soon after
+    a peer was killed (docs/operation.md, "How a node ends").
     """
     woken, wake = os.pipe()
     os.set_blocking(wake, False)

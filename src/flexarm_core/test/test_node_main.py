@@ -91,6 +91,8 @@ def test_a_job_failing_after_the_shutdown_is_logged_not_left_to_the_garbage_coll
 
     from flexarm_core.ros.node_main import Offload, Spin
 
+    gc.collect()            # what earlier tests of this worker left is theirs, not this test's
+    capfd.readouterr()
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
     node = rclpy.create_node('offloading', context=context)

@@ -1,7 +1,6 @@
 """Node-level: the whole graph comes up, is supervised, and shuts down leaving nothing behind."""
 import os
 import signal
-import time
 
 import pytest
 
@@ -20,15 +19,7 @@ def alive(pid: int) -> bool:
     return True
 
 
-def wait_for_nodes(probe, condition, timeout: float, what: str) -> None:
-    """Until ``condition`` holds of the node names ``probe`` discovers."""
-    deadline = time.monotonic() + timeout
-    while not condition(probe.get_node_names()):
-        assert time.monotonic() < deadline, f'timed out after {timeout:.0f} s waiting for {what}'
-        time.sleep(0.1)
-
-
-def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
+def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path, wait_for):
     reports: list[str] = []
     graph = Graph(domain_id, tmp_path / 'run', optional=('flexarm_recorder',),
                   parameters={'flexarm_sim': {'real_time_factor': 5.0},
@@ -59,8 +50,8 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
         assert [p.name for p in left if p.exists() and "port" not in p.name] == []   # restart
         sim = graph.nodes['flexarm_sim']                 # restart: false
         with graph._probe() as probe:                    # discovery as the others see it
-            wait_for_nodes(probe, lambda names: 'flexarm_sim' in names,
-                           liveness.limit(30.0), 'the simulator discovered')
+            wait_for(lambda: 'flexarm_sim' in probe.get_node_names(), 30.0,
+                     'the simulator discovered')
             left += owned_shm(sim.process.pid)
             sim.signal(signal.SIGKILL)
             sim.process.wait(timeout=10)
@@ -75,8 +66,8 @@ def test_graph_up_supervised_and_down_without_orphans(domain_id, tmp_path):
             # thread, and that frees the old port while the deleting thread closes its
             # listener through it (docs/operation.md, "How a node ends"; counted by
             # benchmarks/lifecycle.py --graph-stops).
-            wait_for_nodes(probe, lambda names: 'flexarm_sim' not in names,
-                           liveness.limit(60.0), 'the killed simulator to leave the graph')
+            wait_for(lambda: 'flexarm_sim' not in probe.get_node_names(), 60.0,
+                     'the killed simulator to leave the graph')
     finally:
         pids = [n.process.pid for n in graph.nodes.values()]
         codes = graph.stop(timeout=10.0)

@@ -203,9 +203,23 @@ def test_a_move_that_does_not_arrive_ends_the_goal_with_the_arm_held(world, sile
     execution, arm, _ = run(world, Mode.CLOSED_LOOP, TOL, arm_setup=stuck)
     assert execution.status == CONTROLLER_TIMEOUT and arm.holds == 1 and arm.measurements == 0
     assert ('stopped publishing /joint_states' in execution.reason) == silent
+    if not silent:      # the arm never left START: the command was not executed at all
+        assert 'within' in execution.reason and ' m from it' in execution.reason
+        assert 'the arm did not move (did the controller get the command?)' in execution.reason
     # the timeout: the slowest joint's travel time at the Table 1 speeds plus the margin
     travel = np.max(np.abs(arm.commands[0] - START) / world[0].geometry.velocity)
     assert arm.timeout == pytest.approx(travel + world[2].move_timeout_margin)
+
+
+def test_a_move_that_fell_short_names_the_joint_farthest_off_and_whether_the_arm_moved(world):
+    compensator, plant, settings = world
+    motion = ArmMotion(FakeArm(plant, START), compensator.geometry, settings)
+    target = START + np.array([1e-3, 0.3, 0.0, 0.0])
+    part_way = START + np.array([1e-3, 0.1, 0.0, 0.0])
+    assert motion.short_of(target, START, part_way) == ': joint2 0.2 m from it'
+    assert motion.short_of(target, START, START) == (
+        ': joint2 0.3 m from it, and the arm did not move (did the controller get the command?)')
+    assert motion.short_of(target, START, None) == ''
 
 
 def test_a_move_the_controller_ends_fails_the_goal_with_its_reason_and_the_arm_held(world):

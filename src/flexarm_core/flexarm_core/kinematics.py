@@ -30,6 +30,7 @@ from typing import Any
 import numpy as np
 
 JOINT_NAMES = ('joint1', 'joint2', 'joint3', 'joint4')
+JOINT_UNITS = ('rad', 'm', 'rad', 'rad')        # SI unit of each joint's position
 
 
 class UnreachableError(ValueError):

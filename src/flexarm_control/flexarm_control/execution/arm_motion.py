@@ -27,7 +27,7 @@ from typing import Any, Protocol
 
 import numpy as np
 
-from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.kinematics import JOINT_NAMES, JOINT_UNITS, ArmGeometry
 from flexarm_core.measurement import Measurement
 
 Abort = Callable[[], bool]
@@ -144,17 +144,34 @@ class ArmMotion:
 
     def _leg(self, joints: np.ndarray, abort: Abort) -> None:
         timeout = self.timeout(joints)
+        start = self.arm.positions()
         arrived = self.arm.move(joints, self.settings.arrival_tolerance, timeout, abort)
         if abort():
             raise Canceled('canceled; arm held', self.arm.hold())
         if not arrived:
             lost = self.arm.controller_silent
             ended = self.arm.move_problem
+            short = self.short_of(joints, start, self.arm.positions())
             self.arm.hold()
             raise MoveFailed(
                 'the controller stopped publishing /joint_states mid-move (died, or its link '
                 "was lost): the arm's state is unknown" if lost else
-                ended or f'joints did not reach the command within {timeout:.0f} s', lost)
+                ended or f'joints did not reach the command within {timeout:.0f} s{short}', lost)
+
+    def short_of(self, joints: np.ndarray, start: np.ndarray | None,
+                 now: np.ndarray | None) -> str:
+        """How a move from ``start`` that ended at ``now`` fell short of ``joints``: the joint
+        farthest off (in arrival tolerances) and whether the arm moved at all, which tells an
+        arm that was slow from a command the controller never got ('' unknown)."""
+        if now is None:
+            return ''
+        tolerance = self.settings.arrival_tolerance
+        off = np.abs(joints - now)
+        worst = int(np.argmax(off / tolerance))
+        text = f': {JOINT_NAMES[worst]} {off[worst]:.3g} {JOINT_UNITS[worst]} from it'
+        if start is not None and np.all(np.abs(now - start) <= tolerance):
+            text += ', and the arm did not move (did the controller get the command?)'
+        return text
 
     def measure(self, abort: Abort = never) -> Measurement | None:
         """The tip where the arm stands, None if no valid settled measurement came in time;

@@ -34,11 +34,17 @@ coarse for a 10 Hz mode. A shaped move therefore needs the trajectory contract, 
 controller interpolates in its own time; on the forward contract moves stay plain.
 
 config/graph.yaml ``robot_settings`` chooses one per robot entry (``motion.joint_commands``).
-On the contracts without an answer, arrival is seen only in ``/joint_states``.
+On the contracts without an answer, arrival is seen only in ``/joint_states``. A move's command
+goes out on them only once the controller's subscription has matched the publisher (waited for
+as the action contract waits for its server): a command published before, a moment after the
+node started, is lost (volatile), and the move would wait out its time limit for an arm that
+never got it. No controller within the wait: the move's :attr:`~JointCommands.problem`. A stop
+is sent at once: a controller that never listened has nothing to stop.
 """
 from __future__ import annotations
 
 import threading
+import time
 from collections.abc import Callable, Mapping
 from typing import Any, Protocol
 
@@ -48,6 +54,7 @@ from rclpy.action.client import ClientGoalHandle
 from rclpy.callback_groups import MutuallyExclusiveCallbackGroup
 from rclpy.duration import Duration
 from rclpy.node import Node
+from rclpy.publisher import Publisher
 from rclpy.task import Future
 from std_msgs.msg import Float64MultiArray
 from trajectory_msgs.msg import JointTrajectory, JointTrajectoryPoint
@@ -64,9 +71,11 @@ from flexarm_core import liveness, topics
 from flexarm_core.kinematics import JOINT_NAMES
 
 KINDS = ('forward', 'trajectory', 'follow_joint_trajectory')
-# [s, wall] a move waits for the controller's action server to be discovered (times the
-# liveness factor): it is there when the graph is; discovery takes a moment on a loaded machine.
+# [s, wall] a move waits for the controller's action server or subscription to be discovered
+# (times the liveness factor): it is there when the graph is; discovery takes a moment on a
+# loaded machine.
 SERVER_WAIT = 5.0
+_POLL = 0.01    # [s] how often a move looks for the controller's subscription
 
 
 class JointCommands(Protocol):
@@ -78,23 +87,41 @@ class JointCommands(Protocol):
 
     @property
     def problem(self) -> str:
-        """Why the controller ended the last move short of its target, in its words ('' while
-        it runs, once it succeeded, and on a contract whose controller does not answer)."""
+        """Why the last move fell short of its target: no controller listened, or the
+        controller ended it, in its words ('' while it runs, once it succeeded, and on a
+        contract whose controller does not answer)."""
+
+
+def unheard(node: Node, publisher: Publisher) -> str:
+    """'' once a subscription matched ``publisher`` (waiting up to :data:`SERVER_WAIT`,
+    liveness-scaled, or until the node shuts down), else why the command cannot be sent."""
+    deadline = time.monotonic() + liveness.limit(SERVER_WAIT)
+    while not publisher.get_subscription_count():
+        if time.monotonic() > deadline or not node.context.ok():
+            return (f'no controller subscribes to {publisher.topic_name}: is it running? '
+                    'Nothing was commanded')
+        time.sleep(_POLL)
+    return ''
 
 
 class ForwardCommands:
     """One position set-point per move (forward_command_controller's contract)."""
 
-    problem = ''        # the controller does not answer
-
     def __init__(self, node: Node) -> None:
+        self._node = node
         self._publisher = node.create_publisher(Float64MultiArray, topics.JOINT_COMMANDS, 10)
+        self.problem = ''   # no controller listened to the last move; it does not answer
 
     def send(self, start: np.ndarray | None, target: np.ndarray) -> None:
-        self._publisher.publish(Float64MultiArray(data=[float(v) for v in target]))
+        self.problem = unheard(self._node, self._publisher)
+        if not self.problem:
+            self._set_point(target)
 
     def stop(self, here: np.ndarray) -> None:
-        self.send(here, here)
+        self._set_point(here)
+
+    def _set_point(self, q: np.ndarray) -> None:
+        self._publisher.publish(Float64MultiArray(data=[float(v) for v in q]))
 
 
 def trajectory_message(move: ShapedMove) -> JointTrajectory:
@@ -111,13 +138,16 @@ class TrajectoryCommands:
     """A shaped trajectory within the joint limits per move (joint_trajectory_controller's
     contract); ``payload()``: the load [kg] the arm carries now."""
 
-    problem = ''        # the controller does not answer on its topic
-
     def __init__(self, node: Node, planner: MovePlanner, payload: Callable[[], float]) -> None:
+        self._node = node
         self._publisher = node.create_publisher(JointTrajectory, topics.JOINT_TRAJECTORY, 10)
         self._planner, self._payload = planner, payload
+        self.problem = ''   # no controller listened to the last move; it does not answer
 
     def send(self, start: np.ndarray | None, target: np.ndarray) -> None:
+        self.problem = unheard(self._node, self._publisher)
+        if self.problem:
+            return
         if start is None:                       # nothing known to plan from: go at once
             start = target
         self._publisher.publish(trajectory_message(

@@ -40,6 +40,9 @@ os.environ['FLEXARM_STATE_DIR'] = str(_STATE)   # before flexarm_core.paths is i
 from flexarm_core import liveness  # noqa: E402
 
 os.environ.setdefault(liveness.ENV, str(liveness.UNDER_TEST))
+# The test processes and every command they start (CLI, benchmarks) use one BLAS thread, as the
+# nodes do (flexarm_bringup's ros_env): a thread pool per process only costs its start.
+os.environ.setdefault('OPENBLAS_NUM_THREADS', '1')
 SCOPE_ENV = 'FLEXARM_TEST_SCOPE'   # inherited by every process a test module starts
 # multiprocessing's resource tracker serves this pytest process for its whole life (started
 # by the first spawn of a test); it is not a test's process.

@@ -71,6 +71,16 @@ def test_ros_env_isolates_the_domain_and_drops_the_bootstrap_guard() -> None:
         ros_env(42, discovery='EVERYWHERE')
 
 
+def test_a_node_runs_one_blas_thread_unless_told_otherwise() -> None:
+    assert ros_env(42, base={})['OPENBLAS_NUM_THREADS'] == '1'
+    assert ros_env(42, base={'OPENBLAS_NUM_THREADS': '4'})['OPENBLAS_NUM_THREADS'] == '4'
+    threads = subprocess.run(
+        [sys.executable, '-c', 'from threadpoolctl import threadpool_info; import numpy; '
+         'print(*[p["num_threads"] for p in threadpool_info() if p["user_api"] == "blas"])'],
+        env=ros_env(42, base={'PATH': '/bin'}), capture_output=True, text=True, timeout=30)
+    assert threads.stdout.split() == ['1'], threads.stderr
+
+
 def test_graph_has_one_controller_and_the_control_nodes() -> None:
     names = [s.name for s in load_graph('sim')]
     assert names[0] == 'flexarm_sim'

@@ -29,6 +29,7 @@ from flexarm_core.parent_death import signal_on_parent_death
 # that inherits it would skip its own re-exec and fail to import rclpy.
 _BOOTSTRAP_GUARD = '_ROS_WHEELS_BOOTSTRAP_COMPLETE'
 DISCOVERY_RANGES = ('LOCALHOST', 'SUBNET')
+BLAS_THREADS_ENV = 'OPENBLAS_NUM_THREADS'   # numpy's BLAS (ros_env)
 
 
 @dataclass(frozen=True)
@@ -148,6 +149,11 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     purpose: the DDS of the PyPI wheels has no security plugins, so every participant that
     reaches the graph can publish commands to it. With LOCALHOST every transport stays on
     this machine too (:mod:`flexarm_bringup.orchestration.transport`).
+
+    numpy's BLAS runs one thread (``OPENBLAS_NUM_THREADS``, unless set): a node's matrices are
+    a few joints or holes wide, too small to share out, and the pool OpenBLAS starts at import
+    costs a node 0.2 core-seconds of its start (0.52 -> 0.32 for the simulator's imports). The
+    training job limits its threads itself (:mod:`flexarm_control.learning.training_job`).
     """
     if discovery not in DISCOVERY_RANGES:
         raise ValueError(f'discovery range {discovery!r}; choose one of {DISCOVERY_RANGES}')
@@ -157,6 +163,7 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
     env['PYTHONUNBUFFERED'] = '1'
     env['PYTHONFAULTHANDLER'] = '1'
+    env.setdefault(BLAS_THREADS_ENV, '1')
     if log_dir is not None:
         env['ROS_LOG_DIR'] = str(log_dir)
     return transport_env(env)

@@ -372,17 +372,21 @@ def module_launch(domain_id: int, tmp_path_factory: pytest.TempPathFactory
 
 @pytest.fixture
 def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
-    """An rclpy node in its own context on the test's domain, spun in a background thread.
-    What a test creates on it stays until the test ends: destroying a subscription while the
-    executor thread builds its wait set kills that thread ("cannot use Destroyable"), and the
-    test then waits for messages nothing takes any more.
+    """An rclpy node in its own context on the test's domain, spun in a background thread by a
+    ``SingleThreadedExecutor``, as every node's ``main()`` spins it. What a test creates on it
+    stays until the test ends: destroying a subscription while the executor thread builds its
+    wait set kills that thread ("cannot use Destroyable"), and the test then waits for
+    messages nothing takes any more. Not a ``MultiThreadedExecutor``: Jazzy's shuts down its
+    guard condition before its thread pool, and a callback still queued there then fails on
+    it, an exception nothing retrieves, printed whenever the garbage collector frees it, in
+    whichever later test runs then (test_sim_node left three a run).
 
     Parameters of the node: ``@pytest.mark.parametrize('ros_node', [{'use_sim_time': True}],
     indirect=True)``.
     """
     import rclpy
     from rclpy.context import Context
-    from rclpy.executors import MultiThreadedExecutor
+    from rclpy.executors import SingleThreadedExecutor
     from rclpy.parameter import Parameter
 
     from flexarm_core.ros.node_main import Spin
@@ -391,7 +395,7 @@ def ros_node(domain_id: int, request: pytest.FixtureRequest) -> Iterator[Any]:
     rclpy.init(context=context, domain_id=domain_id)
     node = rclpy.create_node('test_client', context=context, parameter_overrides=[
         Parameter(name, value=value) for name, value in getattr(request, 'param', {}).items()])
-    executor = MultiThreadedExecutor(context=context)
+    executor = SingleThreadedExecutor(context=context)
     executor.add_node(node)
     spin = Spin(executor, lambda: None)
     try:

@@ -13,7 +13,7 @@ compensator tests share one real-time simulator; a test that starts its own node
 import math
 import threading
 import time
-from collections.abc import Callable
+from collections.abc import Callable, Iterator
 from types import SimpleNamespace
 
 import numpy as np
@@ -23,7 +23,7 @@ from geometry_msgs.msg import PoseStamped
 from rclpy.action import ActionServer, CancelResponse, GoalResponse
 from rclpy.callback_groups import ReentrantCallbackGroup
 from rclpy.context import Context
-from rclpy.executors import MultiThreadedExecutor
+from rclpy.executors import SingleThreadedExecutor
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
@@ -37,7 +37,7 @@ from flexarm_core.health_report import ERROR, WARN
 from flexarm_core.kinematics import ArmGeometry, forward, inverse
 from flexarm_core.params import config_path, load_config
 from flexarm_core.regions import regions_from_dict
-from flexarm_core.ros.node_main import Spin
+from flexarm_core.ros.node_main import Offload, Spin
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelHealth, ModelInfo
 from flexarm_sim.plant import Plant
@@ -376,20 +376,32 @@ def client(domain_id):
         rclpy.try_shutdown(context=context)
 
 
-def serve(node, execute, goal_callback=None) -> ActionServer:
-    return ActionServer(node, MoveToPose, topics.MOVE_TO_POSE, execute_callback=execute,
-                        goal_callback=goal_callback or (lambda _: GoalResponse.ACCEPT),
-                        cancel_callback=lambda _: CancelResponse.ACCEPT,
-                        callback_group=ReentrantCallbackGroup())
+@pytest.fixture
+def serve(ros_node) -> Iterator[Callable[..., ActionServer]]:
+    """``serve(execute, goal_callback=None)``: a MoveToPose server of the test on ``ros_node``.
+    Its callbacks block, so they run in threads of their own (:class:`Offload`, as the
+    compensator's do) and the node's executor goes on serving cancel requests meanwhile;
+    they end before the node goes."""
+    work = Offload(ros_node, 2)
+
+    def start(execute, goal_callback=None) -> ActionServer:
+        return ActionServer(ros_node, MoveToPose, topics.MOVE_TO_POSE,
+                            execute_callback=work.wrap(execute),
+                            goal_callback=work.wrap(goal_callback
+                                                    or (lambda _: GoalResponse.ACCEPT)),
+                            cancel_callback=lambda _: CancelResponse.ACCEPT,
+                            callback_group=ReentrantCallbackGroup())
+    yield start
+    assert work.shutdown(), "the test's action server callbacks did not end"
 
 
 @pytest.mark.usefixtures('alone')   # its own /move_to_pose server
-def test_client_never_reports_success_for_a_goal_that_did_not_succeed(ros_node, client):
+def test_client_never_reports_success_for_a_goal_that_did_not_succeed(serve, client):
     def abort_with_empty_result(handle):
         handle.abort()
         return Result()   # error_code 0 (SUCCESSFUL), as rclpy sends after an exception
 
-    serve(ros_node, abort_with_empty_result)
+    serve(abort_with_empty_result)
     client.wait_until_ready(timeout=30.0, learner=False)
     with pytest.raises(GoalFailed, match='ended aborted without an error code'):
         client.move_to(*TARGET, timeout=30)
@@ -397,7 +409,7 @@ def test_client_never_reports_success_for_a_goal_that_did_not_succeed(ros_node, 
 
 @pytest.mark.usefixtures('alone')   # its own /move_to_pose server
 @pytest.mark.parametrize('when', ['moving', 'before acceptance'])
-def test_ctrl_c_cancels_the_goal(ros_node, client, when, wait_for):
+def test_ctrl_c_cancels_the_goal(ros_node, serve, client, when, wait_for):
     canceled = threading.Event()
     press = ros_node.create_publisher(Empty, 'ctrl_c', 10)
 
@@ -426,9 +438,9 @@ def test_ctrl_c_cancels_the_goal(ros_node, client, when, wait_for):
             raise KeyboardInterrupt
 
     if when == 'moving':
-        serve(ros_node, move_until_canceled)
+        serve(move_until_canceled)
     else:
-        serve(ros_node, move_until_canceled, accept_slowly)
+        serve(move_until_canceled, accept_slowly)
         client.create_subscription(Empty, 'ctrl_c', ctrl_c, 10)
         wait_for(lambda: press.get_subscription_count() and client.count_publishers('ctrl_c'),
                  10.0, 'ctrl_c publisher and subscription to see each other')
@@ -450,7 +462,7 @@ def in_process(shared, domain_id, client, request):
         '--params-file', str(config_path('learner.yaml')),
         '--params-file', str(config_path('compensator.yaml'))])
     node = CompensatorNode(context=context)
-    executor = MultiThreadedExecutor(num_threads=4, context=context)
+    executor = SingleThreadedExecutor(context=context)   # as its main() spins it
     executor.add_node(node)
     spin = Spin(executor, lambda: None)
     outcomes = []
@@ -463,6 +475,7 @@ def in_process(shared, domain_id, client, request):
         executor.shutdown(timeout_sec=2.0)
         node.destroy_node()
         rclpy.try_shutdown(context=context)
+    assert spin.error is None, f"the node's executor failed: {spin.error!r}"
 
 
 def test_unusable_models_are_refused_and_the_previous_one_kept(in_process, model_path,

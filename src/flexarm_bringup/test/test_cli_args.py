@@ -69,6 +69,19 @@ def test_bad_input_is_refused_in_words_before_connecting(argv, says, domain_id, 
 
 
 @pytest.mark.node
+def test_up_refuses_a_profiles_file_fast_dds_would_ignore(domain_id, monkeypatch, tmp_path,
+                                                          capsys):
+    broken = tmp_path / 'dds.xml'
+    broken.write_text('<dds><transport_descriptors>')
+    monkeypatch.setenv('FASTRTPS_DEFAULT_PROFILES_FILE', str(broken))
+    monkeypatch.setenv('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')   # up sets it too
+    assert main(['up', '--only', 'sim']) == Exit.USAGE
+    out, err = capsys.readouterr()
+    assert f'the Fast DDS profiles file {broken}' in err and 'nothing was started' in err
+    assert 'starting' not in out
+
+
+@pytest.mark.node
 def test_a_refusal_before_connecting_ends_the_json_output_too(domain_id, capsys):
     assert main(['--json', 'collect', '5', '--region', 'Z']) == Exit.USAGE
     captured = capsys.readouterr()

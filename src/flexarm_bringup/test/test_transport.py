@@ -14,6 +14,7 @@ from flexarm_bringup.orchestration.transport import (
     apply,
     exposed,
     localhost_profile,
+    profile_problem,
     transport_env,
     warning,
 )
@@ -111,3 +112,16 @@ def test_the_cli_confines_its_own_process_before_any_command(monkeypatch):
     monkeypatch.setattr(cli, '_run', run)
     assert cli.main(['status']) == cli.Exit.OK
     assert seen[RANGE_ENV] == 'LOCALHOST' and seen[PROFILES_ENV] == localhost_profile()
+
+
+def test_a_profiles_file_fast_dds_would_ignore_is_named_with_its_fault(tmp_path: Path):
+    assert profile_problem({}) is None
+    assert profile_problem(transport_env({RANGE_ENV: 'LOCALHOST'})) is None
+    broken = tmp_path / 'dds.xml'
+    broken.write_text('<dds><!-- two -- hyphens --></dds>')     # XML forbids -- in a comment
+    problem = profile_problem({PROFILES_ENV: str(broken)})
+    assert problem.startswith(f'the Fast DDS profiles file {broken} ({PROFILES_ENV}) cannot be '
+                              'used: not well-formed (invalid token): line 1')
+    assert problem.endswith('Fast DDS would ignore it and run with its defaults; nothing was '
+                            'started')
+    assert 'No such file' in profile_problem({PROFILES_ENV: str(tmp_path / 'missing.xml')})

@@ -56,6 +56,9 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     # up's own participants (the readiness checks) share its nodes' range and transports
     os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
     transport.apply(os.environ)
+    unusable = transport.profile_problem(os.environ)
+    if unusable:
+        raise usage(unusable)
     exposure = transport.warning(os.environ)
     if exposure:
         print(exposure, flush=True)

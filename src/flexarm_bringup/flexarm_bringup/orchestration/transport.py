@@ -12,6 +12,7 @@ either way: tuned transports are theirs to decide, and :func:`warning` says that
 """
 from __future__ import annotations
 
+import xml.etree.ElementTree as ET
 from collections.abc import Mapping, MutableMapping
 
 from flexarm_core.dds_profile import PROFILES_ENV, localhost_profile
@@ -61,6 +62,21 @@ def apply(environ: MutableMapping[str, str]) -> None:
             environ[key] = wanted[key]
         else:
             environ.pop(key, None)
+
+
+def profile_problem(env: Mapping[str, str]) -> str | None:
+    """Why the profiles file of ``env`` cannot be used, None if it can or none is set. Fast DDS
+    takes a file it cannot read or parse for none: it logs a line and runs with its defaults,
+    the built-in transports, which open a graph meant for this machine to the network."""
+    path = env.get(PROFILES_ENV)
+    if not path:
+        return None
+    try:
+        ET.parse(path)
+    except (OSError, ET.ParseError) as exc:
+        return (f'the Fast DDS profiles file {path} ({PROFILES_ENV}) cannot be used: {exc}. '
+                'Fast DDS would ignore it and run with its defaults; nothing was started')
+    return None
 
 
 def warning(env: Mapping[str, str]) -> str | None:

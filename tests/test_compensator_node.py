@@ -30,6 +30,7 @@ from std_msgs.msg import Empty
 
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_control.learning.selection import fit_robust
+from flexarm_control.ros import compensator_node
 from flexarm_control.ros.client import FlexarmClient, GoalFailed
 from flexarm_control.ros.compensator_node import CompensatorNode
 from flexarm_core import liveness, topics
@@ -525,6 +526,22 @@ def test_an_unexpected_error_aborts_with_a_reason(in_process):
     while not outcomes and time.monotonic() < deadline:
         client.spin_once(0.05)
     assert outcomes and outcomes[-1].error_code == Result.INVALID_GOAL
+
+
+def test_the_outcome_is_published_before_the_result_is_sent(in_process, monkeypatch):
+    """A client that stops the graph at its last result must find that goal's outcome in
+    the bag."""
+    node, client, outcomes = in_process
+    order = []
+    publish = node._publish_outcome
+    monkeypatch.setattr(node, '_publish_outcome',
+                        lambda *a: (order.append('outcome'), publish(*a)))
+    finish = compensator_node.finish_goal
+    monkeypatch.setattr(compensator_node, 'finish_goal',
+                        lambda *a: (order.append('result'), finish(*a)))
+    result = client.move_to(*TARGET, mode='predictive', timeout=30)    # no model: refused
+    assert result.error_code == Result.NO_MODEL
+    assert order == ['outcome', 'result']
 
 
 def test_a_compensation_without_solution_is_aborted(in_process):

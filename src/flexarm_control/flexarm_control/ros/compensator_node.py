@@ -365,6 +365,9 @@ class CompensatorNode(Node):
             finally:
                 self._executing = ''
                 self._busy.release()
+        # The outcome goes out before the result: a client that stops the graph once it has
+        # its last result (the demo) found its recorder's bag one outcome short.
+        self._publish_outcome(goal, result)
         if result.error_code == Result.CANCELED and not handle.is_cancel_requested:
             handle.abort()                # the server ended it: no cancel request to answer
         else:
@@ -373,7 +376,6 @@ class CompensatorNode(Node):
         self._goal_counts[outcome.get(result.error_code, 'failed')] += 1
         if result.error_code not in (Result.SUCCESSFUL, Result.CANCELED):
             self.get_logger().warn(f'goal aborted ({result.error_code}): {result.error_string}')
-        self._publish_outcome(goal, result)
         return result
 
     def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack

@@ -153,8 +153,10 @@ class CameraRenderer:
         edge = (radius[:, None, None].astype(np.float32) - np.hypot(dx, dy)) * np.float32(
             ss / self.camera.scale) + np.float32(0.5)
         cover = np.clip(edge, 0.0, 1.0)
-        if ss > 1:
-            cover = cover.reshape(len(index), self._patch, ss, self._patch, ss).mean(axis=(2, 4))
+        if ss > 1:      # the mean of each pixel's ss x ss sub-samples, summed slice by slice
+            blocks = cover.reshape(len(index), self._patch, ss, self._patch, ss)
+            cover = sum(blocks[:, :, i, :, j] for i in range(ss) for j in range(ss)
+                        ) * np.float32(1.0 / (ss * ss))
         for (u0, v0), patch in zip(corner, cover):
             u1, v1 = max(u0, 0), max(v0, 0)
             u2, v2 = min(u0 + self._patch, width), min(v0 + self._patch, height)

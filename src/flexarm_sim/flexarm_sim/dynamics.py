@@ -15,7 +15,8 @@
   changes the load at run time; the tip rings into its new static pose at the new frequency.
 
 The static pose is evaluated once per :meth:`ArmDynamics.step`; the vibration is integrated in
-sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1). ``command`` and ``hold`` may
+sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1; the sub-steps of a step
+composed into one linear map). ``command`` and ``hold`` may
 run on another thread than ``step``: they replace the move, ``step`` reads it once.
 The arm is at rest most of the time: the plant's pose and the tip frequency are kept for the
 joints, friction state and load they were evaluated at, so a step at rest costs a third of one
@@ -151,12 +152,29 @@ class ArmDynamics:
         static_vel = delta / dt
         accel = (static_vel - self._static_vel) / dt
         self._static, self._static_vel = static, static_vel
+        (z_z, z_zd, z_a), (zd_z, zd_zd, zd_a) = self._ringing_map(dt)
+        z, zd = self._z, self._zd
+        self._z, self._zd = z_z * z + z_zd * zd + z_a * accel, zd_z * z + zd_zd * zd + zd_a * accel
+
+    def _ringing_map(self, dt: float) -> tuple[tuple[float, float, float],
+                                               tuple[float, float, float]]:
+        """The vibration's sub-steps over ``dt`` as one linear map of (z, z', p̈_static): a
+        semi-implicit Euler sub-step is linear, so its ``n`` repeats are composed once in
+        scalars instead of running ``n`` times over the three pose coordinates (the same
+        arithmetic up to rounding, a fifth of the cost of a moving step at 5 sub-steps)."""
         omega = self._at_rest_or_new()[1]
         n = max(1, math.ceil(dt / self._max_step))
         h = dt / n
+        keep = 1.0 - 2.0 * self._zeta * omega * h
+        # one sub-step: z' <- keep z' - h ω² z - h a;  z <- z + h z'
+        step = ((1.0 - h * h * omega * omega, h * keep, -h * h), (-h * omega * omega, keep, -h))
+        total = ((1.0, 0.0, 0.0), (0.0, 1.0, 0.0))
         for _ in range(n):
-            self._zd += h * (-accel - 2 * self._zeta * omega * self._zd - omega ** 2 * self._z)
-            self._z += h * self._zd
+            (a, b, c), (d, e, f) = step
+            (p, q, r), (s, t, u) = total
+            total = ((a * p + b * s, a * q + b * t, a * r + b * u + c),
+                     (d * p + e * s, d * q + e * t, d * r + e * u + f))
+        return total
 
     def _quiet(self, move: Move) -> bool:
         """Whether only time and the thermal growth can change the arm: the joints at their

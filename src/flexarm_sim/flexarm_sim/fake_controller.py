@@ -211,6 +211,9 @@ class FakeController(SimNode):
             except OSError:
                 pass      # the reader notices the broken link
 
+    def _joints_wanted(self) -> bool:
+        return self._peer is not None
+
     def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
         self._send(self._peer, proto.JOINT_STATE, time=now.sec + now.nanosec * 1e-9,
                    positions=state.joint_positions.tolist(),

@@ -213,9 +213,10 @@ class SimNode(Node):
         self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY,
                                  self.apply_trajectory, 10)
 
+    def _joints_wanted(self) -> bool:
+        return self._js_pub.get_subscription_count() > 0
+
     def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:
-        if not self._js_pub.get_subscription_count():
-            return
         self._js_pub.publish(JointState(
             header=self._header(now, BASE_FRAME), name=list(JOINT_NAMES),
             position=state.joint_positions.tolist(), velocity=state.joint_velocities.tolist()))
@@ -385,20 +386,33 @@ class SimNode(Node):
             self._advance()
 
     def _advance(self) -> None:
+        """One tick: step the arm, then publish what is due and has a subscriber (the state
+        and the stamp are built only then: at 10x real time an idle arm ticks 1000 times a
+        wall second with nobody listening to most of it)."""
         self._dynamics.step(self._dt)
         self._tick += 1
+        clock_due = self._clock_pub is not None and self._tick % self._clock_every == 0
+        joints = self._joints_wanted()
+        truth = self._truth_pub.get_subscription_count() > 0
+        image = (self._tick % self._camera_every == 0
+                 and self._image_pub.get_subscription_count() > 0)
+        if not (clock_due or joints or truth or image):
+            return
         now = self._now()
-        if self._clock_pub is not None and self._tick % self._clock_every == 0:
+        if clock_due:
             self._clock_pub.publish(Clock(clock=now))
             self._share.published(self._tick)
+        if not (joints or truth or image):
+            return
         state = self._dynamics.state
-        self._publish_joints(now, state)
-        x, y, phi = state.tip_pose
-        if self._truth_pub.get_subscription_count():
+        if joints:
+            self._publish_joints(now, state)
+        if truth:
+            x, y, phi = state.tip_pose
             self._truth_pub.publish(TipPose(
                 header=self._header(now, PLANE_FRAME), pose=PlanarPose(x=x, y=y, phi=phi),
                 valid=True, settled=not state.is_moving, holes_used=0, residual=0.0))
-        if self._tick % self._camera_every == 0 and self._image_pub.get_subscription_count():
+        if image:
             self._publish_image(now, state)
 
     def _publish_image(self, now: TimeMsg, state: ArmState) -> None:

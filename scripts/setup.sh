@@ -108,3 +108,9 @@ for pkg in "${packages[@]}"; do
   package_files+=("src/$pkg/pyproject.toml" "src/$pkg/package.xml")
 done
 step packages "$(digest "${package_files[@]}")" install_packages
+# Byte-compile the packages as pip does what it installs (an editable install is not): where
+# PYTHONDONTWRITEBYTECODE is set, as on this project's machines, every node process compiled
+# them anew. Python still reads these files, and recompiles a module whose source changed.
+sources=()
+for pkg in "${packages[@]}"; do sources+=("$root/src/$pkg/$pkg"); done
+"$venv/bin/python" -m compileall -q "${sources[@]}" >/dev/null

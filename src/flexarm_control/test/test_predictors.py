@@ -374,3 +374,17 @@ def test_a_model_of_an_older_format_is_refused(fitted: dict[str, Predictor],
     np.savez(path, metadata=np.array(json.dumps(metadata)), **arrays)
     with pytest.raises(ValueError, match='model format 1.*train a new one'):
         load_model(path)
+
+
+@pytest.mark.parametrize('block', [base.NEAREST_BLOCK, 1000])
+def test_nearest_distance_is_what_a_kd_tree_finds(block, monkeypatch):
+    """Brute force in blocks (one block, and one row of 300 pairs a block) against scipy's
+    KD tree, which training uses."""
+    from scipy.spatial import cKDTree
+
+    monkeypatch.setattr(base, 'NEAREST_BLOCK', block)
+    rng = np.random.default_rng(3)
+    support, points = rng.normal(size=(300, 4)), rng.normal(size=(7, 4))
+    np.testing.assert_allclose(base.nearest_distance(support, points),
+                               cKDTree(support).query(points)[0], rtol=1e-12)
+    assert base.nearest_distance(support, points[:0]).shape == (0,)

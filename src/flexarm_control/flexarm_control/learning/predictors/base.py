@@ -84,6 +84,7 @@ JOINTS = 4
 OUTPUTS = 3
 _CONSTANT_STD = 1e-12     # an input with a smaller spread in the training set is dropped
 CONSTANT_INPUT_SCALE = 1e-3  # [rad, m, kg] unit of data_distance along a dropped input
+NEAREST_BLOCK = 1_000_000  # point pairs nearest_distance holds at once (d floats each)
 # [kg] a payload this close to a trained one counts as that one: the tip sags at most 3.6 mm
 # per kg over the learner's regions (simulated arm), so 10 g is <= 0.04 mm, the joints'
 # repeatability at the tip; payloads are declared to a gram or two.
@@ -272,9 +273,7 @@ class Predictor(ABC):
         n = self._require_fitted()
         z = (x - n.input_mean) / n.input_std
         dropped = ((x - n.input_mean)[:, ~n.active_inputs] / CONSTANT_INPUT_SCALE) ** 2
-        from scipy.spatial import cKDTree
-
-        nearest = cKDTree(self._support).query(z[:, n.active_inputs])[0]
+        nearest = nearest_distance(self._support, z[:, n.active_inputs])
         distance = np.sqrt(nearest ** 2 + dropped.sum(axis=1)) / self.metadata['support_spacing']
         return float(distance[0]) if single else distance
 
@@ -456,6 +455,18 @@ def _blas() -> ThreadpoolController:
     from threadpoolctl import ThreadpoolController
 
     return ThreadpoolController()
+
+
+def nearest_distance(support: np.ndarray, points: np.ndarray) -> np.ndarray:
+    """Distance (M,) from each of ``points`` (M, d) to its nearest point of ``support`` (N, d),
+    by brute force in blocks of at most ``NEAREST_BLOCK`` pairs. A plan asks it for one point
+    against at most some thousands of samples (microseconds); a KD tree (scipy.spatial, as
+    training's :func:`_spacing` uses) would cost the compensator 0.35 s of CPU to import at
+    its first goal."""
+    rows = max(1, NEAREST_BLOCK // max(1, len(support)))
+    blocks = [np.sqrt(((points[i:i + rows, None, :] - support[None]) ** 2).sum(axis=2).min(axis=1))
+              for i in range(0, len(points), rows)]
+    return np.concatenate(blocks) if blocks else np.zeros(0)
 
 
 def _spacing(support: np.ndarray) -> float:

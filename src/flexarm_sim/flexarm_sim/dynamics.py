@@ -15,9 +15,9 @@
   changes the load at run time; the tip rings into its new static pose at the new frequency.
 
 The static pose is evaluated once per :meth:`ArmDynamics.step`; the vibration is integrated in
-sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1; the sub-steps of a step
-composed into one linear map). ``command`` and ``hold`` may
-run on another thread than ``step``: they replace the move, ``step`` reads it once.
+sub-steps of at most ``max_step`` (semi-implicit Euler, ω·dt ≪ 1), composed into one linear
+map per step. ``command`` and ``hold`` may run on another thread than ``step``: they replace
+the move, ``step`` reads it once.
 The arm is at rest most of the time: the plant's pose and the tip frequency are kept for the
 joints, friction state and load they were evaluated at, so a step at rest costs a third of one
 that evaluates them (at 10x real time the simulator steps 1000 times a wall second); the
@@ -160,8 +160,8 @@ class ArmDynamics:
                                                tuple[float, float, float]]:
         """The vibration's sub-steps over ``dt`` as one linear map of (z, z', p̈_static): a
         semi-implicit Euler sub-step is linear, so its ``n`` repeats are composed once in
-        scalars instead of running ``n`` times over the three pose coordinates (the same
-        arithmetic up to rounding, a fifth of the cost of a moving step at 5 sub-steps)."""
+        scalars instead of running ``n`` times over the three pose coordinates: the same
+        result up to rounding, 13 % off a moving step at 5 sub-steps (98 -> 85 µs)."""
         omega = self._at_rest_or_new()[1]
         n = max(1, math.ceil(dt / self._max_step))
         h = dt / n

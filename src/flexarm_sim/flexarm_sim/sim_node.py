@@ -214,6 +214,7 @@ class SimNode(Node):
                                  self.apply_trajectory, 10)
 
     def _joints_wanted(self) -> bool:
+        """Whether a tick's joint state has anyone to go to."""
         return self._js_pub.get_subscription_count() > 0
 
     def _publish_joints(self, now: TimeMsg, state: ArmState) -> None:

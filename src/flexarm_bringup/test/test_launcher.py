@@ -54,7 +54,7 @@ def test_run_parameters_win_over_node_specific_config_entries(tmp_path) -> None:
         rclpy.try_shutdown(context=context)
 
 
-def test_ros_env_isolates_the_domain_and_drops_the_bootstrap_guard() -> None:
+def test_ros_env_isolates_the_domain_and_drops_a_bootstrap_guard_without_its_path() -> None:
     env = ros_env(42, base={'_ROS_WHEELS_BOOTSTRAP_COMPLETE': '1', 'PATH': '/bin'})
     assert env['ROS_DOMAIN_ID'] == '42'
     assert env['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'LOCALHOST'
@@ -69,6 +69,21 @@ def test_ros_env_isolates_the_domain_and_drops_the_bootstrap_guard() -> None:
     assert ros_env(42, discovery='SUBNET')['ROS_AUTOMATIC_DISCOVERY_RANGE'] == 'SUBNET'
     with pytest.raises(ValueError, match='discovery range'):
         ros_env(42, discovery='EVERYWHERE')
+
+
+def test_a_child_with_the_bootstrappers_path_starts_once_and_one_without_it_twice() -> None:
+    """ros-wheels-bootstrapper re-executes a Python process that lacks its guard; ros_env
+    keeps the guard (and this process's library path), so a node's interpreter starts once."""
+    def starts(env: dict[str, str]) -> int:
+        done = subprocess.run([sys.executable, '-X', 'importtime', '-c', 'import rclpy'],
+                              env=env, capture_output=True, text=True, timeout=60)
+        assert done.returncode == 0, done.stderr[-2000:]
+        return sum(line.rstrip().endswith('| encodings')    # once per interpreter start
+                   for line in done.stderr.splitlines())
+
+    assert starts(ros_env(42)) == 1
+    assert starts(ros_env(42, base={k: v for k, v in os.environ.items()
+                                    if k != 'LD_LIBRARY_PATH'})) == 2
 
 
 def test_a_node_runs_one_blas_thread_unless_told_otherwise() -> None:

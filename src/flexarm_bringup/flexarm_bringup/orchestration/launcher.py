@@ -8,6 +8,7 @@ session, so that only the supervisor decides when it gets a signal.
 from __future__ import annotations
 
 import contextlib
+import functools
 import os
 import signal
 import subprocess
@@ -26,7 +27,7 @@ from flexarm_core.params import SAFE_LOADER, config_path, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
-# that inherits it would skip its own re-exec and fail to import rclpy.
+# that inherits it skips its own re-exec, and imports rclpy only if it inherits that path too.
 _BOOTSTRAP_GUARD = '_ROS_WHEELS_BOOTSTRAP_COMPLETE'
 DISCOVERY_RANGES = ('LOCALHOST', 'SUBNET')
 BLAS_THREADS_ENV = 'OPENBLAS_NUM_THREADS'   # numpy's BLAS (ros_env)
@@ -154,11 +155,15 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     a few joints or holes wide, too small to share out, and the pool OpenBLAS starts at import
     costs a node 0.2 core-seconds of its start (0.52 -> 0.32 for the simulator's imports). The
     training job limits its threads itself (:mod:`flexarm_control.learning.training_job`).
+
+    The bootstrapper's guard is kept only where ``env`` already holds its library path
+    (:func:`_bootstrapped`): a child without that path re-executes itself to get it.
     """
     if discovery not in DISCOVERY_RANGES:
         raise ValueError(f'discovery range {discovery!r}; choose one of {DISCOVERY_RANGES}')
     env = dict(os.environ if base is None else base)
-    env.pop(_BOOTSTRAP_GUARD, None)
+    if not _bootstrapped(env):
+        env.pop(_BOOTSTRAP_GUARD, None)
     env['ROS_DOMAIN_ID'] = str(domain_id)
     env['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
     env['PYTHONUNBUFFERED'] = '1'
@@ -167,6 +172,25 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     if log_dir is not None:
         env['ROS_LOG_DIR'] = str(log_dir)
     return transport_env(env)
+
+
+@functools.cache
+def _ros_library_dirs() -> frozenset[str]:
+    """The directories ros-wheels-bootstrapper puts on LD_LIBRARY_PATH for this interpreter
+    (its own rule: ``<prefix>/lib`` and site-packages' ``ros_*.libs``)."""
+    site = Path(sys.prefix, 'lib', f'python{sys.version_info.major}.{sys.version_info.minor}',
+                'site-packages')
+    return frozenset({str(Path(sys.prefix, 'lib')),
+                      *(str(libs.resolve()) for libs in site.glob('ros_*.libs') if libs.is_dir())})
+
+
+def _bootstrapped(env: Mapping[str, str]) -> bool:
+    """Whether a child of this interpreter started with ``env`` already has what the
+    bootstrapper's re-exec would give it (its guard and every ROS library directory): then
+    the child keeps the guard and starts once instead of twice, ~25 ms of CPU and of wall
+    time less for each node (measured on 2 cores: ``import rclpy, numpy`` 0.215 -> 0.19 s)."""
+    have = set(env.get('LD_LIBRARY_PATH', '').split(os.pathsep))
+    return bool(env.get(_BOOTSTRAP_GUARD)) and _ros_library_dirs() <= have
 
 
 def node_command(spec: NodeSpec, overrides_file: Path | None = None, namespace: str = ''

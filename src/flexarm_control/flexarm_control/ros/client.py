@@ -587,17 +587,23 @@ class FlexarmClient(Node):
         for a goal id nobody has (it cancels nothing), repeated until one is answered. Reply
         readers are announced in the order they were created: the cancel service's comes
         after the goal service's of the same action and after the Train client's (created
-        first), so an answered probe means those have been discovered too.
+        first), so an answered probe means those have been discovered too. An answer to any
+        probe counts: a server that answers each more than a second late (a loaded machine)
+        answers the earlier ones while this client waits for the latest.
         """
         probe = ClientGoalHandle(client, UUID(uuid=list(uuid.uuid4().bytes)), None)
-        while True:
+        answered = Future()
+
+        def count(_: Future) -> None:
+            if not answered.done():
+                answered.set_result(True)
+
+        while not answered.done():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
                 raise TimeoutError(f'action server {client._action_name} does not answer')
-            future = probe.cancel_goal_async()
-            self.serve(future, min(1.0, remaining))
-            if future.done():
-                return
+            probe.cancel_goal_async().add_done_callback(count)
+            self.serve(answered, min(1.0, remaining))
 
     def _waited(self, future: Future, timeout: float) -> bool:
         try:

@@ -47,9 +47,10 @@ def test_a_server_answering_each_probe_late_is_ready(domain_id):
         client.wait_until_ready(TIMEOUT, learner=False)
         assert time.monotonic() - started < TIMEOUT
     finally:
-        client.destroy_node()
-        rclpy.try_shutdown(context=client_context)
+        # the server's spin ends first: the probe it handles then still has a client to answer
         executor.shutdown(timeout_sec=5.0)
-        spinner.join(timeout=10.0)      # a late probe's handling ends before its node does
+        spinner.join(timeout=10.0)
         server.destroy_node()
         rclpy.try_shutdown(context=server_context)
+        client.destroy_node()
+        rclpy.try_shutdown(context=client_context)

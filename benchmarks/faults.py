@@ -88,6 +88,7 @@ from flexarm_control.learning.dataset import load_dataset
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import RUNS_DIR, repo_path
+from flexarm_core.processes import descendants, pids
 from flexarm_test_support.link_attacks import replay_accepted
 from flexarm_test_support.remote_peer import remote_attack, unavailable
 
@@ -146,14 +147,10 @@ def _stat(pid: int) -> tuple[int, str] | None:
     return (int(fields[1]), fields[0].decode()) if len(fields) > 1 else None
 
 
-def _pids() -> list[int]:
-    return [int(p.name) for p in Path('/proc').iterdir() if p.name.isdigit()]
-
-
 def markers() -> dict[int, str]:
     """Live (not zombie) processes whose environment carries a :data:`MARKER`: its value."""
     needle, found = f'{MARKER}='.encode(), {}
-    for pid in _pids():
+    for pid in pids():
         environ = _read(Path(f'/proc/{pid}/environ'))
         if needle not in environ:
             continue
@@ -178,21 +175,6 @@ def node_pid(marker: str, name: str) -> int:
         if arg in _read(Path(f'/proc/{pid}/cmdline')).split(b'\0'):
             return pid
     raise ScenarioError(f'no running {name} process')
-
-
-def descendants(root: int) -> set[int]:
-    """``root`` and every process below it."""
-    children: dict[int, list[int]] = {}
-    for pid in _pids():
-        stat = _stat(pid)
-        if stat:
-            children.setdefault(stat[0], []).append(pid)
-    found, todo = set(), [root]
-    while todo:
-        pid = todo.pop()
-        found.add(pid)
-        todo += children.get(pid, [])
-    return found
 
 
 def wait_until(condition: Callable[[], bool], timeout: float, poll: float = 0.05) -> float | None:
@@ -376,7 +358,7 @@ class Command:
             self.process.terminate()
             if self.wait_exit(STOP_S) is None:
                 if self.ledger is not None:
-                    self.ledger.sample(descendants(self.process.pid))
+                    self.ledger.sample(descendants([self.process.pid]))
                 self.process.kill()
         try:
             self.process.wait(timeout=5.0)
@@ -485,7 +467,7 @@ class Graph:
 
         def none_left() -> bool:
             nonlocal left
-            left = marked(self.marker) - descendants(root)
+            left = marked(self.marker) - descendants([root])
             return not left
         wait_until(none_left, SETTLE_S)
         return len(left)

@@ -56,6 +56,7 @@ from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_bringup.recording.bag_tools import bag_info
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
+from flexarm_core.processes import descendants, stat_fields
 
 TICK = os.sysconf('SC_CLK_TCK')
 PAGE = os.sysconf('SC_PAGE_SIZE')
@@ -65,34 +66,11 @@ GRAPHS = {'x1': (1.0, False), 'x10': (10.0, False), 'x10_recorded': (10.0, True)
 RECORDER = 'flexarm_recorder'
 
 
-def _stat(pid: int) -> list[str] | None:
-    try:
-        return Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except (OSError, IndexError):
-        return None
-
-
-def process_tree(pid: int) -> list[int]:
-    """``pid`` and every live process below it."""
-    children: dict[int, list[int]] = {}
-    for stat in Path('/proc').glob('[0-9]*/stat'):
-        try:
-            parent = int(stat.read_text().rsplit(')', 1)[1].split()[1])
-        except (OSError, IndexError, ValueError):
-            continue
-        children.setdefault(parent, []).append(int(stat.parent.name))
-    found, todo = [], [pid]
-    while todo:
-        found.append(todo.pop())
-        todo += children.get(found[-1], [])
-    return found
-
-
 def usage(pid: int) -> tuple[float, float]:
     """(CPU seconds, RSS MB) of ``pid`` and its children; (0, 0) for a process that is gone."""
     cpu = rss = 0.0
-    for member in process_tree(pid):
-        fields = _stat(member)
+    for member in descendants([pid]):
+        fields = stat_fields(member)
         if fields is not None:
             cpu += (int(fields[11]) + int(fields[12])) / TICK
             rss += int(fields[21]) * PAGE / 2**20

@@ -89,6 +89,7 @@ from flexarm_control.learning.selection import fit_robust
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.params import load_config
+from flexarm_core.processes import descendants, stat_fields
 from flexarm_msgs.msg import GoalOutcome
 
 TRAINING_SAMPLES = 40
@@ -159,28 +160,8 @@ class Targets:
 
 def cpu_seconds(pid: int) -> float:
     """User + system CPU seconds of a live process (0 if it is gone)."""
-    try:
-        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except (OSError, IndexError):
-        return 0.0
-    return (int(fields[11]) + int(fields[12])) / TICK
-
-
-def descendants(pids: list[int]) -> list[int]:
-    """``pids`` and every live process below them."""
-    children: dict[int, list[int]] = {}
-    for stat in Path('/proc').glob('[0-9]*/stat'):
-        try:
-            fields = stat.read_text().rsplit(')', 1)[1].split()
-        except (OSError, IndexError):
-            continue
-        children.setdefault(int(fields[1]), []).append(int(stat.parent.name))
-    found, todo = [], list(pids)
-    while todo:
-        pid = todo.pop()
-        found.append(pid)
-        todo += children.get(pid, [])
-    return found
+    fields = stat_fields(pid)
+    return 0.0 if fields is None else (int(fields[11]) + int(fields[12])) / TICK
 
 
 def arm_cpu(graph: Graph) -> dict[int, float]:

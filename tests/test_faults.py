@@ -20,7 +20,7 @@ from rclpy.context import Context
 from flexarm_bridge import tcp_link
 from flexarm_bringup.orchestration.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
-from flexarm_core import liveness
+from flexarm_core import liveness, processes
 from flexarm_test_support import link_attacks
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(100)]
@@ -29,13 +29,10 @@ pytestmark = [pytest.mark.node, pytest.mark.duration(100)]
 def children(pid: int) -> set[int]:
     """PIDs whose parent is ``pid`` (zombies excluded)."""
     found = set()
-    for stat in Path('/proc').glob('[0-9]*/stat'):
-        try:
-            fields = stat.read_text().rsplit(')', 1)[1].split()
-        except OSError:
-            continue
-        if int(fields[1]) == pid and fields[0] != 'Z':
-            found.add(int(stat.parent.name))
+    for child in processes.pids():
+        fields = processes.stat_fields(child)
+        if fields is not None and int(fields[1]) == pid and fields[0] != 'Z':
+            found.add(child)
     return found
 
 

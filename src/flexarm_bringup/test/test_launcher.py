@@ -1,10 +1,12 @@
 """Node process specs and environments of the orchestrator, and how nodes are stopped."""
+import errno
 import os
 import signal
 import subprocess
 import sys
 import textwrap
 import time
+from pathlib import Path
 
 import pytest
 import yaml
@@ -17,6 +19,7 @@ from flexarm_bringup.orchestration.launcher import (
     node_command,
     node_name,
     ros_env,
+    shm_in_use,
     write_overrides,
 )
 from flexarm_core.params import config_path
@@ -240,3 +243,18 @@ def test_the_shared_memory_a_killed_process_owned_is_removed_and_shared_ports_ke
         owner.stdin.close()
         owner.stdout.close()
 
+
+def test_listing_the_mapped_shared_memory_survives_a_process_being_reaped(monkeypatch,
+                                                                             tmp_path) -> None:
+    """The kernel answers ESRCH, not ENOENT, for the files of a process being reaped, and
+    pathlib's globbing (which stats what it matches) let that through: a node's start
+    failed with ProcessLookupError in the middle of its search for stale shared memory."""
+    real_stat = Path.stat
+
+    def reaped(path: Path, *args, **kwargs) -> os.stat_result:
+        if path.parts[:2] == ('/', 'proc') and path.name == 'maps':
+            raise ProcessLookupError(errno.ESRCH, os.strerror(errno.ESRCH), str(path))
+        return real_stat(path, *args, **kwargs)
+
+    monkeypatch.setattr(Path, 'stat', reaped)
+    assert shm_in_use(tmp_path) == set()

@@ -23,6 +23,7 @@ from typing import IO, Any
 import yaml
 
 from flexarm_bringup.orchestration.transport import transport_env
+from flexarm_core import processes
 from flexarm_core.params import SAFE_LOADER, config_path, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 
@@ -430,12 +431,9 @@ def _mapped_files(directory: Path, pid: int | None = None) -> set[str]:
     """Paths under ``directory`` that a process maps (``pid``, or any whose map is
     readable)."""
     prefix, mapped = f'{directory}/', set()
-    for maps in Path('/proc').glob(f'{pid if pid is not None else "[0-9]*"}/maps'):
-        try:
-            text = maps.read_text()
-        except OSError:                  # ended meanwhile, or not ours to read
-            continue
-        for line in text.splitlines():
+    for each in [pid] if pid is not None else processes.pids():
+        text = processes.read_text(each, 'maps')     # None: ended meanwhile, or not ours
+        for line in (text or '').splitlines():
             path = line.split(maxsplit=5)[-1] if line.count(' ') >= 5 else ''
             if path.startswith(prefix):
                 mapped.add(path.removesuffix(' (deleted)'))

@@ -1,7 +1,7 @@
 """The bottom of the flexarm stack: the robot's shared facts and basics (pure: kinematics, the
-paper's tables, regions, topics, config and paths, the measurement and the tool correction) and,
-in ``ros``, the rclpy helpers every node shares. Every other flexarm package may import it; it
-imports none of them."""
+paper's tables, regions, topics, config and paths, the measurement, the tool correction, this
+machine's processes) and, in ``ros``, the rclpy helpers every node shares. Every other flexarm
+package may import it; it imports none of them."""
 
 # What other packages may import (tests/test_layering.py holds every import to it).
 PUBLIC = (
@@ -21,6 +21,7 @@ PUBLIC = (
     'flexarm_core.params',
     'flexarm_core.parent_death',
     'flexarm_core.paths',
+    'flexarm_core.processes',
     'flexarm_core.plane',
     'flexarm_core.regions',
     'flexarm_core.tool_correction',

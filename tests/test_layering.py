@@ -13,8 +13,8 @@ import pytest
 
 SRC = Path(__file__).resolve().parents[1] / 'src'
 # Lowest first: a package may import only the ones before it.
-LAYERS = ['flexarm_msgs', 'flexarm_core', 'flexarm_description', 'flexarm_vision',
-          'flexarm_bridge', 'flexarm_sim', 'flexarm_control', 'flexarm_bringup',
+LAYERS = ['flexarm_msgs', 'flexarm_core', 'flexarm_description', 'flexarm_learning',
+          'flexarm_vision', 'flexarm_bridge', 'flexarm_sim', 'flexarm_control', 'flexarm_bringup',
           'flexarm_test_support']
 ROS = {'rclpy', 'std_msgs', 'sensor_msgs', 'geometry_msgs', 'rosgraph_msgs', 'builtin_interfaces',
        'action_msgs', 'unique_identifier_msgs', 'rcl_interfaces', 'diagnostic_msgs',

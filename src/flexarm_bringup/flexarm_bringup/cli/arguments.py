@@ -10,6 +10,7 @@ from collections.abc import Callable
 from importlib import metadata
 from typing import Any
 
+from flexarm_bringup.cli.accuracy import cmd_accuracy
 from flexarm_bringup.cli.common import IDEAL_HELP, learner_default
 from flexarm_bringup.cli.experiments import cmd_benchmark, cmd_demo, cmd_study
 from flexarm_bringup.cli.graph import cmd_down, cmd_ps, cmd_status, cmd_up
@@ -296,6 +297,40 @@ def _study_arguments(p: argparse.ArgumentParser) -> None:
                    help='results go to OUT/REGION/')
 
 
+def _kinds(text: str) -> tuple[str, ...]:
+    from flexarm_learning.arm_error import KINDS
+    kinds = tuple(k.strip() for k in text.split(',') if k.strip())
+    unknown = [k for k in kinds if k not in KINDS]
+    if not kinds or unknown:
+        raise argparse.ArgumentTypeError(f'must be kinds among {", ".join(KINDS)}, '
+                                         f'comma-separated, got {text!r}')
+    return kinds
+
+
+def _sizes(text: str) -> tuple[int, ...]:
+    return tuple(_positive_int(t) for t in text.split(',') if t.strip())
+
+
+def _accuracy_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('--urdf', required=True, help="the arm's URDF")
+    p.add_argument('--tip', required=True, help='the link the measured target is fixed to')
+    p.add_argument('--measurements', required=True, metavar='FILE.csv',
+                   help='one row per measured pose: a column per URDF joint, x, y, z [m] of '
+                        'the target in the instrument frame; optional qx qy qz qw, payload, '
+                        'temperature, group (docs/accuracy.md)')
+    p.add_argument('--train', type=_positive_int, default=40, metavar='N',
+                   help='rows to learn from; the others judge the model')
+    p.add_argument('--splits', type=_positive_int, default=3,
+                   help='random splits, figures averaged over them')
+    p.add_argument('--seed', type=_natural, default=0, help='seed of the first split')
+    p.add_argument('--kinds', type=_kinds, default=('greybox',),
+                   help='comma-separated: rigid, geometric, elastostatic, greybox (the first '
+                        'gets the learning curve)')
+    p.add_argument('--curve', type=_sizes, default=(10, 20, 40, 80, 160), metavar='N,N,...',
+                   help="training sizes of the learning curve ('' for none)")
+    p.add_argument('--plot', default=None, metavar='DIR', help='write the figures to DIR')
+
+
 def _bag_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('action', choices=['info', 'export'])
     p.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
@@ -364,6 +399,7 @@ SUBCOMMANDS: dict[str, tuple[Command, Callable[[argparse.ArgumentParser], None],
     'demo': (cmd_demo, _experiment_arguments, 'start'),
     'benchmark': (cmd_benchmark, _benchmark_arguments, 'start'),
     'study': (cmd_study, _study_arguments, None),
+    'accuracy': (cmd_accuracy, _accuracy_arguments, None),
     'bag': (cmd_bag, _bag_arguments, None),
     'model': (cmd_model, _model_arguments, 'wait'),
     'keygen': (cmd_keygen, _keygen_arguments, None),

@@ -53,6 +53,9 @@ def evaluate(arm: UrdfArm, data: Measurements, kind: str, train: int, seed: int,
              ) -> dict[str, float]:
     """One kind on one split (figures of the module docstring)."""
     mask = split(data.group, train, seed)
+    if mask.all():
+        raise StudyError(f'{train} training rows in whole groups take all {len(data)} rows: '
+                         'none is left to judge the model on (fewer rows, or smaller groups)')
     start = time.perf_counter()
     model = ArmErrorModel(arm, kind).fit(data.subset(mask), seed=seed)
     fit_s = time.perf_counter() - start

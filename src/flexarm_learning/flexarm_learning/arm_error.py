@@ -6,6 +6,7 @@
 | ``geometric`` | + every joint origin's offset (a geometric calibration) |
 | ``elastostatic`` | + the joints' and links' compliances under gravity |
 | ``greybox`` | + each joint's learned error (:mod:`.joint_error`): the default |
+| ``mlp`` | elastostatic + a network ensemble on all joints (:mod:`.residual_mlp`) |
 
 The radius (:mod:`.error_radius`) is calibrated on a grouped ``folds``-fold cross-validation
 of the training rows: each fold refits the physics (from the fit on all rows); the joint-error
@@ -24,9 +25,10 @@ from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.error_radius import conformal_factor
 from flexarm_learning.joint_error import JointErrorGp
 from flexarm_learning.measurements import Measurements
+from flexarm_learning.residual_mlp import ResidualMlp
 from flexarm_learning.urdf_arm import UrdfArm
 
-KINDS = ('rigid', 'geometric', 'elastostatic', 'greybox')
+KINDS = ('rigid', 'geometric', 'elastostatic', 'greybox', 'mlp')
 DEFAULT_KIND = 'greybox'
 FOLDS = 5
 
@@ -47,7 +49,7 @@ class ArmErrorModel:
 
     def _physics(self) -> ElastostaticModel:
         return ElastostaticModel(self.arm, geometry=self.kind != 'rigid',
-                                 compliance=self.kind in ('elastostatic', 'greybox'))
+                                 compliance=self.kind not in ('rigid', 'geometric'))
 
     def fit(self, data: Measurements, folds: int = FOLDS, seed: int = 0) -> ArmErrorModel:
         with threadpool_limits(1):
@@ -63,12 +65,14 @@ class ArmErrorModel:
         self.factor = conformal_factor(np.concatenate(scores))
         return self
 
-    def _fit(self, data: Measurements, like: JointErrorGp | None = None,
+    def _fit(self, data: Measurements, like: JointErrorGp | ResidualMlp | None = None,
              start: ElastostaticModel | None = None):
         physics = self._physics().fit(data.joints, data.points, data.payload, start)
-        if self.kind != 'greybox':
+        if self.kind not in ('greybox', 'mlp'):
             return physics, None
         left = data.points - physics.predict(data.joints, data.payload)
+        if self.kind == 'mlp':
+            return physics, ResidualMlp().fit(data.joints, left)
         residual = JointErrorGp().fit(data.joints, physics.joint_jacobians(data.joints), left,
                                       None if like is None else like.hyper)
         return physics, residual
@@ -85,13 +89,16 @@ class ArmErrorModel:
         return points, self.factor * spread
 
 
-def _predict(physics: ElastostaticModel, residual: JointErrorGp | None,
+def _predict(physics: ElastostaticModel, residual: JointErrorGp | ResidualMlp | None,
              data: Measurements) -> tuple[np.ndarray, np.ndarray]:
     """Points and raw radial spread ρ [m] of a fitted physics and residual."""
     points = physics.predict(data.joints, data.payload)
     if residual is None:
         return points, np.full(len(points), physics.noise * np.sqrt(3.0))
-    mean, cov = residual.predict(data.joints, physics.joint_jacobians(data.joints))
+    if isinstance(residual, ResidualMlp):
+        mean, cov = residual.predict(data.joints)
+    else:
+        mean, cov = residual.predict(data.joints, physics.joint_jacobians(data.joints))
     return points + mean, np.sqrt(np.trace(cov, axis1=1, axis2=2))
 
 

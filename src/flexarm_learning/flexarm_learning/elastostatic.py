@@ -13,7 +13,8 @@ the target, given the joints and the payload.
   origin's turn about its axis) stay where the prior holds them.
 - **Compliance** (deflection = J · C · τ_g): each joint turns by its compliance times the
   gravity moment on what it carries, about its axis (the joint's own) and about the two
-  perpendicular axes (the links' bending and the bearings' tilt): three compliances per joint,
+  perpendicular axes (the links' bending and the bearings' tilt), pivoting at its URDF origin
+  (a prismatic joint's guide): three compliances per joint,
   none negative (a joint gives way to its load), with a prior of ``Priors.compliance`` [rad] of
   turn at the moment's RMS over the arm's workspace (``WORKSPACE`` configurations drawn within
   the joint limits, the payload the samples' mean). The workspace's, not the samples': a
@@ -193,8 +194,8 @@ class ElastostaticModel:
             target = s.target
             body = target.copy()
             if self.compliance:
-                for f, c, mk in zip(s.joints, self.compliances, m):
-                    body += skew(f.rotation @ (c * mk)) @ (target - f.translation)
+                for f, o, c, mk in zip(s.joints, s.placed, self.compliances, m):
+                    body += skew(f.rotation @ (c * mk)) @ (target - o.translation)
             point = self.rotation @ body + self.translation
             if not jacobian:
                 yield point, None, None
@@ -211,9 +212,9 @@ class ElastostaticModel:
                         -self.rotation @ skew(target - f.translation) @ f.rotation)
                 k += 6 * n
             if self.compliance:
-                for i, f in enumerate(s.joints):
+                for i, (f, o) in enumerate(zip(s.joints, s.placed)):
                     d[:, k + 3 * i:k + 3 * i + 3] = (
-                        -self.rotation @ skew(target - f.translation) @ f.rotation * m[i])
+                        -self.rotation @ skew(target - o.translation) @ f.rotation * m[i])
             yield point, d, self.rotation @ s.jacobian
 
     def _linearise(self, joints, points, moments) -> tuple[np.ndarray, np.ndarray]:

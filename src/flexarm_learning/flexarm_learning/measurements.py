@@ -5,8 +5,9 @@ m]; ``x, y, z`` [m]: the measured target in the instrument's frame; optional ``q
 qw`` (the target's measured orientation: read, not yet modelled), ``payload`` [kg],
 ``temperature`` [°C] and ``group`` (rows measured together: they stay together in every
 split). Any other column is an error, as is a missing joint: a misspelt name must not
-silently drop a joint. Rows with an empty or NaN value are skipped and counted; joint values
-outside the URDF's limits are kept and counted (the URDF's limits may be conservative).
+silently drop a joint. Rows with an empty, NaN or infinite value (or an empty ``group``) are
+skipped and counted; joint values outside the URDF's limits are kept and counted (the URDF's
+limits may be conservative).
 """
 from __future__ import annotations
 
@@ -53,7 +54,7 @@ def read_csv(path: str | Path, arm: UrdfArm) -> Measurements:
         with path.open(newline='', encoding='utf-8') as f:
             reader = csv.reader(f)
             header = [h.strip() for h in next(reader, [])]
-            rows = [row for row in reader if any(cell.strip() for cell in row)]
+            rows = list(reader)
     except OSError as e:
         raise MeasurementError(f'cannot read {path}: {e.strerror}') from None
     except UnicodeDecodeError:
@@ -63,7 +64,8 @@ def read_csv(path: str | Path, arm: UrdfArm) -> Measurements:
 
 def parse(header: list[str], rows: list[list[str]], arm: UrdfArm,
           source: str = 'the measurements') -> Measurements:
-    """:func:`read_csv` of a header and rows already split."""
+    """:func:`read_csv` of a header and rows already split (blank lines are not rows; the
+    messages count lines as a text editor does, the header line 1)."""
     known = set(arm.joint_names) | set(POINT) | set(OPTIONAL)
     unknown = [h for h in header if h not in known]
     if unknown:
@@ -77,20 +79,25 @@ def parse(header: list[str], rows: list[list[str]], arm: UrdfArm,
     if len(set(header)) != len(header):
         raise MeasurementError(f'{source}: a column appears twice in {header}')
     numeric = [h for h in header if h != 'group']
+    lines = [(line, row) for line, row in enumerate(rows, start=2)
+             if any(cell.strip() for cell in row)]
+    rows = [row for _, row in lines]
     values = np.full((len(rows), len(numeric)), np.nan)
-    for r, row in enumerate(rows):
+    for r, (line, row) in enumerate(lines):
         if len(row) != len(header):
-            raise MeasurementError(f'{source}: row {r + 2} has {len(row)} values, the header '
+            raise MeasurementError(f'{source}: line {line} has {len(row)} values, the header '
                                    f'{len(header)}')
         for c, name in enumerate(numeric):
             try:
                 values[r, c] = float(row[header.index(name)])
             except ValueError:
                 if row[header.index(name)].strip():
-                    raise MeasurementError(f'{source}: row {r + 2}, column {name!r}: '
+                    raise MeasurementError(f'{source}: line {line}, column {name!r}: '
                                            f'{row[header.index(name)]!r} is not a number'
                                            ) from None
-    good = ~np.isnan(values).any(axis=1)
+    good = np.isfinite(values).all(axis=1)
+    if 'group' in header:
+        good &= np.array([bool(row[header.index('group')].strip()) for row in rows], bool)
     column = {name: values[good, c] for c, name in enumerate(numeric)}
     joints = np.stack([column[j] for j in arm.joint_names], axis=1)
     outside = (joints < arm.lower) | (joints > arm.upper)

@@ -19,7 +19,7 @@ import pinocchio as pin
 
 from flexarm_learning.registration import skew
 
-GRAVITY = np.array([0.0, 0.0, -9.81])   # [m/s²] in the URDF's root frame (REP 103: z up)
+GRAVITY = np.array([0.0, 0.0, -9.80665])   # [m/s²] standard, in the root frame (REP 103: z up)
 MASSLESS = 1e-6                         # [kg] a chain lighter than this has no inertials
 
 
@@ -43,13 +43,14 @@ class UrdfArm:
     """The chain of ``tip`` in the URDF: its joints, limits, masses and rigid kinematics."""
 
     def __init__(self, model: pin.Model, tip: str, source: str = 'URDF') -> None:
-        if not model.existFrame(tip):
-            links = sorted({f.name for f in model.frames if f.type == pin.FrameType.BODY})
+        links = sorted({f.name for f in model.frames if f.type == pin.FrameType.BODY})
+        if tip not in links:
             raise DescriptionError(f'tip link {tip!r} is not in {source}; its links: '
                                    + ', '.join(links))
         self.model, self.tip = model, tip
+        model.gravity.linear = GRAVITY
         self._data = model.createData()
-        self._frame = model.getFrameId(tip)
+        self._frame = model.getFrameId(tip, pin.FrameType.BODY)
         chain, joint = [], model.frames[self._frame].parentJoint
         while joint > 0:
             chain.append(joint)
@@ -130,16 +131,22 @@ class UrdfArm:
     def gravity_moments(self, joints: np.ndarray, payload: float = 0.0,
                         offset: np.ndarray | None = None) -> np.ndarray:
         """(n, 3) [N·m]: the moment gravity puts on what each chain joint carries (its
-        subtree's links and the payload at the target), about the joint, in its frame."""
+        subtree's links and the payload at the target) about the joint's origin on its
+        parent (the URDF origin: a revolute joint's centre, a prismatic joint's guide, where
+        the slide bends), in the joint's frame."""
         q = self.configuration(joints)
-        data = self._data
-        pin.rnea(self.model, data, q, np.zeros(self.model.nv), np.zeros(self.model.nv))
-        pin.framesForwardKinematics(self.model, data, q)     # RNEA leaves oMi as it was
+        model, data = self.model, self._data
+        pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv))
+        pin.framesForwardKinematics(model, data, q)          # RNEA leaves oMi as it was
         target = data.oMf[self._frame].act(np.zeros(3) if offset is None else offset)
         out = np.empty((self.dof, 3))
         for k, j in enumerate(self.chain):
             frame = data.oMi[j]
-            load = np.cross(target - frame.translation, payload * GRAVITY)
-            out[k] = -data.f[j].angular + frame.rotation.T @ load
+            pivot = (data.oMi[model.parents[j]] * model.jointPlacements[j]).translation
+            carried = frame.rotation @ data.f[j].linear       # what the parent holds up
+            moment = (frame.rotation @ data.f[j].angular
+                      + np.cross(frame.translation - pivot, carried))
+            load = np.cross(target - pivot, payload * GRAVITY)
+            out[k] = frame.rotation.T @ (load - moment)
         return out
 

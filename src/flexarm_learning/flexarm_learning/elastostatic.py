@@ -186,7 +186,7 @@ class ElastostaticModel:
 
     def _rows(self, joints: np.ndarray, moments: np.ndarray, jacobian: bool):
         """Per row: the point in the instrument's frame, and with ``jacobian`` its
-        derivatives by the parameters (3, size) and by the joints (3, n)."""
+        derivatives by the parameters (3, size)."""
         model = self._model()
         n = self.arm.dof
         for q, m in zip(joints, moments):
@@ -198,7 +198,7 @@ class ElastostaticModel:
                     body += skew(f.rotation @ (c * mk)) @ (target - o.translation)
             point = self.rotation @ body + self.translation
             if not jacobian:
-                yield point, None, None
+                yield point, None
                 continue
             d = np.zeros((3, self.size))
             d[:, :3] = -skew(self.rotation @ body)
@@ -215,19 +215,19 @@ class ElastostaticModel:
                 for i, (f, o) in enumerate(zip(s.joints, s.placed)):
                     d[:, k + 3 * i:k + 3 * i + 3] = (
                         -self.rotation @ skew(target - o.translation) @ f.rotation * m[i])
-            yield point, d, self.rotation @ s.jacobian
+            yield point, d
 
     def _linearise(self, joints, points, moments) -> tuple[np.ndarray, np.ndarray]:
         rows = list(self._rows(joints, moments, True))
-        residual = np.concatenate([p for p, _, _ in rows]) - points.ravel()
-        return residual, np.concatenate([d for _, d, _ in rows])
+        residual = np.concatenate([p for p, _ in rows]) - points.ravel()
+        return residual, np.concatenate([d for _, d in rows])
 
     def predict(self, joints: np.ndarray, payload: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) [m]: where the instrument would see the target."""
         joints = np.atleast_2d(np.asarray(joints, float))
         payload = np.zeros(len(joints)) if payload is None else np.asarray(payload, float)
         moments = self._moments(joints, payload)
-        return np.array([p for p, _, _ in self._rows(joints, moments, False)])
+        return np.array([p for p, _ in self._rows(joints, moments, False)])
 
     def joint_jacobians(self, joints: np.ndarray) -> np.ndarray:
         """(N, 3, n): the point's derivative by each joint, in the instrument's frame."""

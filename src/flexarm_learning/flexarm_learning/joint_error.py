@@ -6,7 +6,7 @@
 
 A gear's transmission error, an encoder's eccentricity, a cable's pull: errors that follow one
 joint's angle at short scale (on the UR10 of ../shared/data, most of what the physics leaves
-follows ``shoulder_pan_joint`` and ``shoulder_lift_joint`` at ~0.05 rad). A GP on all joints at
+follows single joints' angles at length scales of 0.04-0.08 rad). A GP on all joints at
 once cannot resolve such a scale from a few hundred rows; one dimension per joint can. Because
 δq_i enters through J_i, the model is a GP on the 3-D residual whose covariance between rows
 a, b is Σ_i s_i² k_i(a, b) · J_i(a) J_i(b)ᵀ (+ σ² I): exact inference, posterior mean and a

@@ -13,10 +13,18 @@ registration only (instrument frame and target offset) and a scikit-learn GP on 
 (RBF with a length scale per joint + white noise, one GP per axis, 3 optimiser restarts),
 fitted on the same rows of the same splits. Figures are held-out means over the splits.
 
+Through the night (series A; its timestamps run from 2020-07-14 16:39 to 07-18 21:27 with
+gaps of up to 21 h, 22.9-23.7 °C): learn on the first hour, then every later row in the order
+it was measured is a goal; the share within the online radius (``coverage_overnight``,
+updated from each measured error) beside the radius fixed at the fit
+(``coverage_overnight_fixed``), and each one's median radius over the median error. The
+series sweeps its 619 goal positions (each at ~22 orientations) through time: the first
+hour's poses hardly recur, so this is as much a move into unseen poses as a drift.
+
     python benchmarks/real_arm.py [--series C] [--others A,B,D] [--sizes 40,200] [--splits 3]
                                   [--data DIR] [--json]
 
-Smoke run: --series D --others '' --sizes 20 --splits 1
+Smoke run: --series D --others A --sizes 20 --splits 1
 """
 from __future__ import annotations
 
@@ -27,14 +35,17 @@ import sys
 import tempfile
 import time
 import warnings
+from datetime import datetime
 from pathlib import Path
 
 import numpy as np
 from threadpoolctl import threadpool_limits
 
 from flexarm_learning.accuracy_study import evaluate, split
+from flexarm_learning.arm_error import ArmErrorModel
 from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.measurements import Measurements, read_csv
+from flexarm_learning.online_radius import OnlineRadius
 from flexarm_learning.urdf_arm import UrdfArm
 
 REPO = Path(__file__).resolve().parents[1]
@@ -49,24 +60,62 @@ JOINTS = ('shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_j
 DEFAULT_KIND = 'greybox'
 
 
-def to_contract(source: Path, target: Path) -> None:
-    """The dataset's file (';', decimal commas, mm) as flexarm's CSV contract (',', m)."""
+def to_contract(source: Path, target: Path) -> np.ndarray:
+    """The dataset's file (';', decimal commas, mm) as flexarm's CSV contract (',', m), its
+    rows in the order they were measured; their times [s] from the first (NaN where the file's
+    timestamps are rounded beyond use: series B-D)."""
     with source.open(newline='', encoding='utf-8') as f:
-        rows = list(csv.reader(f, delimiter=';'))
+        rows = [row for row in csv.reader(f, delimiter=';') if row]
     header = [h.strip() for h in rows[0]]
     column = {name: header.index(name) for name in header}
 
     def number(row: list[str], name: str) -> float:
         return float(row[column[name]].replace(',', '.'))
 
+    stamps = [row[column['Timestamp']].strip() for row in rows[1:]]
+    if all(s.isdigit() and len(s) == 14 for s in stamps):       # yyyymmddHHMMSS (series A)
+        times = np.array([datetime.strptime(s, '%Y%m%d%H%M%S').timestamp() for s in stamps])
+        times -= times.min()
+    else:
+        times = np.full(len(stamps), np.nan)
+    order = np.argsort(np.nan_to_num(times), kind='stable')
     with target.open('w', newline='', encoding='utf-8') as f:
         out = csv.writer(f)
         out.writerow([*JOINTS, 'x', 'y', 'z', 'temperature'])
-        for row in rows[1:]:
-            if row:
-                out.writerow([*(number(row, j) for j in JOINTS),
-                              *(number(row, f'measurement_{a}') / 1000 for a in 'xyz'),
-                              number(row, 'measurement_temperature')])
+        for k in order:
+            row = rows[k + 1]
+            out.writerow([*(number(row, j) for j in JOINTS),
+                          *(number(row, f'measurement_{a}') / 1000 for a in 'xyz'),
+                          number(row, 'measurement_temperature')])
+    return times[order]
+
+
+def overnight(arm: UrdfArm, data: Measurements, times: np.ndarray) -> dict[str, float]:
+    """Learn on the first hour (every other row of it), then go through the night in the
+    order it was measured, each row a goal: the online radius (:mod:`flexarm_learning.
+    online_radius`) updated from each one's measured error, beside the radius fixed at the
+    fit; coverage over the night and the mean error per hour."""
+    first = np.flatnonzero(times < 3600.0)
+    model = ArmErrorModel(arm, DEFAULT_KIND).fit(data.subset(first[::2]))
+    night = np.flatnonzero(times >= 3600.0)
+    points, spread = model.predict_spread(data.joints[night], data.payload[night])
+    error = np.linalg.norm(points - data.points[night], axis=1)
+    online = OnlineRadius(model.scores)
+    radius, covered = np.empty(len(error)), np.empty(len(error), bool)
+    for k, (e, s) in enumerate(zip(error, spread)):
+        radius[k] = online.factor * s
+        covered[k] = online.update(e, s)
+    hour = (times[night] // 3600).astype(int)
+    return {'coverage_overnight': float(covered.mean()),
+            'coverage_overnight_fixed': float(np.mean(error <= model.factor * spread)),
+            'sharpness_overnight': float(np.median(radius) / np.median(error)),
+            'sharpness_overnight_fixed': float(np.median(model.factor * spread)
+                                               / np.median(error)),
+            'overnight_mean_mm': 1e3 * float(error.mean()),
+            'overnight_train_rows': len(first[::2]), 'overnight_rows': len(night),
+            'overnight_hours': float(times.max() / 3600),
+            'overnight_mean_mm_by_hour': [1e3 * float(error[hour == h].mean())
+                                          for h in np.unique(hour)]}
 
 
 def reference(arm: UrdfArm, data: Measurements, train: int, seed: int) -> dict[str, float]:
@@ -127,6 +176,8 @@ def main() -> int:
     parser.add_argument('--sizes', default='40,200', help='training rows, comma-separated')
     parser.add_argument('--splits', type=int, default=3, help='random splits per size')
     parser.add_argument('--data', type=Path, default=DATA, help='the dataset folder')
+    parser.add_argument('--no-overnight', dest='overnight', action='store_false',
+                        help='skip series A through the night (with A among the series)')
     parser.add_argument('--json', action='store_true')
     args = parser.parse_args()
     if not args.data.is_dir():
@@ -140,10 +191,16 @@ def main() -> int:
     with tempfile.TemporaryDirectory() as tmp:
         for name in names:
             contract = Path(tmp) / f'series_{name}.csv'
-            to_contract(args.data / SERIES[name], contract)
+            times = to_contract(args.data / SERIES[name], contract)
             data = read_csv(contract, arm)
             figures = series_figures(arm, data, sizes, args.splits)
             result['series'][name] = {'rows': len(data), 'sizes': figures}
+            if name == 'A' and args.overnight:
+                night = overnight(arm, data, times)
+                result |= night
+                print(f"series A through the night: coverage {night['coverage_overnight']:.3f} "
+                      f"online, {night['coverage_overnight_fixed']:.3f} fixed", file=sys.stderr,
+                      flush=True)
             for size, f in figures.items():
                 print(f"series {name}, {size} rows: rigid {f['rigid_mean_mm']:.3f} mm, "
                           f"ours {f['mean_mm']:.3f} mm (max {f['max_mm']:.3f}, coverage "

@@ -7,5 +7,6 @@ PUBLIC = (
     'flexarm_learning.arm_error',
     'flexarm_learning.elastostatic',
     'flexarm_learning.measurements',
+    'flexarm_learning.online_radius',
     'flexarm_learning.urdf_arm',
 )

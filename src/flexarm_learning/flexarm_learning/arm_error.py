@@ -13,8 +13,9 @@ of the training rows: each fold refits the physics (from the fit on all rows); t
 GP keeps the hyperparameters of the fit on all rows (their optimisation is most of a fit's
 time, and they vary little between folds; refitted in each fold from those, the UR10's
 series B covered 0.943 of held-out rows at 200 training rows instead of 0.947, and the 40-row
-bounds of series C widened to 2.9 times the median error). Numpy's BLAS runs on one thread: these matrices
-are small, and a pool of threads competing for two busy cores made a fit ten times slower.
+bounds of series C widened to 2.9 times the median error). Numpy's BLAS runs on one thread:
+these matrices are small, and a pool of threads competing for two busy cores made a fit ten
+times slower.
 The physics-only kinds state one spread for every row (their residual RMS); the grey-box its
 GP's posterior.
 """
@@ -64,7 +65,8 @@ class ArmErrorModel:
             physics, residual = self._fit(data.subset(~held), self.residual, self.physics)
             points, spread = _predict(physics, residual, data.subset(held))
             scores.append(np.linalg.norm(points - data.points[held], axis=1) / spread)
-        self.factor = conformal_factor(np.concatenate(scores))
+        self.scores = np.concatenate(scores)
+        self.factor = conformal_factor(self.scores)
         return self
 
     def _fit(self, data: Measurements, like: JointErrorGp | ResidualMlp | None = None,
@@ -82,13 +84,20 @@ class ArmErrorModel:
     def predict(self, joints: np.ndarray, payload: np.ndarray | None = None,
                 ) -> tuple[np.ndarray, np.ndarray]:
         """Points (M, 3) [m] in the instrument's frame and their 95 % radius (M,) [m]."""
+        points, spread = self.predict_spread(joints, payload)
+        return points, self.factor * spread
+
+    def predict_spread(self, joints: np.ndarray, payload: np.ndarray | None = None,
+                       ) -> tuple[np.ndarray, np.ndarray]:
+        """Points (M, 3) [m] and their raw radial spread ρ (M,) [m], which :attr:`factor`
+        (or an :class:`~flexarm_learning.online_radius.OnlineRadius` started from
+        :attr:`scores`) turns into the 95 % radius."""
         joints = np.atleast_2d(joints)
         payload = np.zeros(len(joints)) if payload is None else payload
         data = Measurements(joints, np.zeros((len(joints), 3)), payload,
                             np.zeros(len(joints)))
         with threadpool_limits(1):
-            points, spread = _predict(self.physics, self.residual, data)
-        return points, self.factor * spread
+            return _predict(self.physics, self.residual, data)
 
 
 def _predict(physics: ElastostaticModel, residual: JointErrorGp | ResidualMlp | None,

@@ -158,12 +158,12 @@ def series_figures(arm: UrdfArm, data: Measurements, sizes: list[int], splits: i
             return float(np.mean([r[key] for r in runs]))
 
         out[str(size)] = {
-            'rigid_mean_mm': mean(ref, 'rigid_mean_mm'), 'mean_mm': mean(ours, 'mean_mm'),
-            'rms_mm': mean(ours, 'rms_mm'), 'max_mm': mean(ours, 'max_mm'),
+            'rigid_mean_mm': mean(ref, 'rigid_mean_mm'), 'mean_mm': 1e3 * mean(ours, 'mean_m'),
+            'rms_mm': 1e3 * mean(ours, 'rms_m'), 'max_mm': 1e3 * mean(ours, 'max_m'),
             'bound_coverage': mean(ours, 'coverage'), 'sharpness': mean(ours, 'sharpness'),
             'fit_s': mean(ours, 'fit_s'), 'reference_mean_mm': mean(ref, 'mean_mm'),
             'reference_max_mm': mean(ref, 'max_mm'), 'reference_fit_s': mean(ref, 'fit_s'),
-            'ratio': mean(ours, 'mean_mm') / mean(ref, 'mean_mm'),
+            'ratio': 1e3 * mean(ours, 'mean_m') / mean(ref, 'mean_mm'),
             'held_out_rows': len(data) - int(split(data.group, size, 0).sum())}
     return out
 

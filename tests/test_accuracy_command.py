@@ -93,21 +93,20 @@ def test_the_study_of_a_seven_joint_arm_end_to_end(capsys: Any, site: dict[str, 
     assert list(kinds) == ['greybox', 'rigid']
     greybox, rigid = kinds['greybox'], kinds['rigid']
     # the rigid URDF misses by the geometry and the sag (mm); the grey-box learns them
-    assert rigid['mean_mm'] > 0.5
-    assert greybox['mean_mm'] < 0.2 * rigid['mean_mm']
-    assert result['rigid']['mean_mm'] == pytest.approx(rigid['mean_mm'])
+    assert rigid['mean_m'] > 0.5e-3
+    assert greybox['mean_m'] < 0.2 * rigid['mean_m']
+    assert result['rigid']['mean_m'] == pytest.approx(rigid['mean_m'])
     for figures in kinds.values():
         assert 0.0 <= figures['coverage'] <= 1.0
-        assert 0.0 < figures['mean_mm'] <= figures['rms_mm'] <= figures['max_mm']
+        assert 0.0 < figures['mean_m'] <= figures['rms_m'] <= figures['max_m']
     # the stated 95 % radius holds for most held-out rows (a physics fit weighed against a
     # noise far above its own residual once left the folds' models better than the one judged:
     # coverage 0.15)
     assert greybox['coverage'] >= 0.8
     assert [point['train'] for point in result['curve']] == [20, 40]
-    assert all(point['mean_mm'] > 0 for point in result['curve'])
+    assert all(point['mean_m'] > 0 for point in result['curve'])
     # the registration finds the target 9 cm off the tool link, where the true arm has it
-    np.testing.assert_allclose(result['registration']['target_offset_mm'], 1e3 * OFFSET,
-                               atol=3.0)
+    np.testing.assert_allclose(result['registration']['target_offset_m'], OFFSET, atol=3e-3)
     figure = plots / 'learning_curve.png'
     assert result['figures'] == [str(figure)]
     assert figure.is_file() and figure.read_bytes()[:8] == b'\x89PNG\r\n\x1a\n'

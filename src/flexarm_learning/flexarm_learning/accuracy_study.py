@@ -3,11 +3,12 @@ bounds hold: every kind fitted on ``train`` rows, judged on the rows it did not 
 
 Splits are random but grouped (rows of one ``group`` stay on one side) and seeded: split k of
 seed s is the same for every kind, so kinds compare row for row. Figures are the means over
-the splits of: the 3-D error's mean, RMS, 95th percentile and maximum [mm] on the held-out
-rows; ``coverage``, the share of held-out rows within their stated 95 % radius; ``sharpness``,
-the median radius over the median error (1 would be a bound as tight as the error itself;
-the 95 % radius of a well-modelled 3-D Gaussian error is about 1.8); ``fit_s``, the wall time
-of a fit with its radius' calibration. The learning curve repeats the default kind's mean
+the splits of: the 3-D error's mean, RMS, 95th percentile and maximum [m] on the held-out
+rows (SI, as every result below the command line, which shows mm); ``coverage``, the share
+of held-out rows within their stated 95 % radius; ``sharpness``, the median radius over the
+median error (1 would be a bound as tight as the error itself; the 95 % radius of a
+well-modelled 3-D Gaussian error is about 1.8); ``fit_s``, the wall time of a fit with its
+radius' calibration. The learning curve repeats the default kind's mean
 error over training sizes.
 """
 from __future__ import annotations
@@ -52,6 +53,12 @@ def check_size(data: Measurements, train: int) -> None:
 def evaluate(arm: UrdfArm, data: Measurements, kind: str, train: int, seed: int,
              ) -> dict[str, float]:
     """One kind on one split (figures of the module docstring)."""
+    return fit_and_judge(arm, data, kind, train, seed)[0]
+
+
+def fit_and_judge(arm: UrdfArm, data: Measurements, kind: str, train: int, seed: int,
+                  ) -> tuple[dict[str, float], ArmErrorModel]:
+    """:func:`evaluate`'s figures and the model fitted."""
     mask = split(data.group, train, seed)
     if mask.all():
         raise StudyError(f'{train} training rows in whole groups take all {len(data)} rows: '
@@ -62,11 +69,11 @@ def evaluate(arm: UrdfArm, data: Measurements, kind: str, train: int, seed: int,
     held = data.subset(~mask)
     points, radius = model.predict(held.joints, held.payload)
     error = np.linalg.norm(points - held.points, axis=1)
-    return {'mean_mm': 1e3 * error.mean(), 'rms_mm': 1e3 * np.sqrt(np.mean(error ** 2)),
-            'p95_mm': 1e3 * np.quantile(error, 0.95), 'max_mm': 1e3 * error.max(),
+    return {'mean_m': float(error.mean()), 'rms_m': float(np.sqrt(np.mean(error ** 2))),
+            'p95_m': float(np.quantile(error, 0.95)), 'max_m': float(error.max()),
             'coverage': float(np.mean(error <= radius)),
             'sharpness': float(np.median(radius) / np.median(error)), 'fit_s': fit_s,
-            'bound_median_mm': 1e3 * float(np.median(radius))}
+            'bound_median_m': float(np.median(radius))}, model
 
 
 def study(arm: UrdfArm, data: Measurements, train: int, splits: int = 3, seed: int = 0,
@@ -77,24 +84,27 @@ def study(arm: UrdfArm, data: Measurements, train: int, splits: int = 3, seed: i
     check_size(data, train)
     seeds = [seed + k for k in range(splits)]
 
-    def mean_of(kind: str, size: int) -> dict[str, float]:
-        runs = [evaluate(arm, data, kind, size, s) for s in seeds]
-        return {key: float(np.mean([r[key] for r in runs])) for key in runs[0]}
+    def mean_of(kind: str, size: int) -> tuple[dict[str, float], ArmErrorModel]:
+        """The figures' means over the splits, and the model of the first split."""
+        judged = [fit_and_judge(arm, data, kind, size, s) for s in seeds]
+        return ({key: float(np.mean([f[key] for f, _ in judged])) for key in judged[0][0]},
+                judged[0][1])
 
+    by_kind = {kind: mean_of(kind, train) for kind in kinds}
+    physics = by_kind[kinds[0]][1].physics
     report = {
         'rows': len(data), 'skipped_rows': data.skipped,
         'rows_outside_limits': data.outside_limits, 'joints': list(arm.joint_names),
         'tip': arm.tip, 'train': train, 'splits': splits, 'seed': seed,
-        'gravity': ArmErrorModel(arm, kinds[0]).gravity,
-        'rigid': mean_of('rigid', train),
-        'kinds': {kind: mean_of(kind, train) for kind in kinds},
-        'curve': [{'train': size, **mean_of(kinds[0], size)} for size in curve
-                  if MIN_TRAIN <= size < len(data)],
+        'gravity': physics.gravity,
+        'rigid': mean_of('rigid', train)[0],
+        'kinds': {kind: figures for kind, (figures, _) in by_kind.items()},
+        'curve': [{'train': size, **mean_of(kinds[0], size)[0]} for size in curve
+                  if MIN_TRAIN <= size < len(data) and not split(data.group, size, seed).all()],
     }
-    fitted = ArmErrorModel(arm, kinds[0]).fit(data.subset(split(data.group, train, seed)))
     report['registration'] = {
-        'target_offset_mm': (1e3 * fitted.physics.offset).round(3).tolist(),
-        'target_offset_std_mm': (1e3 * fitted.physics.registration_std[6:9]).round(3).tolist(),
-        'target_distance_mm': round(1e3 * float(np.linalg.norm(fitted.physics.offset)), 3),
-        'physics_residual_mm': round(1e3 * fitted.physics.noise, 4)}
+        'target_offset_m': physics.offset.tolist(),
+        'target_offset_std_m': physics.registration_std[6:9].tolist(),
+        'target_distance_m': float(np.linalg.norm(physics.offset)),
+        'physics_residual_m': physics.noise}
     return report

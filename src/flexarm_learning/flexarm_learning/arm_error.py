@@ -45,11 +45,6 @@ class ArmErrorModel:
         self.arm, self.kind = arm, kind
         self.factor = float('nan')
 
-    @property
-    def gravity(self) -> str:
-        """Where the gravity load comes from (:attr:`.ElastostaticModel.gravity`)."""
-        return self._physics().gravity
-
     def _physics(self) -> ElastostaticModel:
         return ElastostaticModel(self.arm, geometry=self.kind != 'rigid',
                                  compliance=self.kind not in ('rigid', 'geometric'))

@@ -323,10 +323,10 @@ def _accuracy_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--splits', type=_positive_int, default=3,
                    help='random splits, figures averaged over them')
     p.add_argument('--seed', type=_natural, default=0, help='seed of the first split')
-    p.add_argument('--kinds', type=_kinds, default=('greybox',),
+    p.add_argument('--kinds', type=_kinds, default='greybox',
                    help='comma-separated: rigid, geometric, elastostatic, greybox, mlp (the '
                         'first gets the learning curve)')
-    p.add_argument('--curve', type=_sizes, default=(10, 20, 40, 80, 160), metavar='N,N,...',
+    p.add_argument('--curve', type=_sizes, default='10,20,40,80,160', metavar='N,N,...',
                    help="training sizes of the learning curve ('' for none)")
     p.add_argument('--plot', default=None, metavar='DIR', help='write the figures to DIR')
 

@@ -94,6 +94,9 @@ OFFLINE = [
           ('kind', 'rows', 'predictive_max_ms'), ('predictive_max_ms',)),
     # the learning core on the shared UR10 laser-tracker measurements (its smallest series, and
     # series A through the night)
+    Smoke('core_on_jaeri', ('--regions', 'A', '--samples', '12', '--held-out', '5'),
+          ('samples', 'held_out', 'regions'),
+          ('regions.A.core_mean_mm', 'regions.A.planar_greybox_mean_mm')),
     Smoke('real_arm', ('--series', 'D', '--others', 'A', '--sizes', '20', '--splits', '1'),
           ('series', 'mean_mm_20', 'coverage_20', 'ratio_20', 'reference_mean_mm_20',
            'coverage_overnight', 'coverage_overnight_fixed'),

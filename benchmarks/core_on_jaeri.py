@@ -30,7 +30,8 @@ from flexarm_core.params import load_config
 from flexarm_core.regions import configured_regions
 from flexarm_description.chain import TIP_FRAME
 from flexarm_description.urdf_model import robot_description
-from flexarm_learning.arm_error import DEFAULT_KIND, ArmErrorModel
+from flexarm_learning.arm_error import ArmErrorModel
+from flexarm_learning.choices import DEFAULT_KIND
 from flexarm_learning.measurements import Measurements
 from flexarm_learning.urdf_arm import UrdfArm
 from flexarm_sim.plant import Plant

@@ -43,6 +43,7 @@ from threadpoolctl import threadpool_limits
 
 from flexarm_learning.accuracy_study import evaluate, split
 from flexarm_learning.arm_error import ArmErrorModel
+from flexarm_learning.choices import DEFAULT_KIND
 from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.measurements import Measurements, read_csv
 from flexarm_learning.online_radius import OnlineRadius
@@ -57,7 +58,6 @@ SERIES = {'A': 'Series_A/measurements_grid.csv',
           'D': 'Series_D/measurements_iso_cubes.csv'}
 JOINTS = ('shoulder_pan_joint', 'shoulder_lift_joint', 'elbow_joint', 'wrist_1_joint',
           'wrist_2_joint', 'wrist_3_joint')
-DEFAULT_KIND = 'greybox'
 
 
 def to_contract(source: Path, target: Path) -> np.ndarray:

@@ -5,6 +5,7 @@ measurements, with a calibrated bound; pure (no rclpy), usable offline (``flexar
 PUBLIC = (
     'flexarm_learning.accuracy_study',
     'flexarm_learning.arm_error',
+    'flexarm_learning.choices',
     'flexarm_learning.elastostatic',
     'flexarm_learning.measurements',
     'flexarm_learning.online_radius',

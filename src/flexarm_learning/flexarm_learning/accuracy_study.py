@@ -18,12 +18,12 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from flexarm_learning.arm_error import DEFAULT_KIND, ArmErrorModel
+from flexarm_learning.arm_error import ArmErrorModel
+from flexarm_learning.choices import DEFAULT_KIND, LEARNING_CURVE, SPLITS
 from flexarm_learning.elastostatic import REGISTRATION
 from flexarm_learning.measurements import Measurements
 from flexarm_learning.urdf_arm import UrdfArm
 
-LEARNING_CURVE = (10, 20, 40, 80, 160)
 MIN_TRAIN = REGISTRATION // 3 + 1     # rows: more coordinates (3 a row) than free unknowns
 
 
@@ -76,7 +76,7 @@ def fit_and_judge(arm: UrdfArm, data: Measurements, kind: str, train: int, seed:
             'bound_median_m': float(np.median(radius))}, model
 
 
-def study(arm: UrdfArm, data: Measurements, train: int, splits: int = 3, seed: int = 0,
+def study(arm: UrdfArm, data: Measurements, train: int, splits: int = SPLITS, seed: int = 0,
           kinds: Sequence[str] = (DEFAULT_KIND,),
           curve: Sequence[int] = LEARNING_CURVE) -> dict:
     """Every kind (and the rigid model after registration) on ``splits`` splits; the

@@ -24,6 +24,7 @@ from __future__ import annotations
 import numpy as np
 from threadpoolctl import threadpool_limits
 
+from flexarm_learning.choices import DEFAULT_KIND, KINDS
 from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.error_radius import conformal_factor
 from flexarm_learning.joint_error import JointErrorGp
@@ -31,8 +32,6 @@ from flexarm_learning.measurements import Measurements
 from flexarm_learning.residual_mlp import ResidualMlp
 from flexarm_learning.urdf_arm import UrdfArm
 
-KINDS = ('rigid', 'geometric', 'elastostatic', 'greybox', 'mlp')
-DEFAULT_KIND = 'greybox'
 FOLDS = 5
 
 

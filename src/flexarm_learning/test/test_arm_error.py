@@ -7,7 +7,8 @@ import numpy as np
 import pytest
 from synthetic_arms import AXIAL, TIP, random_joints, seven_joint_arm
 
-from flexarm_learning.arm_error import KINDS, ArmErrorModel
+from flexarm_learning.arm_error import ArmErrorModel
+from flexarm_learning.choices import KINDS
 from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.measurements import Measurements
 from flexarm_learning.urdf_arm import UrdfArm

@@ -31,6 +31,7 @@ from flexarm_bringup.results.outcome_text import (
 from flexarm_control.execution.modes import MODE_LABELS
 from flexarm_core import topics
 from flexarm_core.paths import RESULTS_DIR
+from flexarm_learning.choices import DEFAULT_KIND, KINDS, LEARNING_CURVE, SPLITS
 
 UINT32_MAX = 2 ** 32 - 1
 
@@ -298,7 +299,6 @@ def _study_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _kinds(text: str) -> tuple[str, ...]:
-    from flexarm_learning.arm_error import KINDS
     kinds = tuple(k.strip() for k in text.split(',') if k.strip())
     unknown = [k for k in kinds if k not in KINDS]
     if not kinds or unknown:
@@ -320,13 +320,14 @@ def _accuracy_arguments(p: argparse.ArgumentParser) -> None:
                         'temperature, group (docs/accuracy.md)')
     p.add_argument('--train', type=_positive_int, default=40, metavar='N',
                    help='rows to learn from; the others judge the model')
-    p.add_argument('--splits', type=_positive_int, default=3,
+    p.add_argument('--splits', type=_positive_int, default=SPLITS,
                    help='random splits, figures averaged over them')
     p.add_argument('--seed', type=_natural, default=0, help='seed of the first split')
-    p.add_argument('--kinds', type=_kinds, default='greybox',
-                   help='comma-separated: rigid, geometric, elastostatic, greybox, mlp (the '
-                        'first gets the learning curve)')
-    p.add_argument('--curve', type=_sizes, default='10,20,40,80,160', metavar='N,N,...',
+    p.add_argument('--kinds', type=_kinds, default=DEFAULT_KIND,
+                   help=f'comma-separated: {", ".join(KINDS)} (the first gets the learning '
+                        'curve)')
+    p.add_argument('--curve', type=_sizes, default=','.join(map(str, LEARNING_CURVE)),
+                   metavar='N,N,...',
                    help="training sizes of the learning curve ('' for none)")
     p.add_argument('--plot', default=None, metavar='DIR', help='write the figures to DIR')
 

@@ -13,12 +13,12 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import pinocchio as pin
 import pytest
 from synthetic_arms import AXIAL, TIP, random_joints, seven_joint_arm, seven_joint_names
 
 from flexarm_bringup.cli import main
 from flexarm_learning.elastostatic import ElastostaticModel
-from flexarm_learning.registration import rotation_vector
 from flexarm_learning.urdf_arm import UrdfArm
 
 ROWS = 120
@@ -32,7 +32,7 @@ def true_model(arm: UrdfArm, rng: np.random.Generator) -> ElastostaticModel:
     """An instrument 30° turned and ~2 m away, the target ``OFFSET`` off the tool link, every
     joint origin moved, the loaded joints compliant about their axes."""
     model = ElastostaticModel(arm)
-    model.rotation = rotation_vector(np.radians(30.0) * np.array([0.6, -0.7, 0.39]))
+    model.rotation = pin.exp3(np.radians(30.0) * np.array([0.6, -0.7, 0.39]))
     model.translation = np.array([1.6, -1.1, 0.5])
     model.offset = OFFSET.copy()
     model.twists = rng.normal(0.0, GEOMETRY_ERROR, (arm.dof, 6))

@@ -41,7 +41,7 @@ import numpy as np
 import pinocchio as pin
 from scipy.optimize import lsq_linear
 
-from flexarm_learning.registration import kabsch, rotation_vector, skew
+from flexarm_learning.registration import kabsch
 from flexarm_learning.urdf_arm import UrdfArm
 
 REGISTRATION = 9        # rotation, translation, target offset: no prior
@@ -158,7 +158,7 @@ class ElastostaticModel:
 
     def _apply(self, step: np.ndarray) -> None:
         n = self.arm.dof
-        self.rotation = rotation_vector(step[:3]) @ self.rotation
+        self.rotation = pin.exp3(step[:3]) @ self.rotation
         self.translation = self.translation + step[3:6]
         self.offset = self.offset + step[6:9]
         k = REGISTRATION
@@ -195,13 +195,13 @@ class ElastostaticModel:
             body = target.copy()
             if self.compliance:
                 for f, o, c, mk in zip(s.joints, s.placed, self.compliances, m):
-                    body += skew(f.rotation @ (c * mk)) @ (target - o.translation)
+                    body += pin.skew(f.rotation @ (c * mk)) @ (target - o.translation)
             point = self.rotation @ body + self.translation
             if not jacobian:
                 yield point, None
                 continue
             d = np.zeros((3, self.size))
-            d[:, :3] = -skew(self.rotation @ body)
+            d[:, :3] = -pin.skew(self.rotation @ body)
             d[:, 3:6] = np.eye(3)
             d[:, 6:9] = self.rotation @ s.tip_rotation
             k = REGISTRATION
@@ -209,12 +209,12 @@ class ElastostaticModel:
                 for i, f in enumerate(s.placed):
                     d[:, k + 6 * i:k + 6 * i + 3] = self.rotation @ f.rotation
                     d[:, k + 6 * i + 3:k + 6 * i + 6] = (
-                        -self.rotation @ skew(target - f.translation) @ f.rotation)
+                        -self.rotation @ pin.skew(target - f.translation) @ f.rotation)
                 k += 6 * n
             if self.compliance:
                 for i, (f, o) in enumerate(zip(s.joints, s.placed)):
                     d[:, k + 3 * i:k + 3 * i + 3] = (
-                        -self.rotation @ skew(target - o.translation) @ f.rotation * m[i])
+                        -self.rotation @ pin.skew(target - o.translation) @ f.rotation * m[i])
             yield point, d
 
     def _linearise(self, joints, points, moments) -> tuple[np.ndarray, np.ndarray]:

@@ -36,7 +36,7 @@ class Measurements:
     points: np.ndarray
     payload: np.ndarray          # (N,) [kg], zeros where the file has none
     group: np.ndarray            # (N,) a label per row; each row its own without the column
-    skipped: int = 0             # rows with a missing or NaN value
+    skipped: int = 0             # rows with a missing, NaN or infinite value or no group
     outside_limits: int = 0      # rows with a joint outside the URDF's limits
 
     def __len__(self) -> int:
@@ -97,12 +97,14 @@ def parse(header: list[str], rows: list[list[str]], arm: UrdfArm,
                                            ) from None
     good = np.isfinite(values).all(axis=1)
     if 'group' in header:
-        good &= np.array([bool(row[header.index('group')].strip()) for row in rows], bool)
+        labels = np.array([row[header.index('group')].strip() for row in rows], dtype=object)
+        good &= labels != ''
+        groups = labels[good]
+    else:
+        groups = np.arange(int(good.sum())).astype(str).astype(object)
     column = {name: values[good, c] for c, name in enumerate(numeric)}
     joints = np.stack([column[j] for j in arm.joint_names], axis=1)
     outside = (joints < arm.lower) | (joints > arm.upper)
-    groups = (np.array([row[header.index('group')].strip() for row in rows], dtype=object)[good]
-              if 'group' in header else np.arange(int(good.sum())).astype(str).astype(object))
     return Measurements(
         joints=joints, points=np.stack([column[c] for c in POINT], axis=1),
         payload=column.get('payload', np.zeros(len(joints))), group=groups,

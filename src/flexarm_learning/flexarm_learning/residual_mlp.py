@@ -15,6 +15,9 @@ greybox,mlp,elastostatic``, series D, 200 rows: 0.31 mm against 0.31 and the gre
 """
 from __future__ import annotations
 
+from collections.abc import Callable
+from typing import Any
+
 import numpy as np
 
 MEMBERS = 5
@@ -75,7 +78,7 @@ class ResidualMlp:
         return members.mean(axis=0), variance[:, :, None] * np.eye(3)
 
 
-def _forward(layers: list, x, activation):
+def _forward(layers: list, x: Any, activation: Callable[[Any], Any]) -> Any:
     """Batched network (torch tensors or numpy arrays alike): x (1, n_in, N) → (members,
     3, N)."""
     h = x

@@ -17,8 +17,6 @@ from pathlib import Path
 import numpy as np
 import pinocchio as pin
 
-from flexarm_learning.registration import skew
-
 GRAVITY = np.array([0.0, 0.0, -9.80665])   # [m/s²] standard, in the root frame (REP 103: z up)
 MASSLESS = 1e-6                         # [kg] a chain lighter than this has no inertials
 
@@ -30,7 +28,8 @@ class DescriptionError(ValueError):
 @dataclass(frozen=True)
 class ChainState:
     """One row's rigid chain: the target point, the tip's rotation, the frames before each
-    joint's motion (``placed``: where a geometric offset acts), the joint frames and axes."""
+    joint's motion (``placed``: where a geometric offset acts), the joint frames and the
+    target's Jacobian by the chain's joints."""
 
     target: np.ndarray        # (3,) [m]
     tip_rotation: np.ndarray  # (3, 3)
@@ -101,7 +100,6 @@ class UrdfArm:
     def configuration(self, joints: np.ndarray) -> np.ndarray:
         """Pinocchio's configuration vector of one row of chain joint positions."""
         q = pin.neutral(self.model)
-        q = q.copy()
         for k, value in enumerate(joints):
             i = self._q_index[k]
             if self._continuous[k]:
@@ -123,7 +121,7 @@ class UrdfArm:
         arm = tip.rotation @ offset
         target = tip.translation + arm
         full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)
-        jac = full[:3] - skew(arm) @ full[3:]
+        jac = full[:3] - pin.skew(arm) @ full[3:]
         placed = [data.oMi[model.parents[j]] * model.jointPlacements[j] for j in self.chain]
         return ChainState(target, tip.rotation.copy(), placed,
                           [data.oMi[j].copy() for j in self.chain], jac[:, self._v_index])

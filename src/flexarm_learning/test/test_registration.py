@@ -1,5 +1,5 @@
 """Registration: the instrument's frame and the target's offset, recovered from measured points
-(ElastostaticModel without compliance and geometry), and the rotation helpers under it."""
+(ElastostaticModel without compliance and geometry), and Kabsch's start of it."""
 from __future__ import annotations
 
 import numpy as np
@@ -7,7 +7,7 @@ from scipy.spatial.transform import Rotation
 from synthetic_arms import TIP, random_joints, seven_joint_arm
 
 from flexarm_learning.elastostatic import ElastostaticModel
-from flexarm_learning.registration import kabsch, rotation_vector, skew
+from flexarm_learning.registration import kabsch
 from flexarm_learning.urdf_arm import UrdfArm
 
 AXIS = np.array([1.0, -2.0, 0.5]) / np.linalg.norm([1.0, -2.0, 0.5])
@@ -50,20 +50,3 @@ def test_kabsch_returns_a_rotation_for_mirrored_points() -> None:
     np.testing.assert_allclose(rotation @ rotation.T, np.eye(3), rtol=0, atol=1e-12)
     assert np.linalg.det(rotation) > 0
 
-
-def test_rotation_vector_is_the_exponential_map() -> None:
-    """rotation_vector(ω) is the rotation by |ω| about ω (and near 0, first order)."""
-    for omega in np.random.default_rng(14).normal(size=(5, 3)):
-        np.testing.assert_allclose(rotation_vector(omega),
-                                   Rotation.from_rotvec(omega).as_matrix(), rtol=0, atol=1e-12)
-    tiny = np.array([1e-14, -2e-14, 3e-14])
-    np.testing.assert_allclose(rotation_vector(tiny), np.eye(3) + skew(tiny), rtol=0, atol=1e-20)
-
-
-def test_skew_is_the_cross_product_matrix_batched() -> None:
-    """skew(v) @ w = v × w, for one vector and along leading axes; skew(v) is antisymmetric."""
-    rng = np.random.default_rng(15)
-    v, w = rng.normal(size=(4, 2, 3)), rng.normal(size=(4, 2, 3))
-    np.testing.assert_allclose(np.einsum('...ij,...j->...i', skew(v), w), np.cross(v, w),
-                               rtol=0, atol=1e-12)
-    np.testing.assert_allclose(skew(v[0, 0]), -skew(v[0, 0]).T, rtol=0, atol=0)

@@ -1,7 +1,10 @@
 """A serial arm read from its URDF through Pinocchio: the chain from the root to a tip link.
 
 Pinocchio parses the URDF and does the rigid-body work — forward kinematics, the tip's frame
-Jacobian, the joints' gravity wrenches (RNEA at rest) — so any serial arm is one file away.
+Jacobian, the bodies' centres of mass — so any serial arm is one file away. The gravity
+moments are then one vectorised sum over the rows (Σ over a joint's subtree of
+(centre − pivot) × m·g): RNEA's per-joint wrenches, read out joint by joint in Python, cost
+150 µs a row, several times the compensator's budget for a whole plan.
 What is ours is which joints count (the actuated ones on the path from the root to the tip,
 in chain order: a gripper's fingers or a second branch stay at their neutral position) and
 batching over rows of measurements.
@@ -19,6 +22,7 @@ import pinocchio as pin
 
 GRAVITY = np.array([0.0, 0.0, -9.80665])   # [m/s²] standard, in the root frame (REP 103: z up)
 MASSLESS = 1e-6                         # [kg] a chain lighter than this has no inertials
+SAME_POINT = 1e-6                       # [m] pivots closer than this coincide
 
 
 class DescriptionError(ValueError):
@@ -26,16 +30,21 @@ class DescriptionError(ValueError):
 
 
 @dataclass(frozen=True)
-class ChainState:
-    """One row's rigid chain: the target point, the tip's rotation, the frames before each
-    joint's motion (``placed``: where a geometric offset acts), the joint frames and the
-    target's Jacobian by the chain's joints."""
+class Chain:
+    """Rows of the rigid chain: the target point, the tip's rotation, each joint's pivot (its
+    URDF origin on the parent, before its motion: where a geometric offset and a compliant
+    turn act) and frame (after its motion), the next pivot down the chain (the target after
+    the last joint: where a link's bending turns it), the target's Jacobian by the chain's
+    joints, and what gravity needs: each joint's subtree's mass-weighted centre."""
 
-    target: np.ndarray        # (3,) [m]
-    tip_rotation: np.ndarray  # (3, 3)
-    placed: list[pin.SE3]     # per chain joint: parent joint frame × its URDF origin
-    joints: list[pin.SE3]     # per chain joint: after its motion
-    jacobian: np.ndarray      # (3, n) d target / d q [m/rad or m/m]
+    target: np.ndarray            # (N, 3) [m]
+    tip_rotation: np.ndarray      # (N, 3, 3)
+    pivots: np.ndarray            # (N, n, 3) [m]
+    placed: np.ndarray            # (N, n, 3, 3): the pivot's rotation, before the motion
+    frames: np.ndarray            # (N, n, 3, 3): the joint's rotation, after the motion
+    next_pivots: np.ndarray       # (N, n, 3) [m]
+    jacobian: np.ndarray          # (N, 3, n) d target / d q [m/rad or m/m]
+    carried: np.ndarray           # (N, n, 3) [kg·m] Σ mass × centre over each subtree
 
 
 class UrdfArm:
@@ -66,8 +75,39 @@ class UrdfArm:
         self.upper = np.where(self._continuous, np.inf, model.upperPositionLimit[self._q_index])
         self.prismatic = np.array([model.joints[j].shortname().startswith('JointModelP')
                                    for j in self.chain])
-        subtree = {int(k) for j in self.chain for k in model.subtrees[j]}
-        self.mass = float(sum(model.inertias[k].mass for k in subtree))
+        masses = np.array([model.inertias[j].mass for j in range(model.njoints)])
+        self._subtree_masses = np.zeros((self.dof, model.njoints))   # (n, joints) [kg]
+        for k, j in enumerate(self.chain):
+            subtree = list(model.subtrees[j])
+            self._subtree_masses[k, subtree] = masses[subtree]
+        self._carried_mass = self._subtree_masses.sum(axis=1)
+        self.mass = float(self._carried_mass[0])
+        self.link_directions = self._link_directions()
+
+    def _link_directions(self) -> np.ndarray:
+        """(n, 3) unit vectors in each joint's frame along what it carries to the next pivot
+        (the tip link after the last joint), a prismatic joint's along its slide: the beam a
+        moment bends sideways. Zero where the next pivot is on the joint's own origin."""
+        q = pin.neutral(self.model)
+        data = self.model.createData()
+        pin.framesForwardKinematics(self.model, data, q)
+        ends = [data.oMi[j].translation.copy() for j in self.chain[1:]]
+        ends.append(data.oMf[self._frame].translation.copy())
+        out = np.zeros((self.dof, 3))
+        for k, j in enumerate(self.chain):
+            frame = data.oMi[j]
+            if self.prismatic[k]:
+                moved = q.copy()
+                moved[self._q_index[k]] += 1.0
+                other = self.model.createData()
+                pin.forwardKinematics(self.model, other, moved)
+                along = other.oMi[j].translation - frame.translation
+            else:
+                along = ends[k] - frame.translation
+            length = np.linalg.norm(along)
+            if length > SAME_POINT:
+                out[k] = frame.rotation.T @ along / length
+        return out
 
     @classmethod
     def from_file(cls, path: str | Path, tip: str) -> UrdfArm:
@@ -108,43 +148,45 @@ class UrdfArm:
                 q[i] = value
         return q
 
-    def state(self, joints: np.ndarray, offset: np.ndarray,
-              model: pin.Model | None = None) -> ChainState:
-        """The chain at one row of joint positions, the target ``offset`` [m] from the tip
-        link in its frame; ``model`` a copy of this one with other joint origins."""
+    def chain_at(self, joints: np.ndarray, offset: np.ndarray,
+              model: pin.Model | None = None) -> Chain:
+        """The chain at rows (N, n) (or one row (n,)) of joint positions, the target
+        ``offset`` [m] from the tip link in its frame; ``model`` a copy of this one with other
+        joint origins."""
+        joints = np.atleast_2d(np.asarray(joints, float))
         model = model or self.model
         data = self._data if model is self.model else model.createData()
-        q = self.configuration(joints)
-        pin.computeJointJacobians(model, data, q)
-        pin.updateFramePlacements(model, data)
-        tip = data.oMf[self._frame]
-        arm = tip.rotation @ offset
-        target = tip.translation + arm
-        full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)
-        jac = full[:3] - pin.skew(arm) @ full[3:]
-        placed = [data.oMi[model.parents[j]] * model.jointPlacements[j] for j in self.chain]
-        return ChainState(target, tip.rotation.copy(), placed,
-                          [data.oMi[j].copy() for j in self.chain], jac[:, self._v_index])
+        rows, n = len(joints), self.dof
+        target, tip_rotation = np.empty((rows, 3)), np.empty((rows, 3, 3))
+        pivots, placed = np.empty((rows, n, 3)), np.empty((rows, n, 3, 3))
+        frames, jacobian = np.empty((rows, n, 3, 3)), np.empty((rows, 3, n))
+        centres = np.zeros((rows, model.njoints, 3))
+        parents = [model.parents[j] for j in self.chain]
+        for r, q in enumerate(joints):
+            pin.computeJointJacobians(model, data, self.configuration(q))
+            pin.updateFramePlacements(model, data)
+            tip = data.oMf[self._frame]
+            arm = tip.rotation @ offset
+            target[r], tip_rotation[r] = tip.translation + arm, tip.rotation
+            full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)
+            jacobian[r] = (full[:3] - pin.skew(arm) @ full[3:])[:, self._v_index]
+            for k, (j, parent) in enumerate(zip(self.chain, parents)):
+                pivot = data.oMi[parent] * model.jointPlacements[j]
+                pivots[r, k], placed[r, k] = pivot.translation, pivot.rotation
+                frames[r, k] = data.oMi[j].rotation
+            for j in range(1, model.njoints):
+                centres[r, j] = data.oMi[j].act(model.inertias[j].lever)
+        next_pivots = np.concatenate([pivots[:, 1:], target[:, None]], axis=1)
+        carried = np.einsum('kj,rjx->rkx', self._subtree_masses, centres)
+        return Chain(target, tip_rotation, pivots, placed, frames, next_pivots, jacobian,
+                     carried)
 
-    def gravity_moments(self, joints: np.ndarray, payload: float = 0.0,
-                        offset: np.ndarray | None = None) -> np.ndarray:
-        """(n, 3) [N·m]: the moment gravity puts on what each chain joint carries (its
-        subtree's links and the payload at the target) about the joint's origin on its
-        parent (the URDF origin: a revolute joint's centre, a prismatic joint's guide, where
-        the slide bends), in the joint's frame."""
-        q = self.configuration(joints)
-        model, data = self.model, self._data
-        pin.rnea(model, data, q, np.zeros(model.nv), np.zeros(model.nv))
-        pin.framesForwardKinematics(model, data, q)          # RNEA leaves oMi as it was
-        target = data.oMf[self._frame].act(np.zeros(3) if offset is None else offset)
-        out = np.empty((self.dof, 3))
-        for k, j in enumerate(self.chain):
-            frame = data.oMi[j]
-            pivot = (data.oMi[model.parents[j]] * model.jointPlacements[j]).translation
-            carried = frame.rotation @ data.f[j].linear       # what the parent holds up
-            moment = (frame.rotation @ data.f[j].angular
-                      + np.cross(frame.translation - pivot, carried))
-            load = np.cross(target - pivot, payload * GRAVITY)
-            out[k] = frame.rotation.T @ (load - moment)
-        return out
-
+    def gravity_moments(self, chain: Chain, payload: np.ndarray | float = 0.0) -> np.ndarray:
+        """(N, n, 3) [N·m]: the moment gravity puts on what each chain joint carries (its
+        subtree's links and the ``payload`` [kg] at the target) about the joint's pivot (its
+        URDF origin: a revolute joint's centre, a prismatic joint's guide, where the slide
+        bends), in the joint's frame."""
+        payload = np.broadcast_to(np.asarray(payload, float), (len(chain.target),))
+        lever = (chain.carried - self._carried_mass[None, :, None] * chain.pivots
+                 + payload[:, None, None] * (chain.target[:, None] - chain.pivots))
+        return np.einsum('rkxy,rkx->rky', chain.frames, np.cross(lever, GRAVITY))

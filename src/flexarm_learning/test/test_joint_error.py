@@ -25,7 +25,7 @@ def learned() -> Learned:
     arm = UrdfArm.from_xml(seven_joint_arm(), TIP)
     rng = np.random.default_rng(21)
     joints = random_joints(arm.lower, arm.upper, FIT + HELD_OUT, rng)
-    jacobians = np.array([arm.state(q, OFFSET).jacobian for q in joints])
+    jacobians = arm.chain_at(joints, OFFSET).jacobian
     error = AMPLITUDE * np.sin(joints[:, JOINT] / SCALE)
     residual = jacobians[:, :, JOINT] * error[:, None]
     measured = residual + rng.normal(0.0, NOISE, residual.shape)

@@ -26,7 +26,7 @@ def test_the_fit_recovers_a_known_instrument_transform_and_target_offset() -> No
     target off the tool link: the registration comes back to 1e-6 rad and 1e-6 m."""
     arm = UrdfArm.from_xml(seven_joint_arm(), TIP)
     joints = random_joints(arm.lower, arm.upper, 30, np.random.default_rng(11))
-    targets = np.array([arm.state(q, OFFSET).target for q in joints])
+    targets = arm.chain_at(joints, OFFSET).target
     points = targets @ ROTATION.T + TRANSLATION
     model = ElastostaticModel(arm, compliance=False, geometry=False).fit(joints, points)
     assert _angle(model.rotation, ROTATION) < 1e-6

@@ -82,9 +82,9 @@ def test_the_jacobian_is_the_derivative_of_the_target(xml: str) -> None:
         for k in range(arm.dof):
             dq = np.zeros(arm.dof)
             dq[k] = step
-            numeric[:, k] = (arm.state(q + dq, OFFSET).target
-                             - arm.state(q - dq, OFFSET).target) / (2 * step)
-        np.testing.assert_allclose(arm.state(q, OFFSET).jacobian, numeric, rtol=0, atol=1e-6)
+            numeric[:, k] = (arm.chain_at(q + dq, OFFSET).target[0]
+                             - arm.chain_at(q - dq, OFFSET).target[0]) / (2 * step)
+        np.testing.assert_allclose(arm.chain_at(q, OFFSET).jacobian[0], numeric, rtol=0, atol=1e-6)
 
 
 def test_has_masses_tells_an_arm_with_inertials_from_one_without() -> None:
@@ -95,7 +95,8 @@ def test_has_masses_tells_an_arm_with_inertials_from_one_without() -> None:
     assert arm.has_masses and not massless.has_masses
     assert arm.mass == pytest.approx(sum(LINK_MASSES) + TOOL_MASS)
     q = random_joints(massless.lower, massless.upper, 1, np.random.default_rng(4))[0]
-    np.testing.assert_array_equal(massless.gravity_moments(q), np.zeros((7, 3)))
+    np.testing.assert_array_equal(massless.gravity_moments(massless.chain_at(q, OFFSET)),
+                                  np.zeros((1, 7, 3)))
 
 
 def test_gravity_moments_about_the_joint_axes_are_pinocchios_generalized_gravity() -> None:
@@ -108,7 +109,7 @@ def test_gravity_moments_about_the_joint_axes_are_pinocchios_generalized_gravity
     velocity = [model.joints[model.getJointId(name)].idx_v for name in arm.joint_names]
     for q in random_joints(arm.lower, arm.upper, 6, np.random.default_rng(5)):
         holding = pin.computeGeneralizedGravity(model, data, arm.configuration(q))[velocity]
-        moments = arm.gravity_moments(q)
+        moments = arm.gravity_moments(arm.chain_at(q, OFFSET))[0]
         axial = moments[np.arange(arm.dof), AXIAL]
         np.testing.assert_allclose(axial, -holding, rtol=1e-9, atol=1e-9)
 
@@ -120,16 +121,16 @@ def test_a_payload_adds_its_weight_times_its_lever() -> None:
     arm = UrdfArm.from_xml(seven_joint_arm(), TIP)
     mass = 3.0
     rows = random_joints(arm.lower, arm.upper, 6, np.random.default_rng(6))
-    loaded = [arm.gravity_moments(q, mass, OFFSET) for q in rows]
-    empty = [arm.gravity_moments(q, 0.0, OFFSET) for q in rows]
-    for q, with_payload, without in zip(rows, loaded, empty):
-        state = arm.state(q, OFFSET)
-        weight = mass * GRAVITY
-        expected = np.array([f.rotation.T @ np.cross(state.target - f.translation, weight)
-                             for f in state.joints])
+    chain = arm.chain_at(rows, OFFSET)
+    loaded = arm.gravity_moments(chain, np.full(len(rows), mass))
+    empty = arm.gravity_moments(chain, 0.0)
+    weight = mass * GRAVITY
+    for r, (with_payload, without) in enumerate(zip(loaded, empty)):
+        expected = np.array([frame.T @ np.cross(chain.target[r] - pivot, weight)
+                             for frame, pivot in zip(chain.frames[r], chain.pivots[r])])
         np.testing.assert_allclose(with_payload - without, expected, rtol=0, atol=1e-9)
         np.testing.assert_allclose((with_payload - without)[np.arange(arm.dof), AXIAL],
-                                   state.jacobian.T @ weight, rtol=0, atol=1e-9)
+                                   chain.jacobian[r].T @ weight, rtol=0, atol=1e-9)
 
 
 def _write(path: Path, text: str, encoding: str) -> Path:

@@ -33,8 +33,8 @@ of ``TERMS`` for a long, thin arm whose links bend and whose drives have play (t
 benchmarks/core_on_jaeri.py). All four on the UR10 of ../shared/data (six joints: 12 + 36 +
 72 parameters) left 40 rows of series C nothing for the joint-error GP to learn from (its
 covariance lost definiteness); its figures (docs/accuracy.md) are the compliances' alone.
-The formula above is the first order: the turns are composed exactly, the far end first (:func:`_turn`);
-the Jacobian is their first order, which Gauss-Newton only needs to converge.
+The formula above is the first order: the turns are composed exactly, the far end first
+(:func:`_turn`); Gauss-Newton's Jacobian is their first order, all it needs to converge.
 
 The elastic priors are ``Priors.compliance`` [rad] of turn (``Priors.shift`` [m] of shift)
 at the moment's RMS over the arm's workspace (``WORKSPACE`` configurations drawn within the
@@ -42,18 +42,19 @@ joint limits, the payload the samples' mean): the workspace's, not the samples' 
 samples hardly vary (the wrist's, on the UR10 of ../shared/data) let a compliance grow to
 mrad/N·m that a pose with more moment turned into a 12 mm miss. The moments are taken on the
 rigid pose (sub-mrad on an industrial arm, ~15 mrad on the JAERI arm, whose simulated plant
-does the same). A URDF without inertials has no moment to
-scale: the model is then registration and geometry (:attr:`gravity` says which), and what
-gravity does is left to the residual.
+does the same). A URDF without inertials has no moment to scale: the model is then
+registration and geometry (:attr:`gravity` says which), and what gravity does is left to the
+residual.
 
 Maximum a posteriori by Gauss-Newton on the analytic Jacobian, the measurement noise (of the
 points, and of the rotations where measured) re-estimated from the residuals, over the degrees
 of freedom the parameters leave them, until it settles (the first guess, the rigid model's
-residual, weighed the priors against a noise 3-50 times too large). :attr:`covariance` is the Laplace covariance of the parameters, :meth:`pose_std` what
-it leaves in a prediction, and :attr:`registration_std` the registration's and the target
-offset's: large where the rows cannot tell them apart (poses that all hold the tool the same
-way leave the offset along the tool to the instrument's translation). The Jacobian of the
-target by the joints (:meth:`joint_jacobians`, Pinocchio's frame Jacobian, in the instrument's
+residual, weighed the priors against a noise 3-50 times too large). :attr:`covariance` is
+the Laplace covariance of the parameters, :meth:`pose_std` what it leaves in a prediction,
+and :attr:`registration_std` the registration's and the target offset's: large where the
+rows cannot tell them apart (poses that all hold the tool the same way leave the offset along
+the tool to the instrument's translation). The Jacobian of the target by the joints
+(:meth:`joint_jacobians`, Pinocchio's frame Jacobian, in the instrument's
 frame) carries a learned joint error to the instrument (:mod:`.joint_error`).
 """
 from __future__ import annotations
@@ -70,12 +71,17 @@ from flexarm_learning.urdf_arm import Chain, UrdfArm
 REGISTRATION = 12       # rotation, translation, target offset, target rotation
 ITERATIONS = 8          # Gauss-Newton steps at most
 NOISE_FLOOR = 1e-6      # [m or rad] the noise estimate's floor (an exact fit: simulated data)
-PASSES = 8              # noise re-estimates at most: the fit is weighed by its own residual
+PASSES = 40             # noise re-estimates at most: the fit is weighed by its own residual
+                        # (an exact fit, simulated data, takes ~25 to reach the floor)
 NOISE_SETTLED = 0.05    # a noise estimate within 5 % of the last ends them
 CONVERGED = 1e-8        # [m or rad] a step this small ends the iterations
 WORKSPACE = 200         # configurations whose moments scale the elastic priors
 IDLE = 1e-9             # a moment this small against the largest drives nothing
+ANGLE_LENGTH = 1.0      # [m] a turn's residual weighs as a point's over this lever
+HALVINGS = 12           # a step is halved at most this often until the cost drops
 TERMS = ('compliances', 'bending', 'shift', 'play')   # the elastic terms, 3 per joint each
+STATE = ('rotation', 'translation', 'offset', 'tool', 'twists', *TERMS, 'covariance', 'fixed',
+         'noises')
 JOINTS_ONLY = ('compliances',)   # what an industrial arm's few rows can tell (module docstring)
 
 
@@ -144,7 +150,7 @@ class ElastostaticModel:
         prior = np.concatenate([np.zeros(REGISTRATION), self._geometry_prior(), scale])
         floor = np.where(np.arange(self.size) < self.size - len(scale), -np.inf, 0.0)
         fixed = self._fixed()
-        noise = None if start is None else start._noise
+        noise = None if start is None else start.noises
         for _ in range(PASSES):
             for _ in range(ITERATIONS):
                 residual, jac = self._linearise(joints, payload, points, rotations)
@@ -152,7 +158,8 @@ class ElastostaticModel:
                 if noise is None:
                     noise = self._noise_of(residual)
                 step = self._step(residual, jac, noise, prior, floor)
-                self._apply(step)
+                step = self._descend(step, residual, noise, prior,
+                                     (joints, payload, points, rotations))
                 if np.max(np.abs(step)) < CONVERGED:
                     break
             residual, jac = self._linearise(joints, payload, points, rotations)
@@ -166,9 +173,10 @@ class ElastostaticModel:
             noise = settled
             if done:
                 break
-        self._noise = noise
+        self.noises = noise
         self.noise = float(noise[0])
         self.rotation_noise = float(noise[1]) if rotations is not None else None
+        self.fixed = fixed
         self.registration_std = np.sqrt(np.abs(np.diag(self.covariance)[:9]))
         return self
 
@@ -215,19 +223,21 @@ class ElastostaticModel:
 
     def _noise_of(self, residual: np.ndarray, leverage: np.ndarray | None = None,
                   ) -> np.ndarray:
-        """The noise of the point rows and of the rotation rows, each above
-        ``NOISE_FLOOR``: their residual's RMS, over the degrees of freedom the parameters
-        leave them (``leverage``: each row's diagonal of the hat matrix) — a fit with as many
-        parameters as an arm has (~100 for six joints) leaves 40 rows a residual far below
-        the instrument's noise, and a noise taken from it weakens the priors until the fit
-        follows the noise."""
+        """The noise of the point rows [m] and of the rotation rows [rad] (0 where none are
+        measured), above ``NOISE_FLOOR``: one figure, the residual's RMS with a turn counted
+        over ``ANGLE_LENGTH``, over the degrees of freedom the parameters leave the rows
+        (``leverage``: each row's diagonal of the hat matrix). A fit with as many parameters
+        as an arm has (~100 for six joints) leaves 40 rows a residual far below the
+        instrument's noise, and a noise taken from it weakens the priors until the fit
+        follows the noise; two figures apart let a fit settle on points alone, the turns'
+        noise taken as large as what it left of them (20 samples of the JAERI arm at 5 kg:
+        1 mrad)."""
         width = 6 if self._measured_rotations else 3
         rows = residual.reshape(-1, width) ** 2
+        rows[:, 3:] *= ANGLE_LENGTH ** 2
         free = np.ones_like(rows) if leverage is None else 1.0 - leverage.reshape(-1, width)
-        position = np.sqrt(rows[:, :3].sum() / max(free[:, :3].sum(), 1.0))
-        rotation = (np.sqrt(rows[:, 3:].sum() / max(free[:, 3:].sum(), 1.0))
-                    if self._measured_rotations else 1.0)
-        return np.maximum([position, rotation], NOISE_FLOOR)
+        noise = max(np.sqrt(rows.sum() / max(free.sum(), 1.0)), NOISE_FLOOR)
+        return np.array([noise, noise / ANGLE_LENGTH if self._measured_rotations else 0.0])
 
     def _row_noise(self, noise: np.ndarray, rows: int) -> np.ndarray:
         per = np.repeat(noise, 3) if self._measured_rotations else np.repeat(noise[:1], 3)
@@ -277,79 +287,108 @@ class ElastostaticModel:
                 pin.Motion(self.twists[k, :3], self.twists[k, 3:]))
         return model
 
-    def _drives(self, chain: Chain, payload: np.ndarray) -> dict[str, np.ndarray]:
+    def _drives(self, moments: np.ndarray) -> dict[str, np.ndarray]:
         """What drives each elastic term, (N, n, 3) each in the joint's frame: the moment
         (compliance, bending), its cross product with the link's direction (shift), its
         tanh over the dead band (play)."""
-        moments = self.arm.gravity_moments(chain, payload)
         return {'compliances': moments, 'bending': moments,
                 'shift': np.cross(moments, self.arm.link_directions),
                 'play': np.tanh(moments / self.priors.dead_band)}
 
     def _evaluate(self, joints: np.ndarray, payload: np.ndarray, jacobian: bool,
+                  moments: np.ndarray | None = None,
                   ) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
         """Points (N, 3), rotations (N, 3, 3) in the instrument's frame and, with
         ``jacobian``, their derivatives by the parameters (N, 6, size): point rows, then the
-        rotation's (a small turn on the left, in the instrument's frame)."""
+        rotation's (a small turn on the left, in the instrument's frame). ``moments``
+        (N, n, 3) replace the gravity moments of the payload.
+
+        The chain is bent joint by joint from the far end (:class:`_Bend`), each parameter's
+        derivative taken where it acts and carried by every turn nearer the root: the
+        turns split between a joint's pivot and its link's far end differ only to second
+        order, which a first-order Jacobian cannot see (20 mrad of sag at the JAERI arm's
+        wrist left 0.04 mm that Gauss-Newton never took up).
+        """
         chain = self.arm.chain_at(joints, self.offset, self._model())
-        target = chain.target
-        rows, n = len(target), self.arm.dof
+        rows, n = len(chain.target), self.arm.dof
+        bend = _Bend(chain, jacobian)
         axes = np.swapaxes(chain.frames, -1, -2)             # (N, n, axis, 3) in the root
-        at_pivot = target[:, None] - chain.pivots
-        levers = {'compliances': at_pivot, 'bending': target[:, None] - chain.next_pivots,
-                  'shift': None, 'play': at_pivot}
-        body, tip = target.copy(), chain.tip_rotation.copy()
-        blocks: list[np.ndarray] = []
+        placed = np.swapaxes(chain.placed, -1, -2)
+        along = {}
         if self.terms:
-            vectors = {name: np.zeros((rows, n, 3)) for name in TERMS}
-            drives = self._drives(chain, payload)
-            for name in self.terms:
-                lever = levers[name]
-                along = axes * drives[name][..., None]         # (N, n, axis, 3)
-                vectors[name] = np.einsum('rkax,ka->rkx', along, getattr(self, name))
-                point_d = along if lever is None else np.cross(along, lever[:, :, None])
-                turn_d = np.zeros_like(along) if lever is None else along
-                blocks.append(np.concatenate([point_d, turn_d], axis=-1))
-            for k in reversed(range(n)):     # the far end first: a joint's turn carries it
-                body, tip = _turn(body, tip, vectors['bending'][:, k], chain.next_pivots[:, k])
-                body = body + vectors['shift'][:, k]
-                body, tip = _turn(body, tip, vectors['compliances'][:, k]
-                                  + vectors['play'][:, k], chain.pivots[:, k])
-        point = body @ self.rotation.T + self.translation
-        rotation = self.rotation @ tip @ self.tool
+            if moments is None:
+                moments = self.arm.gravity_moments(chain, payload)
+            along = {name: axes * drive[..., None]            # (N, n, axis, 3) per term
+                     for name, drive in self._drives(moments).items()}
+        vectors = {name: np.einsum('rkax,ka->rkx', along[name], getattr(self, name))
+                   if name in self.terms else np.zeros((rows, n, 3)) for name in TERMS}
+        for k in reversed(range(n)):          # the far end first: a joint's turn carries it
+            if self.terms:
+                bend.turn(vectors['bending'][:, k], chain.next_pivots[:, k],
+                          {'bending': along['bending'][:, k]})
+                bend.shift(vectors['shift'][:, k], along['shift'][:, k])
+                bend.turn(vectors['compliances'][:, k] + vectors['play'][:, k],
+                          chain.pivots[:, k], {name: along[name][:, k] for name in
+                                               ('compliances', 'play') if name in along})
+            if self.geometry:
+                bend.twist(placed[:, k], chain.pivots[:, k])
+        point = bend.points @ self.rotation.T + self.translation
+        rotation = self.rotation @ bend.rotations @ self.tool
         if not jacobian:
             return point, rotation, None
         d = np.zeros((rows, 6, self.size))
         d[:, :3, :3] = -np.array([pin.skew(p - self.translation) for p in point])
         d[:, 3:, :3] = np.eye(3)
         d[:, :3, 3:6] = np.eye(3)
-        d[:, :3, 6:9] = self.rotation @ chain.tip_rotation
+        d[:, :, 6:9] = bend.offset.transpose(0, 2, 1)
         d[:, 3:, 9:12] = rotation
         k = REGISTRATION
-        if self.geometry:
-            placed = np.swapaxes(chain.placed, -1, -2)        # (N, n, axis, 3)
-            lever = target[:, None] - chain.pivots
-            geometry = np.concatenate([
-                np.concatenate([placed, np.zeros_like(placed)], axis=-1),
-                np.concatenate([np.cross(placed, lever[:, :, None]), placed], axis=-1)],
-                axis=2)                                       # (N, n, 6, 6)
-            d[:, :, k:k + 6 * n] = geometry.reshape(rows, 6 * n, 6).transpose(0, 2, 1)
-            k += 6 * n
+        blocks = ([bend.columns('twist')] if self.geometry else []) + [
+            bend.columns(name) for name in self.terms]
         for block in blocks:
-            d[:, :, k:k + 3 * n] = block.reshape(rows, 3 * n, 6).transpose(0, 2, 1)
-            k += 3 * n
-        d[:, :3, REGISTRATION:] = self.rotation @ d[:, :3, REGISTRATION:]
+            width = block.shape[1]
+            d[:, :, k:k + width] = block.transpose(0, 2, 1)
+            k += width
+        d[:, :3, 6:] = self.rotation @ d[:, :3, 6:]
+        d[:, 3:, 6:9] = self.rotation @ d[:, 3:, 6:9]
         d[:, 3:, REGISTRATION:] = self.rotation @ d[:, 3:, REGISTRATION:]
         return point, rotation, d
 
     def _linearise(self, joints: np.ndarray, payload: np.ndarray, points: np.ndarray,
-                   rotations: np.ndarray | None) -> tuple[np.ndarray, np.ndarray]:
-        point, rotation, d = self._evaluate(joints, payload, True)
+                   rotations: np.ndarray | None, jacobian: bool = True,
+                   ) -> tuple[np.ndarray, np.ndarray | None]:
+        point, rotation, d = self._evaluate(joints, payload, jacobian)
         if rotations is None:
-            return (point - points).ravel(), d[:, :3].reshape(-1, self.size)
+            return (point - points).ravel(), None if d is None else d[:, :3].reshape(
+                -1, self.size)
         turn = np.array([pin.log3(p @ m.T) for p, m in zip(rotation, rotations)])
         return (np.concatenate([point - points, turn], axis=1).ravel(),
-                d.reshape(-1, self.size))
+                None if d is None else d.reshape(-1, self.size))
+
+    def _objective(self, residual: np.ndarray, noise: np.ndarray, prior: np.ndarray,
+                   ) -> float:
+        """The MAP problem's cost: the weighted residual's and the priors' squares."""
+        weighted = residual / self._row_noise(noise, len(residual) // (
+            6 if self._measured_rotations else 3))
+        return float(weighted @ weighted + np.sum((prior * self._parameters()) ** 2))
+
+    def _descend(self, step: np.ndarray, residual: np.ndarray, noise: np.ndarray,
+                 prior: np.ndarray, rows: tuple) -> np.ndarray:
+        """Take ``step``, halved until the cost on the ``rows`` (joints, payload, points,
+        rotations) is no more than before it (``residual``): the bent chain is far from
+        linear where the priors are weak (a 3 mrad compliance prior on the JAERI arm sent
+        the plain Gauss-Newton steps to 1e14 m).
+        Returns the step taken (0 if no halving helped)."""
+        before = self._objective(residual, noise, prior)
+        saved = {name: np.copy(getattr(self, name)) for name in STATE[:-3]}
+        for _ in range(HALVINGS):
+            self._apply(step)
+            if self._objective(self._linearise(*rows, False)[0], noise, prior) <= before:
+                return step
+            for name, value in saved.items():
+                setattr(self, name, np.copy(value))
+            step = step / 2
+        return np.zeros_like(step)
 
     def predict(self, joints: np.ndarray, payload: np.ndarray | None = None) -> np.ndarray:
         """(N, 3) [m]: where the instrument would see the target."""
@@ -368,8 +407,46 @@ class ElastostaticModel:
         coordinate [m] and each small turn of the rotation [rad]."""
         joints = np.atleast_2d(np.asarray(joints, float))
         _, _, d = self._evaluate(joints, self._payload(joints, payload), True)
-        d[:, :, self._fixed()] = 0.0
+        d[:, :, self.fixed] = 0.0
         return np.sqrt(np.einsum('rip,pq,riq->ri', d, self.covariance, d))
+
+    def state(self) -> dict[str, np.ndarray]:
+        """The fitted parameters, their covariance, the noise and which parameters were
+        held: all :meth:`restored` needs besides the arm and the choices."""
+        return {name: np.asarray(getattr(self, name)) for name in STATE}
+
+    def restored(self, state: dict[str, np.ndarray]) -> ElastostaticModel:
+        """This model (of the arm and choices it was fitted with) with a :meth:`state`."""
+        for name in STATE:
+            value = np.asarray(state[name])
+            setattr(self, name, value.astype(bool) if name == 'fixed' else value.astype(float))
+        self.noise = float(self.noises[0])
+        self._measured_rotations = self.noises[1] > 0
+        self.rotation_noise = float(self.noises[1]) if self._measured_rotations else None
+        if self.covariance.shape != (self.size, self.size) or self.fixed.shape != (self.size,):
+            raise ValueError(f'a state of {len(self.fixed)} parameters for a model of '
+                             f'{self.size}')
+        return self
+
+    def load_effects(self, joints: np.ndarray, trained: float, asked: float) -> np.ndarray:
+        """(n, N, 6): per joint, how the target moves [m] and turns [rad] when that joint's
+        gravity moments alone go from the payload ``trained`` at to the one ``asked`` [kg],
+        the others held: what an error in that joint's moments (the masses' it was fitted
+        with) carries to another payload."""
+        joints = np.atleast_2d(np.asarray(joints, float))
+        chain = self.arm.chain_at(joints, self.offset, self._model())
+        before = self.arm.gravity_moments(chain, trained)
+        after = self.arm.gravity_moments(chain, asked)
+        zero = np.zeros(len(joints))
+        point, rotation, _ = self._evaluate(joints, zero, False, before)
+        effects = np.zeros((self.arm.dof, len(joints), 6))
+        for k in range(self.arm.dof if self.terms else 0):
+            moved = before.copy()
+            moved[:, k] = after[:, k]
+            p, r, _ = self._evaluate(joints, zero, False, moved)
+            effects[k, :, :3] = p - point
+            effects[k, :, 3:] = [pin.log3(a @ b.T) for a, b in zip(r, rotation)]
+        return effects
 
     @staticmethod
     def _payload(joints: np.ndarray, payload: np.ndarray | float | None) -> np.ndarray:
@@ -382,11 +459,59 @@ class ElastostaticModel:
         return self.rotation @ chain.jacobian
 
 
-def _turn(points: np.ndarray, rotations: np.ndarray, vectors: np.ndarray, pivots: np.ndarray,
-          ) -> tuple[np.ndarray, np.ndarray]:
-    """Points (N, 3) and rotations (N, 3, 3) turned by rotation vectors (N, 3) about pivots
-    (N, 3): exactly, as the JAERI arm's sag (15 mrad over 1.6 m) leaves 0.2 mm to the second
-    order."""
-    turns = np.array([pin.exp3(v) for v in vectors])
-    return (pivots + np.einsum('rxy,ry->rx', turns, points - pivots),
-            np.einsum('rxy,ryz->rxz', turns, rotations))
+class _Bend:
+    """The rigid chain's target bent by turns about pivots and shifts, from the far end to the
+    root, and with ``jacobian`` each parameter's derivative columns (N, 6) [point, turn]: taken
+    where the parameter acts and turned by every turn after it (nearer the root)."""
+
+    def __init__(self, chain: Chain, jacobian: bool) -> None:
+        self.points, self.rotations = chain.target.copy(), chain.tip_rotation.copy()
+        self.jacobian = jacobian
+        self._columns: dict[str, list[np.ndarray]] = {}
+        rows = len(self.points)
+        self.offset = np.zeros((rows, 3, 6))   # the target's offset: at the tip, first
+        self.offset[:, :, :3] = np.swapaxes(chain.tip_rotation, 1, 2)
+        self._carried = [self.offset]
+
+    def turn(self, vectors: np.ndarray, pivots: np.ndarray,
+             parts: dict[str, np.ndarray]) -> None:
+        """Turn by rotation vectors (N, 3) about pivots (N, 3); ``parts``: per term its
+        derivative directions (N, axis, 3) in the root frame, turned by the left Jacobian
+        of the turn."""
+        turns = np.array([pin.exp3(v) for v in vectors])
+        self.points = pivots + np.einsum('rxy,ry->rx', turns, self.points - pivots)
+        self.rotations = np.einsum('rxy,ryz->rxz', turns, self.rotations)
+        if not self.jacobian:
+            return
+        for carried in self._carried:
+            carried[..., :3] = np.einsum('rxy,ray->rax', turns, carried[..., :3])
+            carried[..., 3:] = np.einsum('rxy,ray->rax', turns, carried[..., 3:])
+        left = np.array([pin.Jexp3(v).T for v in vectors])          # (N, 3, 3)
+        lever = self.points - pivots
+        for name, directions in parts.items():
+            turned = np.einsum('rxy,ray->rax', left, directions)
+            self._add(name, np.concatenate([np.cross(turned, lever[:, None]), turned], -1))
+
+    def shift(self, vectors: np.ndarray, directions: np.ndarray | None) -> None:
+        """Shift by vectors (N, 3); ``directions`` (N, axis, 3): the shift term's."""
+        self.points = self.points + vectors
+        if self.jacobian and directions is not None:
+            self._add('shift', np.concatenate([directions, np.zeros_like(directions)], -1))
+
+    def twist(self, placed: np.ndarray, pivots: np.ndarray) -> None:
+        """A joint origin's twist (its frame's axes (N, axis, 3)) moves what it carries as
+        bent so far: 3 translations, then 3 turns about the pivot."""
+        if self.jacobian:
+            lever = self.points - pivots
+            self._add('twist', np.concatenate([
+                np.concatenate([placed, np.zeros_like(placed)], -1),
+                np.concatenate([np.cross(placed, lever[:, None]), placed], -1)], axis=1))
+
+    def _add(self, name: str, columns: np.ndarray) -> None:
+        self._columns.setdefault(name, []).append(columns)
+        self._carried.append(columns)
+
+    def columns(self, name: str) -> np.ndarray:
+        """(N, width, 6): the term's columns in the chain's order (they were taken from the
+        far end)."""
+        return np.concatenate(self._columns[name][::-1], axis=1)

@@ -45,6 +45,7 @@ class Chain:
     next_pivots: np.ndarray       # (N, n, 3) [m]
     jacobian: np.ndarray          # (N, 3, n) d target / d q [m/rad or m/m]
     carried: np.ndarray           # (N, n, 3) [kg·m] Σ mass × centre over each subtree
+    centres: np.ndarray           # (N, bodies, 3) [m] each body's centre of mass
 
 
 class UrdfArm:
@@ -76,6 +77,7 @@ class UrdfArm:
         self.prismatic = np.array([model.joints[j].shortname().startswith('JointModelP')
                                    for j in self.chain])
         masses = np.array([model.inertias[j].mass for j in range(model.njoints)])
+        self._masses = masses
         self._subtree_masses = np.zeros((self.dof, model.njoints))   # (n, joints) [kg]
         for k, j in enumerate(self.chain):
             subtree = list(model.subtrees[j])
@@ -179,7 +181,7 @@ class UrdfArm:
         next_pivots = np.concatenate([pivots[:, 1:], target[:, None]], axis=1)
         carried = np.einsum('kj,rjx->rkx', self._subtree_masses, centres)
         return Chain(target, tip_rotation, pivots, placed, frames, next_pivots, jacobian,
-                     carried)
+                     carried, centres)
 
     def gravity_moments(self, chain: Chain, payload: np.ndarray | float = 0.0) -> np.ndarray:
         """(N, n, 3) [N·m]: the moment gravity puts on what each chain joint carries (its
@@ -190,3 +192,22 @@ class UrdfArm:
         lever = (chain.carried - self._carried_mass[None, :, None] * chain.pivots
                  + payload[:, None, None] * (chain.target[:, None] - chain.pivots))
         return np.einsum('rkxy,rkx->rky', chain.frames, np.cross(lever, GRAVITY))
+
+    def moment_spread(self, chain: Chain, common: float, part: float, tool_centre: float,
+                      ) -> np.ndarray:
+        """(N, n, 3) [N·m]: the standard deviation of :meth:`gravity_moments` (without the
+        payload: it is declared) that the URDF's inertials leave, every body's mass off by
+        ``common`` (relative, all together) and by ``part`` (each on its own), and the last
+        body's centre of mass by ``tool_centre`` [m] along its link (a tool's, the least
+        known). Linear in the masses: each body's own moment is the derivative."""
+        carries = self._subtree_masses > 0                            # (n, bodies)
+        levers = chain.centres[:, None] - chain.pivots[:, :, None]       # (N, n, bodies, 3)
+        own = np.cross(self._masses[None, None, :, None] * carries[None, :, :, None] * levers,
+                       GRAVITY)
+        own = np.einsum('rkxy,rkbx->rkby', chain.frames, own)
+        last = self.chain[-1]
+        along = np.einsum('rxy,y->rx', chain.frames[:, -1], self.link_directions[-1])
+        tool = np.einsum('rkxy,rx->rky', chain.frames,
+                         np.cross(self._masses[last] * along, GRAVITY)) * carries[:, last, None]
+        return np.sqrt(part ** 2 * (own ** 2).sum(axis=2) + (common * own.sum(axis=2)) ** 2
+                       + (tool_centre * tool) ** 2)

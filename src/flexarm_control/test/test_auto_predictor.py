@@ -11,8 +11,10 @@ from flexarm_control.learning import selection
 from flexarm_control.learning.models import load_model, make_model
 from flexarm_control.learning.predictors import greybox, kinematic
 from flexarm_control.learning.selection import AutoPredictor
+from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 from flexarm_description.chain import TIP_FRAME
+from flexarm_description.urdf_model import robot_description
 from flexarm_learning.elastostatic import TERMS, ElastostaticModel
 from flexarm_learning.urdf_arm import UrdfArm
 
@@ -40,7 +42,9 @@ def miscalibrated(q: np.ndarray) -> np.ndarray:
 def sagging(q: np.ndarray, payload: float = 0.0) -> np.ndarray:
     """... and with compliant joints 3 and 4 and a bending fourth arm (the learning core's
     structure on the description's URDF, the moments' units N·m)."""
-    arm = UrdfArm.from_xml(greybox.description()[0], TIP_FRAME)
+    description = greybox.description()
+    arm = UrdfArm.from_xml(robot_description(ArmGeometry.from_dict(description),
+                                             description['inertia'], hardware=''), TIP_FRAME)
     truth = ElastostaticModel(arm, registration=False, terms=TERMS)
     truth.compliances[2:, 1] = [4e-5, 2.4e-4]
     truth.bending[3, 1], truth.shift[3, 2] = 8e-4, 3.4e-4

@@ -66,7 +66,7 @@ import pinocchio as pin
 from scipy.optimize import lsq_linear
 
 from flexarm_learning.registration import kabsch
-from flexarm_learning.urdf_arm import Chain, UrdfArm
+from flexarm_learning.urdf_arm import Chain, UrdfArm, cross
 
 REGISTRATION = 12       # rotation, translation, target offset, target rotation
 ITERATIONS = 8          # Gauss-Newton steps at most
@@ -120,6 +120,7 @@ class ElastostaticModel:
         self.offset, self.tool = np.zeros(3), np.eye(3)
         self.twists = np.zeros((n, 6))
         self._idle = np.zeros(0, bool)
+        self._twisted: tuple[bytes, pin.Model, pin.Data] | None = None
         for name in TERMS:
             setattr(self, name, np.zeros((n, 3)))
 
@@ -211,7 +212,7 @@ class ElastostaticModel:
         chain = self.arm.chain_at(rows, self.offset)
         moments = self.arm.gravity_moments(chain, payload)
         rms = np.sqrt(np.mean(moments ** 2, axis=0)).ravel()
-        lateral = np.cross(moments, self.arm.link_directions)
+        lateral = cross(moments, self.arm.link_directions)
         lateral_rms = np.sqrt(np.mean(lateral ** 2, axis=0)).ravel()
         p, floor = self.priors, IDLE * rms.max()
         weights = {'compliances': (rms / p.compliance, rms <= floor),
@@ -277,22 +278,27 @@ class ElastostaticModel:
             setattr(self, name, getattr(self, name) + step[k:k + 3 * n].reshape(n, 3))
             k += 3 * n
 
-    def _model(self) -> pin.Model:
-        """The URDF's model with each chain joint's origin moved by its twist."""
+    def _model(self) -> tuple[pin.Model, pin.Data] | None:
+        """The URDF's model with each chain joint's origin moved by its twist, and its data
+        (None: the URDF's own); kept while the twists stay (a copy and its data cost a
+        compensation step a fifth of its budget)."""
         if not self.geometry or not np.any(self.twists):
-            return self.arm.model
-        model = self.arm.model.copy()
-        for k, j in enumerate(self.arm.chain):
-            model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(
-                pin.Motion(self.twists[k, :3], self.twists[k, 3:]))
-        return model
+            return None
+        key = self.twists.tobytes()
+        if self._twisted is None or self._twisted[0] != key:
+            model = self.arm.model.copy()
+            for k, j in enumerate(self.arm.chain):
+                model.jointPlacements[j] = model.jointPlacements[j] * pin.exp6(
+                    pin.Motion(self.twists[k, :3], self.twists[k, 3:]))
+            self._twisted = (key, model, model.createData())
+        return self._twisted[1:]
 
     def _drives(self, moments: np.ndarray) -> dict[str, np.ndarray]:
         """What drives each elastic term, (N, n, 3) each in the joint's frame: the moment
         (compliance, bending), its cross product with the link's direction (shift), its
         tanh over the dead band (play)."""
         return {'compliances': moments, 'bending': moments,
-                'shift': np.cross(moments, self.arm.link_directions),
+                'shift': cross(moments, self.arm.link_directions),
                 'play': np.tanh(moments / self.priors.dead_band)}
 
     def _evaluate(self, joints: np.ndarray, payload: np.ndarray, jacobian: bool,
@@ -309,29 +315,33 @@ class ElastostaticModel:
         order, which a first-order Jacobian cannot see (20 mrad of sag at the JAERI arm's
         wrist left 0.04 mm that Gauss-Newton never took up).
         """
-        chain = self.arm.chain_at(joints, self.offset, self._model())
+        chain = self.arm.chain_at(joints, self.offset, self._model(), jacobian=False)
         rows, n = len(chain.target), self.arm.dof
         bend = _Bend(chain, jacobian)
         axes = np.swapaxes(chain.frames, -1, -2)             # (N, n, axis, 3) in the root
-        placed = np.swapaxes(chain.placed, -1, -2)
-        along = {}
+        along: dict[str, np.ndarray] = {}          # (N, n, axis, 3) per term, for derivatives
+        vectors = {name: np.zeros((rows, n, 3)) for name in TERMS}
         if self.terms:
             if moments is None:
                 moments = self.arm.gravity_moments(chain, payload)
-            along = {name: axes * drive[..., None]            # (N, n, axis, 3) per term
-                     for name, drive in self._drives(moments).items()}
-        vectors = {name: np.einsum('rkax,ka->rkx', along[name], getattr(self, name))
-                   if name in self.terms else np.zeros((rows, n, 3)) for name in TERMS}
+            drives = self._drives(moments)
+            turned = np.einsum('rkxa,trka->trkx', chain.frames, np.array(
+                [drives[name] * getattr(self, name) for name in self.terms]))
+            vectors.update(zip(self.terms, turned))
+            if jacobian:
+                along = {name: axes * drives[name][..., None] for name in self.terms}
+        ends, roots = vectors['bending'], vectors['compliances'] + vectors['play']
+        turns = np.array([pin.exp3(v) for v in np.concatenate([ends, roots], 1).reshape(
+            -1, 3)]).reshape(rows, 2, n, 3, 3) if self.terms else None
         for k in reversed(range(n)):          # the far end first: a joint's turn carries it
             if self.terms:
-                bend.turn(vectors['bending'][:, k], chain.next_pivots[:, k],
-                          {'bending': along['bending'][:, k]})
-                bend.shift(vectors['shift'][:, k], along['shift'][:, k])
-                bend.turn(vectors['compliances'][:, k] + vectors['play'][:, k],
-                          chain.pivots[:, k], {name: along[name][:, k] for name in
-                                               ('compliances', 'play') if name in along})
-            if self.geometry:
-                bend.twist(placed[:, k], chain.pivots[:, k])
+                bend.turn(turns[:, 0, k], ends[:, k], chain.next_pivots[:, k],
+                          _at(along, k, 'bending'))
+                bend.shift(vectors['shift'][:, k], _at(along, k, 'shift').get('shift'))
+                bend.turn(turns[:, 1, k], roots[:, k], chain.pivots[:, k],
+                          _at(along, k, 'compliances', 'play'))
+            if self.geometry and jacobian:
+                bend.twist(np.swapaxes(chain.placed[:, k], -1, -2), chain.pivots[:, k])
         point = bend.points @ self.rotation.T + self.translation
         rotation = self.rotation @ bend.rotations @ self.tool
         if not jacobian:
@@ -459,6 +469,11 @@ class ElastostaticModel:
         return self.rotation @ chain.jacobian
 
 
+def _at(along: dict[str, np.ndarray], k: int, *names: str) -> dict[str, np.ndarray]:
+    """Joint k's derivative directions of the terms ``names`` that are fitted."""
+    return {name: along[name][:, k] for name in names if name in along}
+
+
 class _Bend:
     """The rigid chain's target bent by turns about pivots and shifts, from the far end to the
     root, and with ``jacobian`` each parameter's derivative columns (N, 6) [point, turn]: taken
@@ -468,19 +483,20 @@ class _Bend:
         self.points, self.rotations = chain.target.copy(), chain.tip_rotation.copy()
         self.jacobian = jacobian
         self._columns: dict[str, list[np.ndarray]] = {}
-        rows = len(self.points)
-        self.offset = np.zeros((rows, 3, 6))   # the target's offset: at the tip, first
-        self.offset[:, :, :3] = np.swapaxes(chain.tip_rotation, 1, 2)
+        self.offset = np.zeros((len(self.points), 3, 6))   # the target's offset: at the tip
+        if jacobian:
+            self.offset[:, :, :3] = np.swapaxes(chain.tip_rotation, 1, 2)
         self._carried = [self.offset]
 
-    def turn(self, vectors: np.ndarray, pivots: np.ndarray,
+    def turn(self, turns: np.ndarray, vectors: np.ndarray, pivots: np.ndarray,
              parts: dict[str, np.ndarray]) -> None:
-        """Turn by rotation vectors (N, 3) about pivots (N, 3); ``parts``: per term its
-        derivative directions (N, axis, 3) in the root frame, turned by the left Jacobian
-        of the turn."""
-        turns = np.array([pin.exp3(v) for v in vectors])
-        self.points = pivots + np.einsum('rxy,ry->rx', turns, self.points - pivots)
-        self.rotations = np.einsum('rxy,ryz->rxz', turns, self.rotations)
+        """Turn by rotations (N, 3, 3) of rotation vectors (N, 3) about pivots (N, 3);
+        ``parts``: per term its derivative directions (N, axis, 3) in the root frame, turned
+        by the left Jacobian of the turn. Nothing to do for no turn and no derivative."""
+        if not parts and not vectors.any():
+            return
+        self.points = pivots + (turns @ (self.points - pivots)[..., None])[..., 0]
+        self.rotations = turns @ self.rotations
         if not self.jacobian:
             return
         for carried in self._carried:
@@ -490,7 +506,7 @@ class _Bend:
         lever = self.points - pivots
         for name, directions in parts.items():
             turned = np.einsum('rxy,ray->rax', left, directions)
-            self._add(name, np.concatenate([np.cross(turned, lever[:, None]), turned], -1))
+            self._add(name, np.concatenate([cross(turned, lever[:, None]), turned], -1))
 
     def shift(self, vectors: np.ndarray, directions: np.ndarray | None) -> None:
         """Shift by vectors (N, 3); ``directions`` (N, axis, 3): the shift term's."""
@@ -500,12 +516,11 @@ class _Bend:
 
     def twist(self, placed: np.ndarray, pivots: np.ndarray) -> None:
         """A joint origin's twist (its frame's axes (N, axis, 3)) moves what it carries as
-        bent so far: 3 translations, then 3 turns about the pivot."""
-        if self.jacobian:
-            lever = self.points - pivots
-            self._add('twist', np.concatenate([
-                np.concatenate([placed, np.zeros_like(placed)], -1),
-                np.concatenate([np.cross(placed, lever[:, None]), placed], -1)], axis=1))
+        bent so far: 3 translations, then 3 turns about the pivot (derivatives only)."""
+        lever = self.points - pivots
+        self._add('twist', np.concatenate([
+            np.concatenate([placed, np.zeros_like(placed)], -1),
+            np.concatenate([cross(placed, lever[:, None]), placed], -1)], axis=1))
 
     def _add(self, name: str, columns: np.ndarray) -> None:
         self._columns.setdefault(name, []).append(columns)

@@ -23,6 +23,14 @@ import pinocchio as pin
 GRAVITY = np.array([0.0, 0.0, -9.80665])   # [m/s²] standard, in the root frame (REP 103: z up)
 MASSLESS = 1e-6                         # [kg] a chain lighter than this has no inertials
 SAME_POINT = 1e-6                       # [m] pivots closer than this coincide
+LEVI_CIVITA = np.zeros((3, 3, 3))
+LEVI_CIVITA[[0, 1, 2], [1, 2, 0], [2, 0, 1]], LEVI_CIVITA[[0, 1, 2], [2, 0, 1], [1, 2, 0]] = 1, -1
+
+
+def cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b over the last axis, broadcast: one einsum (numpy's cross moves axes about and
+    cost a compensation step a tenth of its budget on a handful of rows)."""
+    return np.einsum('ijk,...j,...k->...i', LEVI_CIVITA, a, b)
 
 
 class DescriptionError(ValueError):
@@ -76,6 +84,12 @@ class UrdfArm:
         self.upper = np.where(self._continuous, np.inf, model.upperPositionLimit[self._q_index])
         self.prismatic = np.array([model.joints[j].shortname().startswith('JointModelP')
                                    for j in self.chain])
+        self._neutral = pin.neutral(model)
+        self._plain, self._turning = np.flatnonzero(~self._continuous), np.flatnonzero(
+            self._continuous)
+        self._plain_q, self._turning_q = self._q_index[self._plain], self._q_index[self._turning]
+        self._parents = [model.parents[j] for j in self.chain]
+        self._levers = np.array([model.inertias[j].lever for j in range(model.njoints)])
         masses = np.array([model.inertias[j].mass for j in range(model.njoints)])
         self._masses = masses
         self._subtree_masses = np.zeros((self.dof, model.njoints))   # (n, joints) [kg]
@@ -140,48 +154,56 @@ class UrdfArm:
         return self.mass > MASSLESS
 
     def configuration(self, joints: np.ndarray) -> np.ndarray:
-        """Pinocchio's configuration vector of one row of chain joint positions."""
-        q = pin.neutral(self.model)
-        for k, value in enumerate(joints):
-            i = self._q_index[k]
-            if self._continuous[k]:
-                q[i], q[i + 1] = np.cos(value), np.sin(value)
-            else:
-                q[i] = value
-        return q
+        """Pinocchio's configuration vectors (N, nq) of rows (N, n) of chain joint positions
+        (one row (n,) gives one vector); a continuous joint is its angle's cosine and sine."""
+        joints = np.asarray(joints, float)
+        rows = np.atleast_2d(joints)
+        q = np.empty((len(rows), self.model.nq))
+        q[:] = self._neutral
+        q[:, self._plain_q] = rows[:, self._plain]
+        if self._turning.size:
+            q[:, self._turning_q] = np.cos(rows[:, self._turning])
+            q[:, self._turning_q + 1] = np.sin(rows[:, self._turning])
+        return q if joints.ndim > 1 else q[0]
 
     def chain_at(self, joints: np.ndarray, offset: np.ndarray,
-              model: pin.Model | None = None) -> Chain:
+                 model: tuple[pin.Model, pin.Data] | None = None, jacobian: bool = True,
+                 ) -> Chain:
         """The chain at rows (N, n) (or one row (n,)) of joint positions, the target
         ``offset`` [m] from the tip link in its frame; ``model`` a copy of this one with other
-        joint origins."""
+        joint origins, and its data. Without ``jacobian`` the Jacobian is left at 0 (a
+        prediction needs none: Pinocchio's forward kinematics alone, a third of the time).
+        Pinocchio places the joints row by row; the rest is numpy over all rows."""
         joints = np.atleast_2d(np.asarray(joints, float))
-        model = model or self.model
-        data = self._data if model is self.model else model.createData()
-        rows, n = len(joints), self.dof
-        target, tip_rotation = np.empty((rows, 3)), np.empty((rows, 3, 3))
-        pivots, placed = np.empty((rows, n, 3)), np.empty((rows, n, 3, 3))
-        frames, jacobian = np.empty((rows, n, 3, 3)), np.empty((rows, 3, n))
-        centres = np.zeros((rows, model.njoints, 3))
-        parents = [model.parents[j] for j in self.chain]
-        for r, q in enumerate(joints):
-            pin.computeJointJacobians(model, data, self.configuration(q))
-            pin.updateFramePlacements(model, data)
-            tip = data.oMf[self._frame]
-            arm = tip.rotation @ offset
-            target[r], tip_rotation[r] = tip.translation + arm, tip.rotation
-            full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)
-            jacobian[r] = (full[:3] - pin.skew(arm) @ full[3:])[:, self._v_index]
-            for k, (j, parent) in enumerate(zip(self.chain, parents)):
-                pivot = data.oMi[parent] * model.jointPlacements[j]
-                pivots[r, k], placed[r, k] = pivot.translation, pivot.rotation
-                frames[r, k] = data.oMi[j].rotation
-            for j in range(1, model.njoints):
-                centres[r, j] = data.oMi[j].act(model.inertias[j].lever)
+        model, data = model or (self.model, self._data)
+        rows, n, bodies = len(joints), self.dof, model.njoints
+        placements = np.empty((rows, bodies + 1, 4, 4))       # the bodies', then the tip's
+        jacobians = np.zeros((rows, 3, n))
+        for r, q in enumerate(self.configuration(joints)):
+            if jacobian:
+                pin.computeJointJacobians(model, data, q)
+                pin.updateFramePlacements(model, data)
+            else:
+                pin.framesForwardKinematics(model, data, q)
+            placements[r] = [m.homogeneous for m in data.oMi] + [
+                data.oMf[self._frame].homogeneous]
+            if jacobian:
+                full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)
+                arm = placements[r, -1, :3, :3] @ offset
+                jacobians[r] = (full[:3] - pin.skew(arm) @ full[3:])[:, self._v_index]
+        rotations, origins = placements[:, :-1, :3, :3], placements[:, :-1, :3, 3]
+        tip_rotation = placements[:, -1, :3, :3]
+        target = placements[:, -1, :3, 3] + tip_rotation @ offset
+        placement = np.array([model.jointPlacements[j].homogeneous for j in self.chain])
+        parent_rotations = rotations[:, self._parents]                # (N, n, 3, 3)
+        pivots = (np.einsum('rkxy,ky->rkx', parent_rotations, placement[:, :3, 3])
+                  + origins[:, self._parents])
+        placed = parent_rotations @ placement[:, :3, :3]
+        centres = np.einsum('rjxy,jy->rjx', rotations, self._levers) + origins
         next_pivots = np.concatenate([pivots[:, 1:], target[:, None]], axis=1)
         carried = np.einsum('kj,rjx->rkx', self._subtree_masses, centres)
-        return Chain(target, tip_rotation, pivots, placed, frames, next_pivots, jacobian,
-                     carried, centres)
+        return Chain(target, tip_rotation, pivots, placed, rotations[:, self.chain],
+                     next_pivots, jacobians, carried, centres)
 
     def gravity_moments(self, chain: Chain, payload: np.ndarray | float = 0.0) -> np.ndarray:
         """(N, n, 3) [N·m]: the moment gravity puts on what each chain joint carries (its
@@ -191,7 +213,7 @@ class UrdfArm:
         payload = np.broadcast_to(np.asarray(payload, float), (len(chain.target),))
         lever = (chain.carried - self._carried_mass[None, :, None] * chain.pivots
                  + payload[:, None, None] * (chain.target[:, None] - chain.pivots))
-        return np.einsum('rkxy,rkx->rky', chain.frames, np.cross(lever, GRAVITY))
+        return np.einsum('rkxy,rkx->rky', chain.frames, cross(lever, GRAVITY))
 
     def moment_spread(self, chain: Chain, common: float, part: float, tool_centre: float,
                       ) -> np.ndarray:
@@ -202,12 +224,12 @@ class UrdfArm:
         known). Linear in the masses: each body's own moment is the derivative."""
         carries = self._subtree_masses > 0                            # (n, bodies)
         levers = chain.centres[:, None] - chain.pivots[:, :, None]       # (N, n, bodies, 3)
-        own = np.cross(self._masses[None, None, :, None] * carries[None, :, :, None] * levers,
+        own = cross(self._masses[None, None, :, None] * carries[None, :, :, None] * levers,
                        GRAVITY)
         own = np.einsum('rkxy,rkbx->rkby', chain.frames, own)
         last = self.chain[-1]
         along = np.einsum('rxy,y->rx', chain.frames[:, -1], self.link_directions[-1])
         tool = np.einsum('rkxy,rx->rky', chain.frames,
-                         np.cross(self._masses[last] * along, GRAVITY)) * carries[:, last, None]
+                         cross(self._masses[last] * along, GRAVITY)) * carries[:, last, None]
         return np.sqrt(part ** 2 * (own ** 2).sum(axis=2) + (common * own.sum(axis=2)) ** 2
                        + (tool_centre * tool) ** 2)

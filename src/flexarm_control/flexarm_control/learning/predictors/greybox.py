@@ -42,8 +42,10 @@ what that joint's moments' change does
 (:meth:`flexarm_learning.elastostatic.ElastostaticModel.load_effects`). Samples at two
 payloads tell the two apart: no prior term then.
 
-The URDF and the identified parameters are kept in the model file (metadata
-``greybox.urdf``): a saved model is self-contained. A grey-box file of the planar structure
+The URDF, the description it was written from (``greybox.arm``: the rigid model the
+deflection is taken against, flexarm_core's ``forward``, which the URDF's kinematics meet to
+1e-12 m) and the identified parameters are kept in the model file: a saved model is
+self-contained. A grey-box file of the planar structure
 flexarm had before has no URDF and is refused: train a new one. flexarm_learning (Pinocchio,
 0.2 s of CPU to import) is imported at the first fit or load, not with the node.
 """
@@ -57,7 +59,7 @@ import numpy as np
 from flexarm_control.learning.predictors.base import PAYLOAD_TOLERANCE, Predictor, restore
 from flexarm_control.learning.predictors.gp import KERNELS, GpPredictor
 from flexarm_control.learning.predictors.kinematic import read_config
-from flexarm_core.kinematics import ArmGeometry, wrap_angle
+from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_description.chain import TIP_FRAME
 from flexarm_description.urdf_model import robot_description
 
@@ -68,19 +70,19 @@ RESIDUALS = ('none', 'gp')
 LEVER = 1.0     # [m] a link's shift prior is the turn prior's over this lever
 
 
-def description() -> tuple[str, dict[str, float]]:
-    """The robot description's URDF (config/arm.yaml ``arm``: nominal geometry and masses) and
-    how far its inertia may be off (``arm.inertia_uncertainty``)."""
-    arm = read_config('arm.yaml')['arm']
-    urdf = robot_description(ArmGeometry.from_dict(arm), arm['inertia'], hardware='')
-    return urdf, {k: float(v) for k, v in arm['inertia_uncertainty'].items()}
+def description() -> dict[str, Any]:
+    """The robot description: config/arm.yaml ``arm`` (nominal geometry and masses, and how
+    far its inertia may be off: ``inertia_uncertainty``)."""
+    return read_config('arm.yaml')['arm']
 
 
 def planar(points: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     """Tip poses (N, 3) [m, m, rad] in the arm's plane of points (N, 3) and rotations
     (N, 3, 3) in the URDF's frame (the plane its x-z, φ a turn about −y)."""
-    return np.column_stack([points[:, 0], points[:, 2],
-                            -np.arctan2(rotations[:, 0, 2], rotations[:, 0, 0])])
+    pose = np.empty((len(points), 3))
+    pose[:, 0], pose[:, 1] = points[:, 0], points[:, 2]
+    pose[:, 2] = -np.arctan2(rotations[:, 0, 2], rotations[:, 0, 0])
+    return pose
 
 
 class GreyboxPredictor(Predictor):
@@ -122,27 +124,25 @@ class GreyboxPredictor(Predictor):
                                         dead_band=self.settings['dead_band']),
                                  registration=False, terms=TERMS)
 
-    def _rigid(self, joints: np.ndarray) -> np.ndarray:
-        """The URDF's rigid tip poses (N, 3) in the plane."""
-        chain = self._model.arm.chain_at(joints, np.zeros(3))
-        return planar(chain.target, chain.tip_rotation)
-
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
         import pinocchio as pin
 
-        urdf, uncertainty = description()
+        arm = description()
+        self._geometry = ArmGeometry.from_dict(arm)
+        urdf = robot_description(self._geometry, arm['inertia'], hardware='')
         self._model = self._core(urdf)
         if payload is None:
             payload = np.full(len(joints), self.settings['payload'])
         self._trained_payload = float(payload.mean())
-        pose = self._rigid(joints) + deflections
+        pose = forward(self._geometry, joints) + deflections
         points = np.column_stack([pose[:, 0], np.zeros(len(pose)), pose[:, 1]])
         rotations = np.array([pin.exp3(np.array([0.0, -phi, 0.0])) for phi in pose[:, 2]])
         self._model.fit(joints, points, payload, rotations=rotations)
         self._relative_spread = None
         if np.ptp(payload) <= PAYLOAD_TOLERANCE:     # one payload: the masses' prior decides
-            self._relative_spread = self._moment_spread(joints, payload, uncertainty)
+            self._relative_spread = self._moment_spread(joints, payload,
+                                                        arm['inertia_uncertainty'])
         self._residual: GpPredictor | None = None
         if self.settings['residual'] == 'gp':
             left = deflections - self._structure(joints, payload)
@@ -152,7 +152,8 @@ class GreyboxPredictor(Predictor):
                 'payload_input': self.settings['payload_input']}).fit(joints, left, payload)
         model = self._model
         self.metadata['greybox'] = {
-            'urdf': urdf, 'trained_payload': self._trained_payload,
+            'urdf': urdf, 'arm': {k: v for k, v in arm.items() if k != 'inertia_uncertainty'},
+            'trained_payload': self._trained_payload,
             'noise': {'position': model.noise, 'angle': model.rotation_noise},
             'compliance': {name: getattr(model, name).tolist() for name in model.terms},
             'relative_moment_spread': (None if self._relative_spread is None
@@ -160,21 +161,22 @@ class GreyboxPredictor(Predictor):
             'residual': None if self._residual is None else self._residual.metadata}
 
     def _moment_spread(self, joints: np.ndarray, payload: np.ndarray,
-                       uncertainty: Mapping[str, float]) -> np.ndarray:
+                       uncertainty: Mapping[str, Any]) -> np.ndarray:
         """(n,): each joint's moment spread under the inertia prior over its moment, RMS over
         the samples (the moment's axes pooled)."""
         arm = self._model.arm
         chain = arm.chain_at(joints, self._model.offset)
-        spread = arm.moment_spread(chain, uncertainty['common'], uncertainty['part'],
-                                   uncertainty['end_effector_com'])
+        spread = arm.moment_spread(chain, float(uncertainty['common']),
+                                   float(uncertainty['part']),
+                                   float(uncertainty['end_effector_com']))
         moments = arm.gravity_moments(chain, payload)
         return np.sqrt(np.sum(spread ** 2, axis=(0, 2))
                        / np.maximum(np.sum(moments ** 2, axis=(0, 2)), 1e-12))
 
     def _structure(self, joints: np.ndarray, payload: np.ndarray | float) -> np.ndarray:
         """The core's deflection (N, 3) at joints (N, 4) and the payload [kg]."""
-        pose = planar(*self._model.predict_pose(joints, payload))
-        d = pose - self._rigid(joints)
+        d = planar(*self._model.predict_pose(joints, payload))
+        d -= forward(self._geometry, joints)
         d[:, 2] = wrap_angle(d[:, 2])
         return d
 
@@ -235,6 +237,7 @@ class GreyboxPredictor(Predictor):
             raise ValueError('a grey-box of the planar structure flexarm had before: '
                              'train a new one')
         self._model = self._core(meta['urdf']).restored(dict(state))
+        self._geometry = ArmGeometry.from_dict(meta['arm'])
         self._trained_payload = float(meta['trained_payload'])
         spread = meta.get('relative_moment_spread')
         self._relative_spread = None if spread is None else np.asarray(spread, dtype=float)

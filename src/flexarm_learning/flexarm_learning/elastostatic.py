@@ -317,10 +317,8 @@ class ElastostaticModel:
         """
         chain = self.arm.chain_at(joints, self.offset, self._model(), jacobian=False)
         rows, n = len(chain.target), self.arm.dof
-        bend = _Bend(chain, jacobian)
-        axes = np.swapaxes(chain.frames, -1, -2)             # (N, n, axis, 3) in the root
         along: dict[str, np.ndarray] = {}          # (N, n, axis, 3) per term, for derivatives
-        vectors = {name: np.zeros((rows, n, 3)) for name in TERMS}
+        vectors = dict.fromkeys(TERMS, np.zeros((rows, n, 3)))
         if self.terms:
             if moments is None:
                 moments = self.arm.gravity_moments(chain, payload)
@@ -329,10 +327,17 @@ class ElastostaticModel:
                 [drives[name] * getattr(self, name) for name in self.terms]))
             vectors.update(zip(self.terms, turned))
             if jacobian:
+                axes = np.swapaxes(chain.frames, -1, -2)     # (N, n, axis, 3) in the root
                 along = {name: axes * drives[name][..., None] for name in self.terms}
         ends, roots = vectors['bending'], vectors['compliances'] + vectors['play']
         turns = np.array([pin.exp3(v) for v in np.concatenate([ends, roots], 1).reshape(
             -1, 3)]).reshape(rows, 2, n, 3, 3) if self.terms else None
+        if not jacobian:
+            points, tips = (_bent(chain, turns, vectors['shift']) if self.terms
+                            else (chain.target, chain.tip_rotation))
+            return (points @ self.rotation.T + self.translation,
+                    self.rotation @ tips @ self.tool, None)
+        bend = _Bend(chain, jacobian)
         for k in reversed(range(n)):          # the far end first: a joint's turn carries it
             if self.terms:
                 bend.turn(turns[:, 0, k], ends[:, k], chain.next_pivots[:, k],
@@ -344,8 +349,6 @@ class ElastostaticModel:
                 bend.twist(np.swapaxes(chain.placed[:, k], -1, -2), chain.pivots[:, k])
         point = bend.points @ self.rotation.T + self.translation
         rotation = self.rotation @ bend.rotations @ self.tool
-        if not jacobian:
-            return point, rotation, None
         d = np.zeros((rows, 6, self.size))
         d[:, :3, :3] = -np.array([pin.skew(p - self.translation) for p in point])
         d[:, 3:, :3] = np.eye(3)
@@ -467,6 +470,26 @@ class ElastostaticModel:
         """(N, 3, n): the point's derivative by each joint, in the instrument's frame."""
         chain = self.arm.chain_at(joints, self.offset, self._model())
         return self.rotation @ chain.jacobian
+
+
+def _bent(chain: Chain, turns: np.ndarray, shifts: np.ndarray,
+          ) -> tuple[np.ndarray, np.ndarray]:
+    """The target's points (N, 3) and rotations (N, 3, 3) bent as :class:`_Bend` bends them,
+    each joint's three steps (a turn about its link's far end, the shift, a turn about its
+    pivot) made one rigid motion for all joints at once: a prediction needs no derivative,
+    and a compensation step's budget no step of numpy it can save (half of it went to
+    bending the chain one step at a time). ``turns`` (N, 2, n, 3, 3): the far ends', then the
+    pivots'."""
+    ends, roots = turns[:, 0], turns[:, 1]
+    centres = np.stack([chain.next_pivots, chain.pivots], 1)              # (N, 2, n, 3)
+    moved = centres - np.einsum('rsnxy,rsny->rsnx', turns, centres)       # x -> R x + moved
+    rotations = roots @ ends
+    offsets = np.einsum('rnxy,rny->rnx', roots, moved[:, 0] + shifts) + moved[:, 1]
+    points, tips = chain.target, chain.tip_rotation
+    for k in reversed(range(chain.pivots.shape[1])):
+        points = np.einsum('rxy,ry->rx', rotations[:, k], points) + offsets[:, k]
+        tips = rotations[:, k] @ tips
+    return points, tips
 
 
 def _at(along: dict[str, np.ndarray], k: int, *names: str) -> dict[str, np.ndarray]:

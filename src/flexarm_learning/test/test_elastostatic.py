@@ -173,3 +173,20 @@ def test_a_rows_prediction_depends_on_that_row_alone(arm: UrdfArm) -> None:
     batch = model.predict(joints[:6], payload[:6])
     single = np.array([model.predict(joints[i], payload[i:i + 1])[0] for i in (5, 3, 1, 0, 2, 4)])
     np.testing.assert_allclose(single, batch[[5, 3, 1, 0, 2, 4]], rtol=0, atol=1e-12)
+
+
+def test_a_prediction_bends_the_chain_as_the_fit_does() -> None:
+    """Predictions (one rigid motion per joint, no derivatives) and the fit's bent chain
+    (step by step, with derivatives) give the same points and rotations, every term on."""
+    arm = UrdfArm.from_xml(prismatic_arm(), TIP)
+    rng = np.random.default_rng(9)
+    model = ElastostaticModel(arm, terms=TERMS)
+    for name in TERMS:
+        setattr(model, name, np.abs(rng.normal(0.0, 3e-4, (arm.dof, 3))))
+    model.twists = rng.normal(0.0, 1e-3, (arm.dof, 6))
+    joints = random_joints(arm.lower, arm.upper, 6, rng)
+    payload = np.full(6, 2.0)
+    predicted = model._evaluate(joints, payload, False)
+    fitted = model._evaluate(joints, payload, True)
+    np.testing.assert_allclose(predicted[0], fitted[0], rtol=0, atol=1e-12)
+    np.testing.assert_allclose(predicted[1], fitted[1], rtol=0, atol=1e-12)

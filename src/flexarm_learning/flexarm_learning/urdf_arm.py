@@ -215,21 +215,23 @@ class UrdfArm:
                  + payload[:, None, None] * (chain.target[:, None] - chain.pivots))
         return np.einsum('rkxy,rkx->rky', chain.frames, cross(lever, GRAVITY))
 
-    def moment_spread(self, chain: Chain, common: float, part: float, tool_centre: float,
+    def moment_errors(self, chain: Chain, common: float, part: float, tool_centre: float,
                       ) -> np.ndarray:
-        """(N, n, 3) [N·m]: the standard deviation of :meth:`gravity_moments` (without the
-        payload: it is declared) that the URDF's inertials leave, every body's mass off by
-        ``common`` (relative, all together) and by ``part`` (each on its own), and the last
-        body's centre of mass by ``tool_centre`` [m] along its link (a tool's, the least
-        known). Linear in the masses: each body's own moment is the derivative."""
+        """(sources, N, n, 3) [N·m]: how :meth:`gravity_moments` (without the payload: it is
+        declared) moves under each independent one-sigma error of the URDF's inertials —
+        every body's mass off by ``common`` (relative, all together), each body's by ``part``
+        (relative, on its own), the last body's centre of mass by ``tool_centre`` [m] along
+        its link (a tool's, the least known). Linear in the masses: each body's own moment
+        is the derivative. Each source moves every joint that carries the body at once."""
         carries = self._subtree_masses > 0                            # (n, bodies)
         levers = chain.centres[:, None] - chain.pivots[:, :, None]       # (N, n, bodies, 3)
         own = cross(self._masses[None, None, :, None] * carries[None, :, :, None] * levers,
-                       GRAVITY)
-        own = np.einsum('rkxy,rkbx->rkby', chain.frames, own)
+                    GRAVITY)
+        own = np.einsum('rkxy,rkbx->brky', chain.frames, own)          # (bodies, N, n, 3)
         last = self.chain[-1]
         along = np.einsum('rxy,y->rx', chain.frames[:, -1], self.link_directions[-1])
         tool = np.einsum('rkxy,rx->rky', chain.frames,
                          cross(self._masses[last] * along, GRAVITY)) * carries[:, last, None]
-        return np.sqrt(part ** 2 * (own ** 2).sum(axis=2) + (common * own.sum(axis=2)) ** 2
-                       + (tool_centre * tool) ** 2)
+        massive = self._masses > 0
+        return np.concatenate([common * own.sum(axis=0)[None], part * own[massive],
+                               tool_centre * tool[None]])

@@ -36,10 +36,14 @@ Uncertainty (:meth:`GreyboxPredictor.deflection_std`, :meth:`GreyboxPredictor.pr
 identified parameters' Laplace covariance carried to the prediction, with the residual GP's
 posterior; and, from samples at a single payload, what they cannot tell — the compliances took
 up the nominal masses' error with them, so a payload's change is off, joint by joint, by the
-relative spread of that joint's moments under the inertia prior (config/arm.yaml
-``arm.inertia_uncertainty``, :meth:`flexarm_learning.urdf_arm.UrdfArm.moment_spread`) times
-what that joint's moments' change does
-(:meth:`flexarm_learning.elastostatic.ElastostaticModel.load_effects`). Samples at two
+relative error of that joint's moments under each independent error of the inertia prior
+(config/arm.yaml ``arm.inertia_uncertainty``: all masses together, each body's, the tool's
+centre; :meth:`flexarm_learning.urdf_arm.UrdfArm.moment_errors`) times what that joint's
+moments' change does (:meth:`flexarm_learning.elastostatic.ElastostaticModel.load_effects`);
+one error moves every joint that carries its body, so their shares add before the errors
+are summed in quadrature (taken joint by joint, as if each joint's error were its own, the
+bound in region B was half the old planar model's and covered 0.73 of the goals with the
+masses off). Samples at two
 payloads tell the two apart: no prior term then.
 
 The URDF, the description it was written from (``greybox.arm``: the rigid model the
@@ -162,16 +166,18 @@ class GreyboxPredictor(Predictor):
 
     def _moment_spread(self, joints: np.ndarray, payload: np.ndarray,
                        uncertainty: Mapping[str, Any]) -> np.ndarray:
-        """(n,): each joint's moment spread under the inertia prior over its moment, RMS over
-        the samples (the moment's axes pooled)."""
+        """(sources, n): per independent error of the inertia prior, each joint's moment's
+        relative error it makes over the samples (the least-squares factor of its moment
+        change on the moment, the axes pooled): one source moves every joint that carries
+        what it is the error of, so their shares add before they are squared."""
         arm = self._model.arm
         chain = arm.chain_at(joints, self._model.offset)
-        spread = arm.moment_spread(chain, float(uncertainty['common']),
+        errors = arm.moment_errors(chain, float(uncertainty['common']),
                                    float(uncertainty['part']),
                                    float(uncertainty['end_effector_com']))
         moments = arm.gravity_moments(chain, payload)
-        return np.sqrt(np.sum(spread ** 2, axis=(0, 2))
-                       / np.maximum(np.sum(moments ** 2, axis=(0, 2)), 1e-12))
+        return (np.einsum('srkx,rkx->sk', errors, moments)
+                / np.maximum(np.sum(moments ** 2, axis=(0, 2)), 1e-12))
 
     def _structure(self, joints: np.ndarray, payload: np.ndarray | float) -> np.ndarray:
         """The core's deflection (N, 3) at joints (N, 4) and the payload [kg]."""
@@ -208,8 +214,9 @@ class GreyboxPredictor(Predictor):
                   ) -> np.ndarray:
         """Trained at one payload, the compliances took up the masses' error with them:
         asked at another, each joint's share of the change is off by its moments' relative
-        spread (module docstring). Zeros at the trained payload, or when the samples held
-        several."""
+        error under each error of the inertia prior, the shares of one error added, the
+        errors in quadrature (module docstring). Zeros at the trained payload, or when the
+        samples held several."""
         q, p, single = self._query(joints, payload)
         self._require_fitted()
         std = np.zeros((len(q), 3))
@@ -220,9 +227,9 @@ class GreyboxPredictor(Predictor):
                 if abs(kg - self._trained_payload) <= PAYLOAD_TOLERANCE:
                     continue
                 effects = self._model.load_effects(q[rows], self._trained_payload, kg)
-                std[rows] = np.sqrt(np.sum(
-                    (self._relative_spread[:, None, None] * effects[:, :, [0, 2, 4]]) ** 2,
-                    axis=0))
+                shares = np.einsum('sk,knx->snx', self._relative_spread,
+                                   effects[:, :, [0, 2, 4]])
+                std[rows] = np.sqrt(np.sum(shares ** 2, axis=0))
         return std[0] if single else std
 
     def _state(self) -> dict[str, np.ndarray]:

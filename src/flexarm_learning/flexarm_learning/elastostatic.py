@@ -64,6 +64,7 @@ from dataclasses import dataclass
 import numpy as np
 import pinocchio as pin
 from scipy.optimize import lsq_linear
+from scipy.spatial.transform import Rotation
 
 from flexarm_learning.registration import kabsch
 from flexarm_learning.urdf_arm import Chain, UrdfArm, cross
@@ -330,8 +331,8 @@ class ElastostaticModel:
                 axes = np.swapaxes(chain.frames, -1, -2)     # (N, n, axis, 3) in the root
                 along = {name: axes * drives[name][..., None] for name in self.terms}
         ends, roots = vectors['bending'], vectors['compliances'] + vectors['play']
-        turns = np.array([pin.exp3(v) for v in np.concatenate([ends, roots], 1).reshape(
-            -1, 3)]).reshape(rows, 2, n, 3, 3) if self.terms else None
+        turns = Rotation.from_rotvec(np.concatenate([ends, roots], 1).reshape(
+            -1, 3)).as_matrix().reshape(rows, 2, n, 3, 3) if self.terms else None
         if not jacobian:
             points, tips = (_bent(chain, turns, vectors['shift']) if self.terms
                             else (chain.target, chain.tip_rotation))
@@ -482,14 +483,17 @@ def _bent(chain: Chain, turns: np.ndarray, shifts: np.ndarray,
     pivots'."""
     ends, roots = turns[:, 0], turns[:, 1]
     centres = np.stack([chain.next_pivots, chain.pivots], 1)              # (N, 2, n, 3)
-    moved = centres - np.einsum('rsnxy,rsny->rsnx', turns, centres)       # x -> R x + moved
-    rotations = roots @ ends
-    offsets = np.einsum('rnxy,rny->rnx', roots, moved[:, 0] + shifts) + moved[:, 1]
-    points, tips = chain.target, chain.tip_rotation
-    for k in reversed(range(chain.pivots.shape[1])):
-        points = np.einsum('rxy,ry->rx', rotations[:, k], points) + offsets[:, k]
-        tips = rotations[:, k] @ tips
-    return points, tips
+    moved = centres - (turns @ centres[..., None])[..., 0]                # x -> R x + moved
+    rotations = roots @ ends                                              # (N, n, 3, 3)
+    offsets = (roots @ (moved[:, 0] + shifts)[..., None])[..., 0] + moved[:, 1]
+    # joint 0's motion last: x -> R0 (R1 (... x + t1) ...) + t0 = P_n x + sum P_k t_k
+    prefix = [np.broadcast_to(np.eye(3), rotations[:, 0].shape)]
+    for k in range(rotations.shape[1]):
+        prefix.append(prefix[-1] @ rotations[:, k])
+    carried = np.stack(prefix[:-1], 1)                                    # P_k, (N, n, 3, 3)
+    points = ((prefix[-1] @ chain.target[..., None])[..., 0]
+              + (carried @ offsets[..., None])[..., 0].sum(axis=1))
+    return points, prefix[-1] @ chain.tip_rotation
 
 
 def _at(along: dict[str, np.ndarray], k: int, *names: str) -> dict[str, np.ndarray]:

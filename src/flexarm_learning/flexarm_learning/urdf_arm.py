@@ -178,6 +178,7 @@ class UrdfArm:
         model, data = model or (self.model, self._data)
         rows, n, bodies = len(joints), self.dof, model.njoints
         placements = np.empty((rows, bodies + 1, 4, 4))       # the bodies', then the tip's
+        placements[:, 0] = np.eye(4)                           # the root's: the world
         jacobians = np.zeros((rows, 3, n))
         for r, q in enumerate(self.configuration(joints)):
             if jacobian:
@@ -185,7 +186,7 @@ class UrdfArm:
                 pin.updateFramePlacements(model, data)
             else:
                 pin.framesForwardKinematics(model, data, q)
-            placements[r] = [m.homogeneous for m in data.oMi] + [
+            placements[r, 1:] = [data.oMi[j].homogeneous for j in range(1, bodies)] + [
                 data.oMf[self._frame].homogeneous]
             if jacobian:
                 full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)

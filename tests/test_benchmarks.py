@@ -96,7 +96,7 @@ OFFLINE = [
     # series A through the night)
     Smoke('core_on_jaeri', ('--regions', 'A', '--samples', '12', '--held-out', '5'),
           ('samples', 'held_out', 'regions'),
-          ('regions.A.core_mean_mm', 'regions.A.planar_greybox_mean_mm')),
+          ('regions.A.greybox_mean_mm', 'regions.A.structure_mean_mm', 'regions.A.predict_ms')),
     Smoke('real_arm', ('--series', 'D', '--others', 'A', '--sizes', '20', '--splits', '1'),
           ('series', 'mean_mm_20', 'coverage_20', 'ratio_20', 'reference_mean_mm_20',
            'coverage_overnight', 'coverage_overnight_fixed'),

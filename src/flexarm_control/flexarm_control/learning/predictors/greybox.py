@@ -130,7 +130,7 @@ class GreyboxPredictor(Predictor):
 
     def _fit_physical(self, joints: np.ndarray, payload: np.ndarray | None,
                       deflections: np.ndarray) -> None:
-        import pinocchio as pin
+        from scipy.spatial.transform import Rotation
 
         arm = description()
         self._geometry = ArmGeometry.from_dict(arm)
@@ -141,11 +141,11 @@ class GreyboxPredictor(Predictor):
         self._trained_payload = float(payload.mean())
         pose = forward(self._geometry, joints) + deflections
         points = np.column_stack([pose[:, 0], np.zeros(len(pose)), pose[:, 1]])
-        rotations = np.array([pin.exp3(np.array([0.0, -phi, 0.0])) for phi in pose[:, 2]])
+        rotations = Rotation.from_rotvec(np.outer(-pose[:, 2], [0.0, 1.0, 0.0])).as_matrix()
         self._model.fit(joints, points, payload, rotations=rotations)
-        self._relative_spread = None
+        self._error_shares = None
         if np.ptp(payload) <= PAYLOAD_TOLERANCE:     # one payload: the masses' prior decides
-            self._relative_spread = self._moment_spread(joints, payload,
+            self._error_shares = self._moment_error_shares(joints, payload,
                                                         arm['inertia_uncertainty'])
         self._residual: GpPredictor | None = None
         if self.settings['residual'] == 'gp':
@@ -160,11 +160,11 @@ class GreyboxPredictor(Predictor):
             'trained_payload': self._trained_payload,
             'noise': {'position': model.noise, 'angle': model.rotation_noise},
             'compliance': {name: getattr(model, name).tolist() for name in model.terms},
-            'relative_moment_spread': (None if self._relative_spread is None
-                                       else self._relative_spread.tolist()),
+            'moment_error_shares': (None if self._error_shares is None
+                                    else self._error_shares.tolist()),
             'residual': None if self._residual is None else self._residual.metadata}
 
-    def _moment_spread(self, joints: np.ndarray, payload: np.ndarray,
+    def _moment_error_shares(self, joints: np.ndarray, payload: np.ndarray,
                        uncertainty: Mapping[str, Any]) -> np.ndarray:
         """(sources, n): per independent error of the inertia prior, each joint's moment's
         relative error it makes over the samples (the least-squares factor of its moment
@@ -221,13 +221,13 @@ class GreyboxPredictor(Predictor):
         self._require_fitted()
         std = np.zeros((len(q), 3))
         asked = np.broadcast_to(self._at(p), (len(q),))
-        if self._relative_spread is not None:
+        if self._error_shares is not None:
             for kg in np.unique(asked):
                 rows = asked == kg
                 if abs(kg - self._trained_payload) <= PAYLOAD_TOLERANCE:
                     continue
                 effects = self._model.load_effects(q[rows], self._trained_payload, kg)
-                shares = np.einsum('sk,knx->snx', self._relative_spread,
+                shares = np.einsum('sk,knx->snx', self._error_shares,
                                    effects[:, :, [0, 2, 4]])
                 std[rows] = np.sqrt(np.sum(shares ** 2, axis=0))
         return std[0] if single else std
@@ -246,8 +246,8 @@ class GreyboxPredictor(Predictor):
         self._model = self._core(meta['urdf']).restored(dict(state))
         self._geometry = ArmGeometry.from_dict(meta['arm'])
         self._trained_payload = float(meta['trained_payload'])
-        spread = meta.get('relative_moment_spread')
-        self._relative_spread = None if spread is None else np.asarray(spread, dtype=float)
+        spread = meta.get('moment_error_shares')
+        self._error_shares = None if spread is None else np.asarray(spread, dtype=float)
         self._residual = None if meta['residual'] is None else restore(
             GpPredictor, meta['residual'], {
                 'support': state['support'],

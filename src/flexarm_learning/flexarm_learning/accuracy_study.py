@@ -8,8 +8,9 @@ rows (SI, as every result below the command line, which shows mm); ``coverage``,
 of held-out rows within their stated 95 % radius; ``sharpness``, the median radius over the
 median error (1 would be a bound as tight as the error itself; the 95 % radius of a
 well-modelled 3-D Gaussian error is about 1.8); ``fit_s``, the wall time of a fit with its
-radius' calibration. The learning curve repeats the default kind's mean
-error over training sizes.
+radius' calibration; where the orientation is measured, the angle between the predicted and
+the measured orientation, mean and maximum [rad]. The learning curve repeats the default
+kind's mean error over training sizes.
 """
 from __future__ import annotations
 
@@ -17,14 +18,15 @@ import time
 from collections.abc import Sequence
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from flexarm_learning.arm_error import ArmErrorModel
 from flexarm_learning.choices import DEFAULT_KIND, LEARNING_CURVE, SPLITS
-from flexarm_learning.elastostatic import REGISTRATION
 from flexarm_learning.measurements import Measurements
 from flexarm_learning.urdf_arm import UrdfArm
 
-MIN_TRAIN = REGISTRATION // 3 + 1     # rows: more coordinates (3 a row) than free unknowns
+REGISTRATION = 9      # unknowns of the instrument's frame (6) and the target's offset (3)
+MIN_TRAIN = REGISTRATION // 3 + 1     # rows: more coordinates (3 a row) than those unknowns
 
 
 class StudyError(ValueError):
@@ -69,11 +71,16 @@ def fit_and_judge(arm: UrdfArm, data: Measurements, kind: str, train: int, seed:
     held = data.subset(~mask)
     points, radius = model.predict(held.joints, held.payload)
     error = np.linalg.norm(points - held.points, axis=1)
-    return {'mean_m': float(error.mean()), 'rms_m': float(np.sqrt(np.mean(error ** 2))),
-            'p95_m': float(np.quantile(error, 0.95)), 'max_m': float(error.max()),
-            'coverage': float(np.mean(error <= radius)),
-            'sharpness': float(np.median(radius) / np.median(error)), 'fit_s': fit_s,
-            'bound_median_m': float(np.median(radius))}, model
+    figures = {'mean_m': float(error.mean()), 'rms_m': float(np.sqrt(np.mean(error ** 2))),
+               'p95_m': float(np.quantile(error, 0.95)), 'max_m': float(error.max()),
+               'coverage': float(np.mean(error <= radius)),
+               'sharpness': float(np.median(radius) / np.median(error)), 'fit_s': fit_s,
+               'bound_median_m': float(np.median(radius))}
+    if held.rotations is not None:
+        turned = Rotation.from_matrix(model.rotations(held.joints, held.payload)
+                                      @ np.swapaxes(held.rotations, 1, 2)).magnitude()
+        figures.update(angle_mean_rad=float(turned.mean()), angle_max_rad=float(turned.max()))
+    return figures, model
 
 
 def study(arm: UrdfArm, data: Measurements, train: int, splits: int = SPLITS, seed: int = 0,

@@ -17,7 +17,11 @@ bounds of series C widened to 2.9 times the median error). Numpy's BLAS runs on 
 these matrices are small, and a pool of threads competing for two busy cores made a fit ten
 times slower.
 The physics-only kinds state one spread for every row (their residual RMS); the grey-box its
-GP's posterior.
+GP's posterior. Where the measurements give the target's orientation, the physics fitted to the
+points predicts it, the target's rotation registered on the measured ones: fitted with the
+points, the turns weighed against them (1 mrad as 1 mm) and the UR10's series C held-out
+coverage at 200 rows fell from 0.95 to 0.86. The residual models and the radius are of the
+point.
 """
 from __future__ import annotations
 
@@ -66,6 +70,8 @@ class ArmErrorModel:
     def _fit(self, data: Measurements, like: JointErrorGp | ResidualMlp | None = None,
              start: ElastostaticModel | None = None):
         physics = self._physics().fit(data.joints, data.points, data.payload, start)
+        if data.rotations is not None:
+            physics.register_target_rotation(data.joints, data.rotations, data.payload)
         if self.kind not in ('greybox', 'mlp'):
             return physics, None
         left = data.points - physics.predict(data.joints, data.payload)
@@ -74,6 +80,12 @@ class ArmErrorModel:
         residual = JointErrorGp().fit(data.joints, physics.joint_jacobians(data.joints), left,
                                       None if like is None else like.hyper)
         return physics, residual
+
+    def rotations(self, joints: np.ndarray, payload: np.ndarray | None = None) -> np.ndarray:
+        """(M, 3, 3): the target's orientation in the instrument's frame, the physics' (the
+        learned residuals are of the point)."""
+        with threadpool_limits(1):
+            return self.physics.predict_pose(np.atleast_2d(joints), payload)[1]
 
     def predict(self, joints: np.ndarray, payload: np.ndarray | None = None,
                 ) -> tuple[np.ndarray, np.ndarray]:

@@ -424,6 +424,17 @@ class ElastostaticModel:
         d[:, :, self.fixed] = 0.0
         return np.sqrt(np.einsum('rip,pq,riq->ri', d, self.covariance, d))
 
+    def register_target_rotation(self, joints: np.ndarray, rotations: np.ndarray,
+                                 payload: np.ndarray | None = None) -> None:
+        """Set the target's rotation on the tip link (``tool``) to the one that best meets
+        measured rotations (N, 3, 3) with everything else as fitted: the chordal mean of
+        what each row leaves, by SVD."""
+        self.tool = np.eye(3)
+        _, predicted = self.predict_pose(joints, payload)
+        left = np.einsum('rxy,rxz->yz', predicted, rotations)       # Σ Rpredᵀ Rmeasured
+        u, _, vt = np.linalg.svd(left)
+        self.tool = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+
     def state(self) -> dict[str, np.ndarray]:
         """The fitted parameters, their covariance, the noise and which parameters were
         held: all :meth:`restored` needs besides the arm and the choices."""

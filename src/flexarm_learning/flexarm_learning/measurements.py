@@ -2,7 +2,8 @@
 
 CSV with a header: one column per actuated joint of the chain, named as in the URDF [rad or
 m]; ``x, y, z`` [m]: the measured target in the instrument's frame; optional ``qx, qy, qz,
-qw`` (the target's measured orientation: read, not yet modelled), ``payload`` [kg],
+qw`` (the target's measured orientation in the instrument's frame, a unit quaternion: all four
+or none; normalised, a zero one skips its row), ``payload`` [kg],
 ``temperature`` [°C] and ``group`` (rows measured together: they stay together in every
 split). Any other column is an error, as is a missing joint: a misspelt name must not
 silently drop a joint. Rows with an empty, NaN or infinite value (or an empty ``group``) are
@@ -16,6 +17,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+from scipy.spatial.transform import Rotation
 
 from flexarm_learning.urdf_arm import UrdfArm
 
@@ -38,13 +40,15 @@ class Measurements:
     group: np.ndarray            # (N,) a label per row; each row its own without the column
     skipped: int = 0             # rows with a missing, NaN or infinite value or no group
     outside_limits: int = 0      # rows with a joint outside the URDF's limits
+    rotations: np.ndarray | None = None   # (N, 3, 3) measured orientations, where given
 
     def __len__(self) -> int:
         return len(self.joints)
 
     def subset(self, rows: np.ndarray) -> Measurements:
         return Measurements(self.joints[rows], self.points[rows], self.payload[rows],
-                            self.group[rows])
+                            self.group[rows], rotations=None if self.rotations is None
+                            else self.rotations[rows])
 
 
 def read_csv(path: str | Path, arm: UrdfArm) -> Measurements:
@@ -78,6 +82,10 @@ def parse(header: list[str], rows: list[list[str]], arm: UrdfArm,
                                f'{arm.tip!r} has joints {", ".join(arm.joint_names)})')
     if len(set(header)) != len(header):
         raise MeasurementError(f'{source}: a column appears twice in {header}')
+    quaternion = [h for h in ORIENTATION if h in header]
+    if quaternion and len(quaternion) != len(ORIENTATION):
+        raise MeasurementError(f'{source}: an orientation needs all of {", ".join(ORIENTATION)};'
+                               f' the file has only {", ".join(quaternion)}')
     numeric = [h for h in header if h != 'group']
     lines = [(line, row) for line, row in enumerate(rows, start=2)
              if any(cell.strip() for cell in row)]
@@ -96,6 +104,9 @@ def parse(header: list[str], rows: list[list[str]], arm: UrdfArm,
                                            f'{row[header.index(name)]!r} is not a number'
                                            ) from None
     good = np.isfinite(values).all(axis=1)
+    if quaternion:
+        q = values[:, [numeric.index(h) for h in ORIENTATION]]
+        good &= np.linalg.norm(np.nan_to_num(q), axis=1) > 0
     if 'group' in header:
         labels = np.array([row[header.index('group')].strip() for row in rows], dtype=object)
         good &= labels != ''
@@ -105,7 +116,12 @@ def parse(header: list[str], rows: list[list[str]], arm: UrdfArm,
     column = {name: values[good, c] for c, name in enumerate(numeric)}
     joints = np.stack([column[j] for j in arm.joint_names], axis=1)
     outside = (joints < arm.lower) | (joints > arm.upper)
+    rotations = None
+    if quaternion:
+        rotations = Rotation.from_quat(np.stack([column[h] for h in ORIENTATION], axis=1)
+                                       ).as_matrix()
     return Measurements(
         joints=joints, points=np.stack([column[c] for c in POINT], axis=1),
         payload=column.get('payload', np.zeros(len(joints))), group=groups,
-        skipped=int((~good).sum()), outside_limits=int(outside.any(axis=1).sum()))
+        skipped=int((~good).sum()), outside_limits=int(outside.any(axis=1).sum()),
+        rotations=rotations)

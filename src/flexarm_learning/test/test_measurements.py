@@ -6,6 +6,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 from synthetic_arms import TIP, seven_joint_arm, seven_joint_names
 
 from flexarm_learning.accuracy_study import MIN_TRAIN, StudyError, check_size, evaluate, split
@@ -246,3 +247,21 @@ def test_groups_that_take_every_row_leave_nothing_to_judge(arm: UrdfArm) -> None
     check_size(data, 11)
     with pytest.raises(StudyError, match='none is left to judge'):
         evaluate(arm, data, 'rigid', 11, seed=0)
+
+
+def test_an_orientation_is_read_as_rotations_and_a_zero_one_skips_its_row(
+        arm: UrdfArm, tmp_path: Path) -> None:
+    """qx, qy, qz, qw (any scale) become rotation matrices, scipy's order; a quaternion of
+    zeros is no orientation: its row is skipped and counted."""
+    turn = Rotation.from_rotvec([0.1, -0.2, 0.3])
+    quaternion = [str(v) for v in 2.0 * turn.as_quat()]
+    rows = [[*ROW, *quaternion], [*ROW, '0', '0', '0', '0'], [*ROW, *quaternion]]
+    data = read_csv(write_csv(tmp_path / 'm.csv', header('qx', 'qy', 'qz', 'qw'), rows), arm)
+    assert (len(data), data.skipped) == (2, 1)
+    np.testing.assert_allclose(data.rotations, [turn.as_matrix()] * 2, atol=1e-12)
+    assert read_csv(write_csv(tmp_path / 'n.csv', header(), [ROW]), arm).rotations is None
+
+
+def test_part_of_an_orientation_is_refused(arm: UrdfArm) -> None:
+    with pytest.raises(MeasurementError, match='needs all of qx, qy, qz, qw'):
+        parse(header('qx', 'qy', 'qz'), [[*ROW, '0', '0', '0']], arm)

@@ -12,6 +12,8 @@ from matplotlib.figure import Figure
 COLUMNS = (('mean_mm', 'mean_m', 1e3), ('rms_mm', 'rms_m', 1e3), ('p95_mm', 'p95_m', 1e3),
            ('max_mm', 'max_m', 1e3), ('coverage', 'coverage', 1.0),
            ('sharpness', 'sharpness', 1.0), ('fit_s', 'fit_s', 1.0))
+# where the file gives the target's orientation: the predicted one's angle from it, in mrad
+ANGLES = (('angle_mrad', 'angle_mean_rad', 1e3), ('max_mrad', 'angle_max_rad', 1e3))
 
 
 def table_text(report: dict[str, Any]) -> str:
@@ -26,11 +28,12 @@ def table_text(report: dict[str, Any]) -> str:
             f"{_mm(registration['target_offset_m'])} mm in its frame (± "
             f"{_mm(registration['target_offset_std_m'])} mm: large where the poses cannot "
             "tell it from the instrument's frame)")
-    lines = [head, '', f"{'model':<14}" + ''.join(f'{c:>11}' for c, _, _ in COLUMNS)]
     rows = {'rigid': report['rigid']} | report['kinds']
+    columns = COLUMNS + (ANGLES if 'angle_mean_rad' in report['rigid'] else ())
+    lines = [head, '', f"{'model':<14}" + ''.join(f'{c:>11}' for c, _, _ in columns)]
     for name, figures in rows.items():
         lines.append(f'{name:<14}' + ''.join(f'{scale * figures[key]:>11.3f}'
-                                             for _, key, scale in COLUMNS))
+                                             for _, key, scale in columns))
     if report['curve']:
         lines += ['', 'learning curve (' + next(iter(report['kinds'])) + '): '
                   + ', '.join(f"{p['train']} rows {1e3 * p['mean_m']:.3f} mm"

@@ -90,6 +90,8 @@ class UrdfArm:
         self._plain_q, self._turning_q = self._q_index[self._plain], self._q_index[self._turning]
         self._parents = [model.parents[j] for j in self.chain]
         self._levers = np.array([model.inertias[j].lever for j in range(model.njoints)])
+        self._tip_body = model.frames[self._frame].parentJoint
+        self._placed_in: tuple[pin.Model, np.ndarray, np.ndarray] | None = None
         masses = np.array([model.inertias[j].mass for j in range(model.njoints)])
         self._masses = masses
         self._subtree_masses = np.zeros((self.dof, model.njoints))   # (n, joints) [kg]
@@ -177,25 +179,24 @@ class UrdfArm:
         joints = np.atleast_2d(np.asarray(joints, float))
         model, data = model or (self.model, self._data)
         rows, n, bodies = len(joints), self.dof, model.njoints
-        placements = np.empty((rows, bodies + 1, 4, 4))       # the bodies', then the tip's
+        placements = np.empty((rows, bodies, 4, 4))
         placements[:, 0] = np.eye(4)                           # the root's: the world
         jacobians = np.zeros((rows, 3, n))
         for r, q in enumerate(self.configuration(joints)):
             if jacobian:
                 pin.computeJointJacobians(model, data, q)
                 pin.updateFramePlacements(model, data)
-            else:
-                pin.framesForwardKinematics(model, data, q)
-            placements[r, 1:] = [data.oMi[j].homogeneous for j in range(1, bodies)] + [
-                data.oMf[self._frame].homogeneous]
-            if jacobian:
                 full = pin.getFrameJacobian(model, data, self._frame, pin.LOCAL_WORLD_ALIGNED)
-                arm = placements[r, -1, :3, :3] @ offset
+                arm = data.oMf[self._frame].rotation @ offset
                 jacobians[r] = (full[:3] - pin.skew(arm) @ full[3:])[:, self._v_index]
-        rotations, origins = placements[:, :-1, :3, :3], placements[:, :-1, :3, 3]
-        tip_rotation = placements[:, -1, :3, :3]
-        target = placements[:, -1, :3, 3] + tip_rotation @ offset
-        placement = np.array([model.jointPlacements[j].homogeneous for j in self.chain])
+            else:
+                pin.forwardKinematics(model, data, q)
+            placements[r, 1:] = [data.oMi[j].homogeneous for j in range(1, bodies)]
+        placement, tip = self._placements(model)
+        rotations, origins = placements[..., :3, :3], placements[..., :3, 3]
+        tip = placements[:, self._tip_body] @ tip                          # the tip link's
+        tip_rotation = tip[:, :3, :3]
+        target = tip[:, :3, 3] + tip_rotation @ offset
         parent_rotations = rotations[:, self._parents]                # (N, n, 3, 3)
         pivots = (np.einsum('rkxy,ky->rkx', parent_rotations, placement[:, :3, 3])
                   + origins[:, self._parents])
@@ -205,6 +206,16 @@ class UrdfArm:
         carried = np.einsum('kj,rjx->rkx', self._subtree_masses, centres)
         return Chain(target, tip_rotation, pivots, placed, rotations[:, self.chain],
                      next_pivots, jacobians, carried, centres)
+
+    def _placements(self, model: pin.Model) -> tuple[np.ndarray, np.ndarray]:
+        """The chain joints' origins on their parents (n, 4, 4) and the tip link's placement
+        on its joint (4, 4) in ``model``, kept for the model last asked (a prediction asks
+        the same one again and again)."""
+        if self._placed_in is None or self._placed_in[0] is not model:
+            self._placed_in = (model, np.array([model.jointPlacements[j].homogeneous
+                                                for j in self.chain]),
+                               model.frames[self._frame].placement.homogeneous)
+        return self._placed_in[1:]
 
     def gravity_moments(self, chain: Chain, payload: np.ndarray | float = 0.0) -> np.ndarray:
         """(N, n, 3) [N·m]: the moment gravity puts on what each chain joint carries (its

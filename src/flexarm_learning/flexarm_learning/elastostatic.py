@@ -125,7 +125,7 @@ class ElastostaticModel:
         for name in TERMS:
             setattr(self, name, np.zeros((n, 3)))
 
-    # -- parameters: [registration 12 | geometry 6n | compliances, bending, shift, play 3n] ---
+    # -- parameters: [registration 12 | geometry 6n | each term chosen, 3n] ---------------
     @property
     def size(self) -> int:
         n = self.arm.dof

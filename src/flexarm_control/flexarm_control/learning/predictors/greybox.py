@@ -159,13 +159,13 @@ class GreyboxPredictor(Predictor):
             'urdf': urdf, 'arm': {k: v for k, v in arm.items() if k != 'inertia_uncertainty'},
             'trained_payload': self._trained_payload,
             'noise': {'position': model.noise, 'angle': model.rotation_noise},
-            'compliance': {name: getattr(model, name).tolist() for name in model.terms},
+            'elastic': {name: getattr(model, name).tolist() for name in model.terms},
             'moment_error_shares': (None if self._error_shares is None
                                     else self._error_shares.tolist()),
             'residual': None if self._residual is None else self._residual.metadata}
 
     def _moment_error_shares(self, joints: np.ndarray, payload: np.ndarray,
-                       uncertainty: Mapping[str, Any]) -> np.ndarray:
+                             uncertainty: Mapping[str, Any]) -> np.ndarray:
         """(sources, n): per independent error of the inertia prior, each joint's moment's
         relative error it makes over the samples (the least-squares factor of its moment
         change on the moment, the axes pooled): one source moves every joint that carries

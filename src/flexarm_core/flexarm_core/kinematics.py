@@ -25,6 +25,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -51,6 +52,18 @@ class ArmGeometry:
     min_elbow_bend: float        # [rad] keep the elbow at least this far from stretched
     extension_step: float        # [m] grid of the θ2 search when the preferred one fails
     reach_margin: float          # [m] θ2 keeps the wrist this far inside the elbow's reach
+
+    @cached_property
+    def extensions(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The θ2 values the redundancy rule may take (the ``extension_step`` grid within
+        the limits and the preferred one) and, for each, the wrist distances the elbow reaches
+        from folded to stretched as far as allowed (:func:`reach_margins`): fixed by the
+        geometry, and a compensation step asks for them twice (they took 20 of its IK's
+        30 µs)."""
+        lower, upper, step = self.lower[1], self.upper[1], self.extension_step
+        grid = lower + step * np.arange(math.floor((upper - lower) / step + 1e-9) + 1)
+        grid = np.unique(np.append(np.round(grid, 9), self.preferred_extension))
+        return grid, *_reach(self, grid)
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> ArmGeometry:
@@ -194,24 +207,33 @@ def elbow_bend(geometry: ArmGeometry, joints: np.ndarray) -> float:
 def reach_margins(geometry: ArmGeometry, pose: np.ndarray, extensions: np.ndarray
                   ) -> np.ndarray:
     """How far [m] the wrist of ``pose`` lies inside the elbow's reach with each θ2 of
-    ``extensions`` (negative: out of reach). The reach with θ2 spans wrist distances from
-    |a − b| (folded) to √(a² + b² + 2ab cos(min_elbow_bend)) (stretched as far as allowed),
-    a² = θ2² + d², b = l3."""
-    x, y, phi = (float(v) for v in pose)
-    r = math.hypot(x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi))
+    ``extensions`` (negative: out of reach)."""
+    return _margins(_wrist_distance(geometry, pose), *_reach(geometry, extensions))
+
+
+def _reach(geometry: ArmGeometry, extensions: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The wrist distances the elbow reaches with each θ2: from |a − b| (folded) to
+    √(a² + b² + 2ab cos(min_elbow_bend)) (stretched as far as allowed), a² = θ2² + d²,
+    b = l3."""
     a, b = np.hypot(extensions, geometry.offset), geometry.link3
-    r_max = np.sqrt(a * a + b * b + 2 * a * b * math.cos(geometry.min_elbow_bend))
-    return np.minimum(r_max - r, r - np.abs(a - b))
+    return np.abs(a - b), np.sqrt(a * a + b * b + 2 * a * b * math.cos(geometry.min_elbow_bend))
+
+
+def _wrist_distance(geometry: ArmGeometry, pose: np.ndarray) -> float:
+    x, y, phi = (float(v) for v in pose)
+    return math.hypot(x - geometry.link4 * math.cos(phi), y - geometry.link4 * math.sin(phi))
+
+
+def _margins(distance: float, folded: np.ndarray, stretched: np.ndarray) -> np.ndarray:
+    return np.minimum(stretched - distance, distance - folded)
 
 
 def _extension_candidates(geometry: ArmGeometry, pose: np.ndarray) -> list[float]:
     """θ2 values to try, in the rule's order: those of the ``extension_step`` grid (and the
     preferred one) that keep the wrist ``reach_margin`` inside the reach, nearest to the
     preferred first; then those that reach it with less margin, the largest margin first."""
-    lower, upper, step = geometry.lower[1], geometry.upper[1], geometry.extension_step
-    grid = lower + step * np.arange(math.floor((upper - lower) / step + 1e-9) + 1)
-    grid = np.unique(np.append(np.round(grid, 9), geometry.preferred_extension))
-    margin = reach_margins(geometry, pose, grid)
+    grid, folded, stretched = geometry.extensions
+    margin = _margins(_wrist_distance(geometry, pose), folded, stretched)
     full = margin >= geometry.reach_margin
     some = ~full & (margin >= 0)
     first = grid[full][np.argsort(np.abs(grid[full] - geometry.preferred_extension),

@@ -2,8 +2,10 @@
 fresh clone of HEAD; per run the wall time, the tests passed and failed and the failing ids.
 ``failures`` counts the failing tests over all runs.
 
-The clone is set up once (``scripts/setup.sh``: a new venv, minutes; not counted), then each
-run executes the README's test command there (its set-up step then takes about a second).
+The clone is set up once (``scripts/setup.sh``: a new venv, minutes; not counted), with the
+checkout's neighbouring ``shared`` folder beside it (the real measurements some benchmarks
+read), then each run executes the README's test command there (its set-up step then takes
+about a second).
 ``median_s`` and ``max_s`` are pytest's own times (set-up excluded), ``wall_s`` per run is the
 whole command. ``--hog`` keeps every core busy with a spinning process for the whole run: a
 loaded CI runner, where a suite that waits on guessed wall-clock times fails. The test command
@@ -132,6 +134,9 @@ def main() -> None:
         if not args.here:
             tree = Path(tmp) / 'flexarm'
             subprocess.run(['git', 'clone', '--quiet', str(ROOT), str(tree)], check=True)
+            shared = ROOT.parent / 'shared'
+            if shared.is_dir():          # beside the clone, as beside every checkout
+                (Path(tmp) / 'shared').symlink_to(shared)
             print(f'fresh clone of {ROOT} HEAD in {tree}; setting up (not timed)', flush=True)
             with open(Path(tmp) / 'setup.log', 'w', encoding='utf-8') as out:
                 subprocess.run(['scripts/setup.sh'], cwd=tree, env=clean_env(), stdout=out,

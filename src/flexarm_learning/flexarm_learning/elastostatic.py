@@ -338,7 +338,7 @@ class ElastostaticModel:
                             else (chain.target, chain.tip_rotation))
             return (points @ self.rotation.T + self.translation,
                     self.rotation @ tips @ self.tool, None)
-        bend = _Bend(chain, jacobian)
+        bend = _Bend(chain)
         for k in reversed(range(n)):          # the far end first: a joint's turn carries it
             if self.terms:
                 bend.turn(turns[:, 0, k], ends[:, k], chain.next_pivots[:, k],
@@ -346,7 +346,7 @@ class ElastostaticModel:
                 bend.shift(vectors['shift'][:, k], _at(along, k, 'shift').get('shift'))
                 bend.turn(turns[:, 1, k], roots[:, k], chain.pivots[:, k],
                           _at(along, k, 'compliances', 'play'))
-            if self.geometry and jacobian:
+            if self.geometry:
                 bend.twist(np.swapaxes(chain.placed[:, k], -1, -2), chain.pivots[:, k])
         point = bend.points @ self.rotation.T + self.translation
         rotation = self.rotation @ bend.rotations @ self.tool
@@ -459,7 +459,7 @@ class ElastostaticModel:
         the others held: what an error in that joint's moments (the masses' it was fitted
         with) carries to another payload."""
         joints = np.atleast_2d(np.asarray(joints, float))
-        chain = self.arm.chain_at(joints, self.offset, self._model())
+        chain = self.arm.chain_at(joints, self.offset, self._model(), jacobian=False)
         before = self.arm.gravity_moments(chain, trained)
         after = self.arm.gravity_moments(chain, asked)
         zero = np.zeros(len(joints))
@@ -514,16 +514,15 @@ def _at(along: dict[str, np.ndarray], k: int, *names: str) -> dict[str, np.ndarr
 
 class _Bend:
     """The rigid chain's target bent by turns about pivots and shifts, from the far end to the
-    root, and with ``jacobian`` each parameter's derivative columns (N, 6) [point, turn]: taken
-    where the parameter acts and turned by every turn after it (nearer the root)."""
+    root, with each parameter's derivative columns (N, 6) [point, turn]: taken where the
+    parameter acts and turned by every turn after it (nearer the root). A prediction, which
+    needs no derivative, bends the chain in one go (:func:`_bent`)."""
 
-    def __init__(self, chain: Chain, jacobian: bool) -> None:
+    def __init__(self, chain: Chain) -> None:
         self.points, self.rotations = chain.target.copy(), chain.tip_rotation.copy()
-        self.jacobian = jacobian
         self._columns: dict[str, list[np.ndarray]] = {}
         self.offset = np.zeros((len(self.points), 3, 6))   # the target's offset: at the tip
-        if jacobian:
-            self.offset[:, :, :3] = np.swapaxes(chain.tip_rotation, 1, 2)
+        self.offset[:, :, :3] = np.swapaxes(chain.tip_rotation, 1, 2)
         self._carried = [self.offset]
 
     def turn(self, turns: np.ndarray, vectors: np.ndarray, pivots: np.ndarray,
@@ -535,8 +534,6 @@ class _Bend:
             return
         self.points = pivots + (turns @ (self.points - pivots)[..., None])[..., 0]
         self.rotations = turns @ self.rotations
-        if not self.jacobian:
-            return
         for carried in self._carried:
             carried[..., :3] = np.einsum('rxy,ray->rax', turns, carried[..., :3])
             carried[..., 3:] = np.einsum('rxy,ray->rax', turns, carried[..., 3:])
@@ -549,12 +546,12 @@ class _Bend:
     def shift(self, vectors: np.ndarray, directions: np.ndarray | None) -> None:
         """Shift by vectors (N, 3); ``directions`` (N, axis, 3): the shift term's."""
         self.points = self.points + vectors
-        if self.jacobian and directions is not None:
+        if directions is not None:
             self._add('shift', np.concatenate([directions, np.zeros_like(directions)], -1))
 
     def twist(self, placed: np.ndarray, pivots: np.ndarray) -> None:
         """A joint origin's twist (its frame's axes (N, axis, 3)) moves what it carries as
-        bent so far: 3 translations, then 3 turns about the pivot (derivatives only)."""
+        bent so far: 3 translations, then 3 turns about the pivot."""
         lever = self.points - pivots
         self._add('twist', np.concatenate([
             np.concatenate([placed, np.zeros_like(placed)], -1),

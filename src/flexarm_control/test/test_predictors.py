@@ -136,22 +136,22 @@ def _scikit_learn_kernel(kernel: str, inputs: int) -> Kernel:
 def test_gp_is_scikit_learns(kernel: str) -> None:
     from sklearn.gaussian_process import GaussianProcessRegressor
 
-    from flexarm_control.learning.predictors.gp import negative_log_likelihood
+    from flexarm_learning.ard_gp import negative_log_likelihood
 
     joints = random_joints(30, seed=14)
     gp = make_predictor('gp', {'kernel': kernel, 'restarts': 1}).fit(joints, sag(joints))
-    reference = _scikit_learn_kernel(kernel, gp._x.shape[1])
-    theta0, bounds = gp._hyperparameters(gp._x.shape[1])
+    reference = _scikit_learn_kernel(kernel, gp._gp.x.shape[1])
+    theta0, bounds = gp._hyperparameters(gp._gp.x.shape[1])
     np.testing.assert_allclose(theta0, reference.theta, rtol=1e-12)
     np.testing.assert_allclose(bounds, reference.bounds, rtol=1e-12)
-    squares = (gp._x[:, None] - gp._x[None]) ** 2
+    squares = (gp._gp.x[:, None] - gp._gp.x[None]) ** 2
     query = random_joints(40, seed=15)
     inputs = gp._normalisation.inputs(base.model_inputs(query))
-    for k, theta in enumerate(gp._theta):
+    for k, theta in enumerate(gp._gp.theta):
         sklearn_gp = GaussianProcessRegressor(reference.clone_with_theta(theta),
-                                              optimizer=None).fit(gp._x, gp._y[:, k])
+                                              optimizer=None).fit(gp._gp.x, gp._gp.y[:, k])
         for probe in (theta, 0.5 * theta0 + 0.5 * theta):
-            value, gradient = negative_log_likelihood(probe, kernel, squares, gp._y[:, k])
+            value, gradient = negative_log_likelihood(probe, kernel, squares, gp._gp.y[:, k])
             expected, expected_gradient = sklearn_gp.log_marginal_likelihood(
                 probe, eval_gradient=True)
             assert value == pytest.approx(-expected, rel=1e-10)

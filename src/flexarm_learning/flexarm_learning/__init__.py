@@ -4,6 +4,7 @@ measurements, with a calibrated bound; pure (no rclpy), usable offline (``flexar
 # What other packages may import (tests/test_layering.py holds every import to it).
 PUBLIC = (
     'flexarm_learning.accuracy_study',
+    'flexarm_learning.ard_gp',
     'flexarm_learning.arm_error',
     'flexarm_learning.choices',
     'flexarm_learning.elastostatic',

@@ -91,14 +91,14 @@ def study(arm: UrdfArm, data: Measurements, train: int, splits: int = SPLITS, se
     check_size(data, train)
     seeds = [seed + k for k in range(splits)]
 
-    def mean_of(kind: str, size: int) -> tuple[dict[str, float], ArmErrorModel]:
-        """The figures' means over the splits, and the model of the first split."""
+    def mean_of(kind: str, size: int) -> tuple[dict[str, float], list[ArmErrorModel]]:
+        """The figures' means over the splits, and the model of each split."""
         judged = [fit_and_judge(arm, data, kind, size, s) for s in seeds]
         return ({key: float(np.mean([f[key] for f, _ in judged])) for key in judged[0][0]},
-                judged[0][1])
+                [model for _, model in judged])
 
     by_kind = {kind: mean_of(kind, train) for kind in kinds}
-    physics = by_kind[kinds[0]][1].physics
+    physics = by_kind[kinds[0]][1][0].physics
     report = {
         'rows': len(data), 'skipped_rows': data.skipped,
         'rows_outside_limits': data.outside_limits, 'joints': list(arm.joint_names),
@@ -106,6 +106,8 @@ def study(arm: UrdfArm, data: Measurements, train: int, splits: int = SPLITS, se
         'gravity': physics.gravity,
         'rigid': mean_of('rigid', train)[0],
         'kinds': {kind: figures for kind, (figures, _) in by_kind.items()},
+        'chosen': {kind: [model.chosen for model in models]          # auto's, per split
+                   for kind, (_, models) in by_kind.items() if kind == 'auto'},
         'curve': [{'train': size, **mean_of(kinds[0], size)[0]} for size in curve
                   if MIN_TRAIN <= size < len(data) and not split(data.group, size, seed).all()],
     }

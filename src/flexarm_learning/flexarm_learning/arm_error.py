@@ -6,7 +6,12 @@
 | ``geometric`` | + every joint origin's offset (a geometric calibration) |
 | ``elastostatic`` | + the joints' and links' compliances under gravity |
 | ``greybox`` | + each joint's learned error (:mod:`.joint_error`): the default |
+| ``gp`` | elastostatic + a GP on all joints (:mod:`.residual_gp`) |
 | ``mlp`` | elastostatic + a network ensemble on all joints (:mod:`.residual_mlp`) |
+| ``auto`` | whichever of ``AUTO_CANDIDATES`` cross-validates best (lowest mean error) |
+
+``auto`` costs the sum of its candidates' fits; the default stays ``greybox``, which
+``auto`` chose on every split of the UR10's series C (docs/accuracy.md).
 
 The radius (:mod:`.error_radius`) is calibrated on a grouped ``folds``-fold cross-validation
 of the training rows: each fold refits the physics (from the fit on all rows); the joint-error
@@ -28,15 +33,17 @@ from __future__ import annotations
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from flexarm_learning.choices import DEFAULT_KIND, KINDS
+from flexarm_learning.choices import AUTO_CANDIDATES, DEFAULT_KIND, KINDS
 from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.error_radius import conformal_factor
 from flexarm_learning.joint_error import JointErrorGp
 from flexarm_learning.measurements import Measurements
+from flexarm_learning.residual_gp import ResidualGp
 from flexarm_learning.residual_mlp import ResidualMlp
 from flexarm_learning.urdf_arm import UrdfArm
 
 FOLDS = 5
+Residual = JointErrorGp | ResidualGp | ResidualMlp
 
 
 class ArmErrorModel:
@@ -45,38 +52,56 @@ class ArmErrorModel:
     def __init__(self, arm: UrdfArm, kind: str = DEFAULT_KIND) -> None:
         if kind not in KINDS:
             raise ValueError(f'unknown kind {kind!r}; the kinds: {", ".join(KINDS)}')
-        self.arm, self.kind = arm, kind
+        self.arm, self.kind, self.chosen = arm, kind, kind
         self.factor = float('nan')
+        self.cv_mean_m: dict[str, float] = {}
 
     def _physics(self) -> ElastostaticModel:
-        return ElastostaticModel(self.arm, geometry=self.kind != 'rigid',
-                                 compliance=self.kind not in ('rigid', 'geometric'))
+        return ElastostaticModel(self.arm, geometry=self.chosen != 'rigid',
+                                 compliance=self.chosen not in ('rigid', 'geometric'))
 
     def fit(self, data: Measurements, folds: int = FOLDS, seed: int = 0) -> ArmErrorModel:
+        """The model on all rows, its radius calibrated on a grouped cross-validation;
+        ``auto`` fits every candidate and keeps the one whose held-out mean error is least
+        (:attr:`cv_mean_m` holds each one's)."""
         with threadpool_limits(1):
-            return self._fit_all(data, folds, seed)
-
-    def _fit_all(self, data: Measurements, folds: int, seed: int) -> ArmErrorModel:
-        self.physics, self.residual = self._fit(data)
-        scores = []
-        for held in _folds(data.group, folds, seed):
-            physics, residual = self._fit(data.subset(~held), self.residual, self.physics)
-            points, spread = _predict(physics, residual, data.subset(held))
-            scores.append(np.linalg.norm(points - data.points[held], axis=1) / spread)
-        self.scores = np.concatenate(scores)
-        self.factor = conformal_factor(self.scores)
+            if self.kind != 'auto':
+                return self._fit_all(data, folds, seed)
+            fitted = [ArmErrorModel(self.arm, kind)._fit_all(data, folds, seed)
+                      for kind in AUTO_CANDIDATES]
+        best = min(fitted, key=lambda model: model.cv_mean_m[model.kind])
+        self.chosen, self.physics, self.residual = best.kind, best.physics, best.residual
+        self.scores, self.factor = best.scores, best.factor
+        self.cv_mean_m = {model.kind: model.cv_mean_m[model.kind] for model in fitted}
         return self
 
-    def _fit(self, data: Measurements, like: JointErrorGp | ResidualMlp | None = None,
-             start: ElastostaticModel | None = None):
+    def _fit_all(self, data: Measurements, folds: int, seed: int) -> ArmErrorModel:
+        self.physics, self.residual = self._fit(data, seed=seed)
+        scores, errors = [], []
+        for held in _folds(data.group, folds, seed):
+            physics, residual = self._fit(data.subset(~held), self.residual, self.physics, seed)
+            points, spread = _predict(physics, residual, data.subset(held))
+            errors.append(np.linalg.norm(points - data.points[held], axis=1))
+            scores.append(errors[-1] / spread)
+        self.scores = np.concatenate(scores)
+        self.factor = conformal_factor(self.scores)
+        self.cv_mean_m = {self.kind: float(np.concatenate(errors).mean())}
+        return self
+
+    def _fit(self, data: Measurements, like: Residual | None = None,
+             start: ElastostaticModel | None = None, seed: int = 0,
+             ) -> tuple[ElastostaticModel, Residual | None]:
         physics = self._physics().fit(data.joints, data.points, data.payload, start)
         if data.rotations is not None:
             physics.register_target_rotation(data.joints, data.rotations, data.payload)
-        if self.kind not in ('greybox', 'mlp'):
+        if self.chosen not in ('greybox', 'gp', 'mlp'):
             return physics, None
         left = data.points - physics.predict(data.joints, data.payload)
-        if self.kind == 'mlp':
+        if self.chosen == 'mlp':
             return physics, ResidualMlp().fit(data.joints, left)
+        if self.chosen == 'gp':
+            return physics, ResidualGp().fit(data.joints, left,
+                                             None if like is None else like.theta, seed)
         residual = JointErrorGp().fit(data.joints, physics.joint_jacobians(data.joints), left,
                                       None if like is None else like.hyper)
         return physics, residual
@@ -106,16 +131,16 @@ class ArmErrorModel:
             return _predict(self.physics, self.residual, data)
 
 
-def _predict(physics: ElastostaticModel, residual: JointErrorGp | ResidualMlp | None,
+def _predict(physics: ElastostaticModel, residual: Residual | None,
              data: Measurements) -> tuple[np.ndarray, np.ndarray]:
     """Points and raw radial spread ρ [m] of a fitted physics and residual."""
     points = physics.predict(data.joints, data.payload)
     if residual is None:
         return points, np.full(len(points), physics.noise * np.sqrt(3.0))
-    if isinstance(residual, ResidualMlp):
-        mean, cov = residual.predict(data.joints)
-    else:
+    if isinstance(residual, JointErrorGp):
         mean, cov = residual.predict(data.joints, physics.joint_jacobians(data.joints))
+    else:
+        mean, cov = residual.predict(data.joints)
     return points + mean, np.sqrt(np.trace(cov, axis1=1, axis2=2))
 
 

@@ -3,7 +3,8 @@ kinds of model (:mod:`.arm_error`), the default one, the splits and the learning
 training sizes. Light on purpose: ``flexarm``'s argument parser reads it without importing
 Pinocchio."""
 
-KINDS = ('rigid', 'geometric', 'elastostatic', 'greybox', 'mlp')
+KINDS = ('rigid', 'geometric', 'elastostatic', 'greybox', 'gp', 'mlp', 'auto')
+AUTO_CANDIDATES = ('elastostatic', 'greybox', 'gp', 'mlp')     # what ``auto`` chooses among
 DEFAULT_KIND = 'greybox'
 SPLITS = 3
 LEARNING_CURVE = (10, 20, 40, 80, 160)

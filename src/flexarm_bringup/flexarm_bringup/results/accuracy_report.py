@@ -34,6 +34,8 @@ def table_text(report: dict[str, Any]) -> str:
     for name, figures in rows.items():
         lines.append(f'{name:<14}' + ''.join(f'{scale * figures[key]:>11.3f}'
                                              for _, key, scale in columns))
+    for kind, chosen in report['chosen'].items():
+        lines.append(f"{kind} chose, split by split: {', '.join(chosen)}")
     if report['curve']:
         lines += ['', 'learning curve (' + next(iter(report['kinds'])) + '): '
                   + ', '.join(f"{p['train']} rows {1e3 * p['mean_m']:.3f} mm"

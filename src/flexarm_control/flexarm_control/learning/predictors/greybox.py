@@ -61,11 +61,12 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from flexarm_control.learning.predictors.base import PAYLOAD_TOLERANCE, Predictor, restore
-from flexarm_control.learning.predictors.gp import KERNELS, GpPredictor
+from flexarm_control.learning.predictors.gp import GpPredictor
 from flexarm_control.learning.predictors.kinematic import read_config
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_description.chain import TIP_FRAME
 from flexarm_description.urdf_model import robot_description
+from flexarm_learning.ard_gp import KERNELS
 
 if TYPE_CHECKING:
     from flexarm_learning.elastostatic import ElastostaticModel

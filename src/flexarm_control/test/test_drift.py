@@ -14,6 +14,7 @@ from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execut
 from flexarm_control.execution.modes import Mode
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.drift_correction import Correction, fit_correction
+from flexarm_control.learning.error_bound import BoundCalibration
 from flexarm_control.learning.model_health import ELSEWHERE, HealthSettings, ModelHealth
 from flexarm_control.learning.models import load_model
 from flexarm_control.learning.predictors import make_predictor
@@ -109,6 +110,28 @@ def test_a_correction_from_eight_samples_mends_a_changed_arm(world, change):
     correction = mended.corrections[-1]
     assert correction.samples == 8 and correction.residual_after < correction.residual_before
     assert mended.metadata['version'] == '2' and model.corrections == []   # the old one kept
+
+
+def test_a_refresh_states_the_bound_its_own_left_out_samples_show(world):
+    """Trained and calibrated on the arm as it was, then 2 kg nobody declared: the old bound
+    holds few goals; the refreshed model's holds where its correction leaves the change."""
+    joints = world.joints('B', 40, 1)
+    model = make_predictor('gp').fit(joints, world.plant.deflection(joints))
+    model.metadata['error_bound'] = BoundCalibration(
+        2.0, 2.0, 1e-6, 1e-6, 40, 0.95, 0.95).as_dict()   # tight: the unchanged arm's
+    changed = world.plant.with_payload(2.0)
+    fresh, held_out = world.joints('B', 8, 2), world.joints('B', 100, 3, 'random')
+    mended = refreshed(model, world.geometry, fresh, changed.deflection(fresh),
+                       np.zeros(len(fresh)), '2')
+
+    def covered(predictor) -> float:
+        miss = predictor.predict(held_out) - changed.deflection(held_out)
+        return float(np.mean(np.hypot(miss[:, 0], miss[:, 1])
+                             <= predictor.error_bound(held_out)[:, 0]))
+
+    assert covered(model) < 0.5 and covered(mended) >= 0.95, (covered(model), covered(mended))
+    assert model.metadata['error_bound']['position_plain'] == 0.0     # the old one kept
+    assert mended.metadata['error_bound']['position_plain'] > 0.0
 
 
 def test_a_refresh_at_another_payload_corrects_what_a_carrying_model_misses_there(world):

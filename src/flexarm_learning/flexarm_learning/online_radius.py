@@ -4,16 +4,30 @@
 A split-conformal radius (:mod:`.error_radius`) is calibrated once: when the world moves
 (temperature, a load nobody declared, wear) its coverage falls and nothing says so. Here every
 measured goal is a new calibration sample. Its score (|error| / ρ) joins a window of the most
-recent ``window`` scores (the calibration's to start with), and the miss level α moves by
-``gamma`` × (0.05 − miss): after a miss the next radius is a higher quantile of the window,
-after a hit a slightly lower one. The long-run miss rate then stays at 5 % whatever the drift
-(the paper's guarantee: |mean miss − 0.05| ≤ (max(α₁, 1 − α₁) + γ) / (γ T) over T goals).
-α ≤ 0 states no finite radius (the largest score in the window stands in, times
-``beyond``): the model no longer knows its error, and says so.
+recent ``window`` scores (the calibration's to start with, if there are any), and the miss
+level α moves by ``gamma`` × (0.05 − miss): after a miss the next radius is a higher quantile
+of the window, after a hit a slightly lower one. The long-run miss rate then stays at 5 %
+whatever the drift (the paper's guarantee: |mean miss − 0.05| ≤ (max(α₁, 1 − α₁) + γ) / (γ T)
+over T goals). α ≤ 0 states no finite quantile: the model no longer knows its error, says so
+(:attr:`OnlineRadius.broken`), and the largest score in the window times ``BEYOND`` stands in.
+
+Two additions for a controller that states its bound before each goal:
+
+* ``gross``: a goal measured beyond ``gross`` times the radius it was stated is no 5 % tail
+  but a changed arm (an undeclared load misses by 10-100 times); α drops to 0 at once, and the
+  very next goal states the wide radius instead of missing a few more times while α walks
+  down by γ.
+* ``floor``: the factor is never below it. A model whose bound was calibrated on held-out
+  samples states factor 1 until measured goals show otherwise; a few lucky goals do not make
+  it bolder than its calibration.
+
+Below the rank a window can state (fewer than 19 scores at 95 %), the largest score stands in.
 """
 from __future__ import annotations
 
+import math
 from collections import deque
+from collections.abc import Iterable
 
 import numpy as np
 
@@ -27,24 +41,37 @@ class OnlineRadius:
     """The factor on a prediction's raw spread ρ that states its 95 % radius, updated from
     each measured error."""
 
-    def __init__(self, scores: np.ndarray, level: float = LEVEL, gamma: float = GAMMA,
-                 window: int = WINDOW) -> None:
+    def __init__(self, scores: Iterable[float] = (), level: float = LEVEL,
+                 gamma: float = GAMMA, window: int = WINDOW, floor: float = 0.0,
+                 gross: float = math.inf) -> None:
         self.target = 1.0 - level
-        self.alpha, self.gamma = self.target, gamma
-        self.scores = deque(np.asarray(scores, float), maxlen=window)
+        self.alpha, self.gamma, self.floor, self.gross = self.target, gamma, floor, gross
+        self.scores = deque(np.asarray(list(scores), float), maxlen=window)
+
+    @property
+    def broken(self) -> bool:
+        """Whether the measured goals have left every quantile the window states (α ≤ 0)."""
+        return self.alpha <= 0.0
 
     @property
     def factor(self) -> float:
-        """The factor of the next radius: the window's (1 − α) quantile."""
-        if self.alpha <= 0.0:
-            return BEYOND * max(self.scores)
-        return float(np.quantile(np.asarray(self.scores), min(1.0 - self.alpha, 1.0),
-                                 method='higher'))
+        """The factor of the next radius: the window's conformal (1 − α) quantile."""
+        if not self.scores:              # nothing measured yet: the floor, or no radius
+            return self.floor or math.inf
+        if self.broken:
+            return max(self.floor, BEYOND * max(self.scores))
+        ordered = np.sort(np.asarray(self.scores))
+        rank = math.ceil((len(ordered) + 1) * (1.0 - self.alpha))
+        return max(self.floor, float(ordered[min(rank, len(ordered)) - 1]))
 
     def update(self, error: float, spread: float) -> bool:
         """Account one measured goal: its error and its prediction's raw spread ρ [m].
         Whether the radius stated before it covered it."""
-        covered = error <= self.factor * spread
+        stated = self.factor
+        score = error / spread
+        covered = score <= stated
         self.alpha += self.gamma * (self.target - (0.0 if covered else 1.0))
-        self.scores.append(error / spread)
+        if score > self.gross * stated:
+            self.alpha = min(self.alpha, 0.0)
+        self.scores.append(score)
         return covered

@@ -5,9 +5,13 @@ compensator node; the plan itself is :mod:`flexarm_control.execution.planning`).
 * RIGID and PREDICTIVE end after that one move. They check the measured error only when the
   goal gave a tolerance (``checked``): beyond it the goal ends ``tolerance_not_met``, without a
   measurement ``measurement_failed``; unchecked, a missing measurement is only noted.
-* A PREDICTIVE goal without a tolerance still has a ``sanity_bound``: a measured miss far beyond
-  what its model promised (its validated error) means the model does not fit the arm as it is
-  now, and the goal ends ``tolerance_not_met`` saying so instead of succeeding.
+* After the one move, the measured error is held against the bound the plan stated
+  (``stated``, widened by the camera's 95 % error ``camera``): beyond it, the goal's reason
+  carries the warning with both figures (:func:`~.bound_check.beyond_bound`); the status is the
+  tolerance's to decide, and without one the goal succeeds.
+* AUTO that ran PREDICTIVE (``correct_on_miss``) and measures its tolerance missed goes on
+  as CLOSED_LOOP from that measurement: its bound said PREDICTIVE would do, the camera says it
+  did not (the arm changed since the model learned it), and correcting is what AUTO is for.
 * CLOSED_LOOP corrects the commanded pose by the measured error
   (:meth:`~flexarm_control.execution.compensator.Compensator.correct`) until the measured error is
   within the tolerance, with at most ``max_corrections`` corrective moves after the first. Each
@@ -31,6 +35,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from flexarm_control.execution.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
+from flexarm_control.execution.bound_check import beyond_bound
 from flexarm_control.execution.compensator import Compensator, Plan
 from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import UnreachableError, pose_error
@@ -56,25 +61,22 @@ class GoalSpec:
     position_tolerance: float  # [m] CLOSED_LOOP: always; RIGID/PREDICTIVE: 0 = not checked
     angle_tolerance: float     # [rad] as position_tolerance
     max_corrections: int       # CLOSED_LOOP corrective moves after the first
-    sanity_bound: float = 0.0  # [m] PREDICTIVE without a tolerance: a larger miss fails (0: none)
+    stated: tuple[float, float] = (math.nan, math.nan)   # [m, rad] the plan's 95 % bound
+    camera: tuple[float, float] = (0.0, 0.0)   # [m, rad] 95 % of a measurement's own error
+    correct_on_miss: bool = False  # AUTO: a PREDICTIVE run that misses the tolerance corrects
 
     @property
     def max_moves(self) -> int:
         """The most moves the goal makes: CLOSED_LOOP's first, its corrections and the return
         to its best plan; one otherwise."""
-        return self.max_corrections + 2 if self.mode == Mode.CLOSED_LOOP else 1
+        closing = self.mode == Mode.CLOSED_LOOP or self.correct_on_miss
+        return self.max_corrections + 2 if closing else 1
 
     @property
     def checked(self) -> bool:
         """Whether the measured error must be within the tolerances."""
         return (self.mode == Mode.CLOSED_LOOP or self.position_tolerance > 0
                 or self.angle_tolerance > 0)
-
-
-def sanity_bound(max_error_x: float, max_error_y: float, factor: float, floor: float) -> float:
-    """[m] The largest miss a PREDICTIVE goal may measure and succeed: ``factor`` times its
-    model's validated max position error (components [m]), at least ``floor``."""
-    return max(floor, factor * math.hypot(max_error_x, max_error_y))
 
 
 @dataclass(frozen=True)
@@ -85,6 +87,7 @@ class Execution:
     moves: int                     # moves made (0: nothing moved)
     measured: np.ndarray | None    # (3,) the last measured tip pose
     held_at: np.ndarray | None = None   # (4,) joints where a canceled goal held the arm
+    first: np.ndarray | None = None     # (3,) the tip measured after the first move
 
     def errors(self, target: np.ndarray) -> tuple[float, float]:
         """(position [m], angle [rad]) error of the last measurement; (0, 0) without one."""
@@ -110,13 +113,14 @@ def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensa
             observe: Observe = _unobserved) -> Execution:
     """Run ``plan`` for the goal ``spec`` (module docstring) on ``motion``'s arm;
     ``observe(joints, measured)`` gets every measurement with the joints the arm reported."""
-    measured: np.ndarray | None = None
+    measured = first = None
     move = 0
     best: tuple[float, float, int, Plan] | None = None   # CLOSED_LOOP: position, angle, move
     returned = False                                     # the best plan commanded again
+    closing = spec.mode == Mode.CLOSED_LOOP              # measuring and correcting
 
     def ended(status: str, reason: str, held_at: np.ndarray | None = None) -> Execution:
-        return Execution(status, reason, plan, move, measured, held_at)
+        return Execution(status, reason, plan, move, measured, held_at, first)
 
     while True:
         move += 1
@@ -143,19 +147,19 @@ def execute(spec: GoalSpec, plan: Plan, motion: ArmMotion, compensator: Compensa
             return ended(SUCCEEDED, 'moved; no valid settled tip measurement'
                          + (f' ({why})' if why else ''))
         measured = measurement.pose
+        first = measured if first is None else first
         observe(motion.arm.positions(), measured)
         progress(MEASURING, move, plan, measured)
         position, angle = pose_error(spec.target, measured)
-        if spec.mode != Mode.CLOSED_LOOP:
+        if not closing:
+            warning = beyond_bound((position, angle), spec.stated, np.asarray(spec.camera))
             missed = _beyond_tolerance(spec, position, angle)
-            if missed:
-                return ended(TOLERANCE_NOT_MET, 'measured error beyond the tolerance: ' + missed)
-            if not spec.checked and spec.sanity_bound and position > spec.sanity_bound:
-                return ended(TOLERANCE_NOT_MET, (
-                    f'measured error {position * 1e3:.3f} mm is beyond the sanity bound '
-                    f'{spec.sanity_bound * 1e3:.3f} mm of what the model promised: it does not '
-                    'fit the arm as it is now (refresh or retrain it)'))
-            return ended(SUCCEEDED, '')
+            if not missed:
+                return ended(SUCCEEDED, warning)
+            if not spec.correct_on_miss:
+                return ended(TOLERANCE_NOT_MET, '; '.join(filter(None, [
+                    'measured error beyond the tolerance: ' + missed, warning])))
+            closing = True          # AUTO: measured beyond its tolerance, it corrects
         within = position <= spec.position_tolerance and angle <= spec.angle_tolerance
         if returned:
             final = (f'{_error_text(position, angle)} after {spec.max_corrections} corrections '

@@ -78,11 +78,16 @@ class SiteErrors:
         growth = Z_1D * self.thermal_strain * float(np.hypot(*forward(geometry, joints)[:2]))
         return np.hypot(np.hypot(servo, (growth, 0.0)), Z_1D * np.asarray(self.tool_residual))
 
+    @property
+    def camera(self) -> np.ndarray:
+        """95 % [m, rad] of one measured tip pose's error: the camera's noise and what the
+        tool calibration left."""
+        return np.hypot([Z_2D * self.camera_noise[0], Z_1D * self.camera_noise[1]],
+                        Z_1D * np.asarray(self.tool_residual))
+
     def closed_loop(self, tolerance: tuple[float, float]) -> np.ndarray:
         """95 % [m, rad] of a CLOSED_LOOP goal's true error that ends within ``tolerance``."""
-        camera = np.hypot([Z_2D * self.camera_noise[0], Z_1D * self.camera_noise[1]],
-                          Z_1D * np.asarray(self.tool_residual))
-        return np.asarray(tolerance, dtype=float) + camera
+        return np.asarray(tolerance, dtype=float) + self.camera
 
 
 def radius_95(covariance: np.ndarray) -> float:
@@ -91,8 +96,3 @@ def radius_95(covariance: np.ndarray) -> float:
     spread = np.sqrt(np.maximum(np.linalg.eigvalsh(covariance), 0.0))
     return float(np.percentile(np.hypot(*(spread[:, None] * _NORMAL)), 95))
 
-
-def combined(model: np.ndarray, site: np.ndarray) -> tuple[float, float]:
-    """A model's bound and the site's, independent: in quadrature."""
-    position, angle = np.hypot(model, site)
-    return float(position), float(angle)

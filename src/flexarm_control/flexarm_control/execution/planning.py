@@ -26,7 +26,8 @@ goal runs, and when the model is not trusted.
   (:attr:`Planned.mode` says which, :attr:`Planned.note` why).
 
 Every plan states the 95 % bound of the goal's true error before anything moves
-(:attr:`Planned.bound`, :mod:`.plan_bound`); NaN (none) for a model run at a payload it
+(:attr:`Planned.bound`, :mod:`.plan_bound`), the model's part times the online factor that
+measured goals set (``inflation``, :mod:`.bound_check`); NaN (none) for a model run at a payload it
 cannot predict at (:func:`payload_beyond`, extrapolation allowed). A PREDICTIVE goal with a
 tolerance its bound exceeds is refused (``BOUND_EXCEEDS_TOLERANCE``) with the bound and what
 would help, unless it allows extrapolation: moving to learn it missed is what the bound is
@@ -40,12 +41,14 @@ from __future__ import annotations
 import math
 from collections.abc import Sequence
 from dataclasses import dataclass, replace
+from typing import Any
 
 import numpy as np
 
+from flexarm_control.execution.bound_check import BoundParts
 from flexarm_control.execution.compensator import CompensationError, Compensator, Plan
 from flexarm_control.execution.modes import Mode
-from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors, combined
+from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.error_bound import Z_1D
 from flexarm_control.learning.predictors import Predictor
@@ -69,6 +72,7 @@ class Planned:
     extrapolated: bool = False  # the model predicts beyond its learned data (goal allowed it)
     bound: tuple[float, float] = (math.nan, math.nan)   # [m, rad] 95 % of the true error
     mode: Mode = Mode.RIGID    # the mode that runs (AUTO: the one it chose)
+    parts: BoundParts | None = None    # PREDICTIVE with a model: the bound in its parts
 
 
 @dataclass(frozen=True)
@@ -109,23 +113,28 @@ def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
               predictor: Predictor | AtPayload | None, limits: DataLimits,
               allow_extrapolation: bool = False, trained_payloads: Sequence[float] = (),
               site: SiteErrors | None = None, tolerance: tuple[float, float] = (0.0, 0.0),
-              ) -> Planned | Refusal:
+              inflation: float = 1.0) -> Planned | Refusal:
     """The plan for a goal in ``mode`` (module docstring) with its bound, or why it is refused.
 
     ``trained_payloads``: the payloads [kg] of the model's samples; with them, ``predictor``
     is the model :class:`AtPayload` the arm carries now, checked by :func:`payload_beyond`
     (empty: not checked). ``site``: what no model sees (None: nothing). ``tolerance`` [m, rad]:
-    the goal's (0: none; CLOSED_LOOP and AUTO need one)."""
+    the goal's (0: none; CLOSED_LOOP and AUTO need one). ``inflation``: the online factor on
+    the model's part of the bound."""
     mode = Mode.of(mode)
     if mode == Mode.AUTO:
-        return _auto(compensator, target, predictor, limits, trained_payloads, site, tolerance)
+        return _auto(compensator, target, predictor, limits, trained_payloads, site, tolerance,
+                     inflation)
     planned = _plan(compensator, mode, target, predictor, limits, allow_extrapolation,
                     trained_payloads)
     if isinstance(planned, Refusal):
         return planned
     blind = predictor is not None and bool(payload_beyond(predictor, trained_payloads))
-    planned = replace(planned, mode=mode, bound=(math.nan, math.nan) if blind and mode != (
-        Mode.CLOSED_LOOP) else _bound(compensator, mode, planned, predictor, site, tolerance))
+    if blind and mode != Mode.CLOSED_LOOP:
+        planned = replace(planned, mode=mode, bound=(math.nan, math.nan))
+    else:
+        planned = replace(planned, mode=mode, **_bound(compensator, mode, planned, predictor,
+                                                       site, tolerance, inflation))
     if (mode == Mode.PREDICTIVE and not allow_extrapolation and max(tolerance) > 0
             and not all(b <= t for b, t in zip(planned.bound, tolerance) if t > 0)):
         if any(math.isnan(b) for b in planned.bound):
@@ -156,31 +165,34 @@ def _help(predictor: Predictor | AtPayload | None, planned: Planned) -> str:
 
 def _bound(compensator: Compensator, mode: Mode, planned: Planned,
            predictor: Predictor | AtPayload | None, site: SiteErrors | None,
-           tolerance: tuple[float, float]) -> tuple[float, float]:
-    """The plan's 95 % bound (:mod:`.plan_bound`)."""
+           tolerance: tuple[float, float], inflation: float) -> dict[str, Any]:
+    """The plan's 95 % bound (:mod:`.plan_bound`) and, PREDICTIVE, its parts."""
     if mode == Mode.CLOSED_LOOP:
         position, angle = (site.closed_loop(tolerance) if site is not None
                            else np.asarray(tolerance))
-        return float(position), float(angle)
+        return {'bound': (float(position), float(angle))}
     if predictor is None:
-        return RIGID_ERROR
+        return {'bound': RIGID_ERROR}
     joints = planned.plan.joints
-    site_bound = site.at(compensator.geometry, joints) if site is not None else np.zeros(2)
-    model = combined(np.asarray(predictor.error_bound(joints)), site_bound)
+    parts = BoundParts(np.asarray(predictor.error_bound(joints), dtype=float),
+                       site.at(compensator.geometry, joints) if site is not None
+                       else np.zeros(2), inflation)
     if mode == Mode.PREDICTIVE:
-        return model
+        return {'bound': parts.stated, 'parts': parts}
     sag = np.asarray(predictor.predict(joints))        # RIGID: what the rigid plan leaves
-    return model[0] + math.hypot(sag[0], sag[1]), model[1] + abs(sag[2])
+    model = parts.stated
+    return {'bound': (model[0] + math.hypot(sag[0], sag[1]), model[1] + abs(sag[2]))}
 
 
 def _auto(compensator: Compensator, target: np.ndarray, predictor: Predictor | AtPayload | None,
           limits: DataLimits, trained_payloads: Sequence[float], site: SiteErrors | None,
-          tolerance: tuple[float, float]) -> Planned | Refusal:
+          tolerance: tuple[float, float], inflation: float) -> Planned | Refusal:
     """PREDICTIVE where it is bound within ``tolerance``, else CLOSED_LOOP, saying why."""
     if not min(tolerance) > 0:
         raise ValueError(f'AUTO needs a position and an angle tolerance, got {tolerance}')
     predictive = plan_goal(compensator, Mode.PREDICTIVE, target, predictor, limits,
-                           trained_payloads=trained_payloads, site=site, tolerance=tolerance)
+                           trained_payloads=trained_payloads, site=site, tolerance=tolerance,
+                           inflation=inflation)
     if isinstance(predictive, Planned):
         return replace(predictive, note='; '.join(filter(None, [
             f'AUTO ran PREDICTIVE: its 95 % bound {_text(predictive.bound)} is within the '

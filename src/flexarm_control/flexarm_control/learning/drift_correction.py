@@ -101,6 +101,31 @@ def position_residuals(residuals: np.ndarray) -> np.ndarray:
     return np.hypot(residuals[:, 0], residuals[:, 1])
 
 
+def left_out_residuals(lengths: tuple[float, float, float], joints: np.ndarray,
+                       measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
+    """(M, 3): each sample's residual under the correction fitted on the others: what a
+    refreshed model leaves where it was not fitted (leave-one-out)."""
+    joints, measured, predicted = (np.atleast_2d(np.asarray(a, dtype=float))
+                                   for a in (joints, measured, predicted))
+    out = np.empty_like(measured)
+    for i in range(len(joints)):
+        others = np.arange(len(joints)) != i
+        p = _solve(lengths, joints[others], measured[others], predicted[others])
+        out[i] = measured[i] - predicted[i] - features(lengths, joints[i:i + 1],
+                                                       predicted[i:i + 1])[0] @ p
+    return out
+
+
+def _solve(lengths: tuple[float, float, float], joints: np.ndarray, measured: np.ndarray,
+           predicted: np.ndarray) -> np.ndarray:
+    """The parameters (9,) of the noise-weighted ridge fit (module docstring)."""
+    f = features(lengths, joints, predicted) / NOISE[None, :, None]
+    r = (measured - predicted) / NOISE
+    a = np.concatenate([f.reshape(-1, len(PARAMETERS)), np.diag(1.0 / PRIOR)])
+    b = np.concatenate([r.reshape(-1), np.zeros(len(PARAMETERS))])
+    return np.linalg.lstsq(a, b, rcond=None)[0]
+
+
 def fit_correction(lengths: tuple[float, float, float], joints: np.ndarray,
                    measured: np.ndarray, predicted: np.ndarray) -> Correction:
     """The correction that brings ``predicted`` (M, 3) deflections at joints (M, 4) to the
@@ -111,11 +136,7 @@ def fit_correction(lengths: tuple[float, float, float], joints: np.ndarray,
     if len(joints) < 1 or measured.shape != predicted.shape or measured.shape != (
             len(joints), 3):
         raise ValueError('a correction needs joints (M, 4) and deflections (M, 3), M >= 1')
-    f = features(lengths, joints, predicted) / NOISE[None, :, None]
-    r = (measured - predicted) / NOISE
-    a = np.concatenate([f.reshape(-1, len(PARAMETERS)), np.diag(1.0 / PRIOR)])
-    b = np.concatenate([r.reshape(-1), np.zeros(len(PARAMETERS))])
-    p = np.linalg.lstsq(a, b, rcond=None)[0]
+    p = _solve(lengths, joints, measured, predicted)
     before = position_residuals(measured - predicted)
     after = position_residuals(measured - predicted - features(lengths, joints, predicted) @ p)
     return Correction(p, tuple(float(v) for v in lengths), len(joints),

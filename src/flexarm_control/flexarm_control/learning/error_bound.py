@@ -43,7 +43,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass
+from dataclasses import asdict, dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -79,6 +79,13 @@ class BoundCalibration:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
+
+    def floored(self, residuals: np.ndarray) -> BoundCalibration:
+        """This calibration with its plain bounds raised to the 95 % point of held-out
+        residuals (n, 3) [m, m, rad] of samples taken since (a refresh's)."""
+        position, angle = split(residuals)
+        return replace(self, position_plain=max(self.position_plain, scale(position, 2)),
+                       angle_plain=max(self.angle_plain, scale(angle, 1)))
 
     def bound(self, std: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
         """95 % bounds (..., 2) [m, rad] from raw stds (..., 3) [m, m, rad] and the prior's

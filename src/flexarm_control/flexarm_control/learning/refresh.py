@@ -5,7 +5,13 @@ where the model health saw its largest residuals (:meth:`ModelHealth.worst_joint
 space-filling over the stale region grown by the coverage margin, so the correction is pinned
 down where goals missed and across the region. :func:`refreshed` fits the
 :class:`~flexarm_control.learning.drift_correction.Correction` to the samples taken there and
-returns the corrected model under a new version.
+returns the corrected model under a new version, with its bound recalibrated: the bound the
+model was trained with knows nothing of the change, and the correction leaves some of it (an
+8-sample refresh after an undeclared load left up to 0.28 mm where the old bound stated
+0.08 mm). Each refresh sample's residual under the correction fitted on the others
+(leave-one-out) is an honest held-out error of the refreshed model; their 95 % point
+(:func:`~flexarm_control.learning.error_bound.scale`, the plain rule: too few samples for a
+conformal rank) becomes the bound's floor everywhere, the model's own scaled std above it.
 """
 from __future__ import annotations
 
@@ -14,7 +20,8 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.learning.drift_correction import fit_correction
+from flexarm_control.learning.drift_correction import fit_correction, left_out_residuals
+from flexarm_control.learning.error_bound import BoundCalibration
 from flexarm_control.learning.predictors import Predictor
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry
@@ -66,6 +73,12 @@ def refreshed(predictor: Predictor, geometry: ArmGeometry, joints: np.ndarray,
     joints = np.asarray(joints, dtype=float)
     predicted = predictor.predict(   # the correction must not learn a sag the model carries
         joints, np.asarray(payload, dtype=float) if predictor.carries_payload else None)
-    correction = fit_correction((geometry.link3, geometry.link4, geometry.offset), joints,
-                                deflections, predicted)
-    return predictor.corrected(correction, version)
+    lengths = (geometry.link3, geometry.link4, geometry.offset)
+    correction = fit_correction(lengths, joints, deflections, predicted)
+    mended = predictor.corrected(correction, version)
+    calibration = predictor.metadata.get('error_bound')
+    if calibration is not None and len(joints) >= 2:
+        left = left_out_residuals(lengths, joints, deflections, predicted)
+        mended.metadata['error_bound'] = BoundCalibration.from_dict(
+            calibration).floored(left).as_dict()
+    return mended

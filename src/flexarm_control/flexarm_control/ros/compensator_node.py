@@ -56,6 +56,9 @@ Model health (:mod:`flexarm_control.learning.model_health`): every measured tip 
 in use (measured − predicted deflection at the reported joints), per working region; the statistics
 are published latched on ``/compensator/model_health`` after each measurement; a region
 turning stale is logged, and every later result carries the warning until a new model comes.
+Every PREDICTIVE goal's first measurement is also held against the bound its plan stated: the
+online bound (:mod:`flexarm_control.execution.bound_check`) widens the next plans' bounds when
+measured goals leave it, and the model health says so with the figures.
 
 Provenance and tolerances: every result, feedback and outcome names the model version its plan
 used ("" for a rigid plan); a model announced with a warning (e.g. trained at another payload)
@@ -79,7 +82,6 @@ import os
 import threading
 import traceback
 from contextlib import ExitStack
-from dataclasses import replace
 from typing import Any
 
 import numpy as np
@@ -94,6 +96,7 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
 from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
+from flexarm_control.execution.bound_check import OnlineBound, OnlineSettings
 from flexarm_control.execution.compensator import Compensator, Plan
 from flexarm_control.execution.compensator_status import (
     goals_status,
@@ -110,7 +113,6 @@ from flexarm_control.execution.goal_execution import (
     UNREACHABLE,
     GoalSpec,
     execute,
-    sanity_bound,
 )
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import SiteErrors
@@ -192,12 +194,6 @@ class CompensatorNode(Node):
             declare(self, 'max_prediction_std', 0.3e-3, "[m] PREDICTIVE refuses joints where "
                     "the model's std of the predicted tip position exceeds this",
                     bounds=(0.0, 0.1)))
-        self._sanity_factor = declare(
-            self, 'sanity_factor', 5.0, "PREDICTIVE without a tolerance fails beyond this many "
-            "times the model's validated max error (or sanity_floor, if larger)")
-        self._sanity_floor = declare(self, 'sanity_floor', 1.0e-3,
-                                     '[m] the smallest sanity bound of a PREDICTIVE goal',
-                                     bounds=(0.0, 0.1))
         self._site = SiteErrors.from_dict(declare_tree(self, 'error_bound',
                                                        'config/compensator.yaml'))
         model_path = declare(self, 'model_path', '',
@@ -206,7 +202,9 @@ class CompensatorNode(Node):
             HealthSettings.from_dict(declare_tree(self, 'model_health',
                                                   'config/compensator.yaml')),
             regions_from_dict(declare_tree(self, 'regions', 'config/learner.yaml')))
-        self._health_lock = threading.Lock()
+        self._online = OnlineBound(OnlineSettings.from_dict(
+            declare_tree(self, 'online_bound', 'config/compensator.yaml')))
+        self._health_lock = threading.Lock()     # the model health and the online bound
         self._payload: float | None = None     # [kg] from /payload; None until it comes
 
         self._group = ReentrantCallbackGroup()   # in parallel under a multi-threaded executor
@@ -251,7 +249,7 @@ class CompensatorNode(Node):
         with self._health_lock:
             health = model_health_status(
                 name, self._health.version, self._health.report(),
-                self._health.settings.stale_residual, self._health.summary())
+                self._health.settings.stale_residual, self._health_summary())
         return [model_status(name, model[1] if model else None, self._load_error,
                              self._payload),
                 health, goals_status(name, dict(self._goal_counts), self._executing)]
@@ -277,6 +275,7 @@ class CompensatorNode(Node):
         self._active_pub.publish(info)
         with self._health_lock:
             self._health.reset(info.version)
+            self._online.reset(info.version)
         self._publish_health()
         self.get_logger().info(f'predictor {what} loaded ({predictor.kind}) from {path}')
         if info.warning:
@@ -304,14 +303,36 @@ class CompensatorNode(Node):
             self.get_logger().warn(summary)
         self._publish_health()
 
+    def _health_summary(self, region: str | None = None) -> str:
+        """The stale regions (or ``region`` alone) and the online bound's state; call with
+        the health lock held."""
+        return '; '.join(filter(None, [self._health.summary(region), self._online.summary()]))
+
+    def _account(self, planned: Planned, target: np.ndarray, first: np.ndarray | None) -> None:
+        """A goal's first measurement against the bound its PREDICTIVE plan stated."""
+        if planned.parts is None or first is None or planned.extrapolated:
+            return
+        with self._health_lock:
+            broken = self._online.broken
+            self._online.account(pose_error(target, first), planned.parts, self._site.camera)
+            newly = self._online.broken and not broken
+            summary = self._online.summary()
+        if newly:
+            self.get_logger().warn(summary)
+        self._publish_health()
+
     def _publish_health(self) -> None:
         with self._health_lock:
-            report, summary = self._health.report(), self._health.summary()
+            report, summary = self._health.report(), self._health_summary()
             version, threshold = self._health.version, self._health.settings.stale_residual
             worst = {r.name: self._health.worst_joints(r.name, 4) for r in report}
+            online = self._online
+            bound = (online.factor, online.goals, online.misses, online.broken)
         self._health_pub.publish(HealthMsg(
             stamp=self.get_clock().now().to_msg(), model_version=version,
-            stale=any(r.stale for r in report), summary=summary, stale_residual=threshold,
+            stale=any(r.stale for r in report) or bound[3], summary=summary,
+            stale_residual=threshold, bound_factor=bound[0], bound_goals=bound[1],
+            bound_misses=bound[2],
             regions=[RegionHealth(
                 name=r.name, observations=r.observations,
                 median_position_residual=r.median_position,
@@ -408,11 +429,13 @@ class CompensatorNode(Node):
 
         self._target_pub.publish(pose_stamped(target, self.get_clock().now().to_msg()))
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
+        with self._health_lock:
+            inflation = self._online.factor
         try:
             planned = plan_goal(self._compensator, mode, target, predictor, self._limits,
                                 goal.allow_extrapolation,
                                 trained_payloads=list(info.payloads) if info else [],
-                                site=self._site, tolerance=tolerance)
+                                site=self._site, tolerance=tolerance, inflation=inflation)
         except UnreachableError as exc:
             return fail(Result.UNREACHABLE, str(exc))
         if isinstance(planned, Refusal):
@@ -420,7 +443,8 @@ class CompensatorNode(Node):
             return fail(REFUSALS[planned.code], '; '.join(filter(None, [planned.reason] + (
                 [self._load_error, unusable] if planned.code == 'no_model' else []))))
         spec = GoalSpec(target, planned.mode, *tolerance,
-                        goal.max_corrections or self._max_corrections)
+                        goal.max_corrections or self._max_corrections, planned.bound,
+                        tuple(self._site.camera), mode == Mode.AUTO)
         result.mode_run = int(planned.mode)
         result.position_error_bound, result.angle_error_bound = planned.bound
         plan = planned.plan
@@ -433,10 +457,6 @@ class CompensatorNode(Node):
                                                  predictor.payload)]
             notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
                          if any(fit) else '')
-        if planned.mode == Mode.PREDICTIVE and not planned.extrapolated:
-            spec = replace(spec, sanity_bound=sanity_bound(
-                info.metrics.max_error_x, info.metrics.max_error_y, self._sanity_factor,
-                self._sanity_floor))
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations
@@ -479,6 +499,7 @@ class CompensatorNode(Node):
         observe = ((lambda q, measured: self._observe(predictor, q, measured))
                    if predictor is not None else (lambda q, measured: None))
         run = execute(spec, plan, self._motion, self._compensator, stop, progress, observe)
+        self._account(planned, target, run.first)
         result.error_code = OUTCOMES[run.status]
         if run.status == SUCCEEDED:
             notes.append(run.reason)
@@ -487,7 +508,7 @@ class CompensatorNode(Node):
         else:
             notes.insert(0, run.reason)
         with self._health_lock:
-            stale = self._health.summary(self._health.region_of(target))
+            stale = self._health_summary(self._health.region_of(target))
         notes.append(f'warning: {stale}' if stale else '')
         result.error_string = '; '.join(filter(None, notes))
         result.iterations = run.moves

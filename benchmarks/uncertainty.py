@@ -20,7 +20,15 @@ beforehand. Scenarios (the simulated arm's truth; the model knows the nominal de
   more collected at 5 kg (what a refresh brings) and the model trained on both payloads.
 - ``samples_10``: 10 learning samples; ``kind_<k>``: another predictor kind (nominal).
 - ``drift``: 2 kg carried and not declared (no model can know it; the model health does),
-  reported apart from the pooled figures.
+  reported apart from the pooled figures: the bound as trained, nothing measured.
+- ``drift_refresh``: the same change, then as the compensator runs (:mod:`flexarm_control.
+  execution.bound_check`): ``DRIFT_GOALS`` PREDICTIVE goals one after the other, each
+  measured by the camera and held against its stated bound, which the online bound widens from
+  each one (``under_drift``); then an ``REFRESH_SAMPLES``-sample refresh where the model
+  health saw the worst residuals (:mod:`flexarm_control.learning.refresh`: its bound
+  recalibrated) and ``DRIFT_GOALS`` goals more on the refreshed model (``after_refresh``).
+- ``auto_drift``: the same change, ``DRIFT_GOALS`` AUTO goals at ``AUTO_TOLERANCE`` one after
+  the other with the online bound (AUTO corrects when it measures its tolerance missed).
 
 Keys: ``coverage`` (share of goals whose true position error is within the stated position
 bound, scenarios pooled, drift apart) ≥ 0.95; ``coverage_min`` (worst scenario) ≥ 0.90;
@@ -32,7 +40,11 @@ move the tip mostly across the arm make near one-dimensional (95 % point / media
 0.5 mm tolerance would have let move — bound within it — and that missed it) 0; ``mlp_fit_s``
 (the MLP ensemble on 40 samples, a learner's second and later fits) ≤ 2, beside
 ``mlp_first_fit_s`` (its first: torch imported and its optimisers' first use, once per
-learner worker). ``scenarios``: per scenario goals,
+learner worker). Under drift (reported apart): ``coverage_under_drift`` ≥ 0.9 (the first
+goal after the change may miss), ``coverage_after_refresh`` ≥ 0.9 and
+``sharpness_after_refresh`` ≤ 3, ``auto_under_drift_unsafe`` = 0 (AUTO goals neither refused
+nor within their tolerance by the truth). At the untrained payload (``payload_5kg``):
+``sharpness_payload`` ≤ 3 with ``coverage_payload`` ≥ 0.95. ``scenarios``: per scenario goals,
 coverage, median bound and error, the largest error and what it stated there, ``refused``.
 
     python benchmarks/uncertainty.py [--targets 15] [--samples 40] [--seeds 1] [--json]
@@ -49,22 +61,30 @@ from concurrent.futures import ProcessPoolExecutor
 from typing import Any
 
 import numpy as np
-from error_budget import SOURCES, Rig, collect, config, reference_calibration
+from error_budget import SOURCES, CalibratedMotion, Rig, collect, config, reference_calibration
 
+from flexarm_control.execution.bound_check import OnlineBound, OnlineSettings
+from flexarm_control.execution.collection import Collector
 from flexarm_control.execution.compensator import CompensationError
+from flexarm_control.execution.goal_execution import GoalSpec, execute
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import SiteErrors
 from flexarm_control.execution.planning import Planned, plan_goal
 from flexarm_control.learning.at_payload import AtPayload
 from flexarm_control.learning.cross_validation import Screening
+from flexarm_control.learning.model_health import HealthSettings, ModelHealth
 from flexarm_control.learning.predictors import make_predictor
-from flexarm_control.learning.sampling import random_targets
+from flexarm_control.learning.refresh import refresh_poses, refreshed
+from flexarm_control.learning.sampling import random_targets, travel_order
 from flexarm_control.learning.selection import fit_robust
-from flexarm_core.kinematics import pose_error
+from flexarm_core.kinematics import forward, pose_error
 from flexarm_core.regions import configured_regions
 
 TOLERANCE = 5e-4           # [m] the unsafe-move check's tolerance
 TARGET_SEED = 7100
+DRIFT_GOALS = 20           # goals after the change, per phase, region and seed
+REFRESH_SAMPLES = 8
+AUTO_TOLERANCE = (2e-4, math.radians(0.05))    # [m, rad] the AUTO goals' under drift
 MASSES_OFF = {'scale': {'second_arm': 1.15, 'end_effector': 1.10},
               'add': {'second_arm': 0.6}, 'com': 0.03}
 MASSES_LIGHT = {'scale': dict.fromkeys(('second_axis', 'second_arm', 'third_axis', 'third_arm',
@@ -84,7 +104,10 @@ SCENARIOS: dict[str, dict[str, Any]] = {
     'kind_greybox': {'kind': 'greybox'},
     'kind_mlp': {'kind': 'mlp'},
     'drift': {'carried': 2.0, 'declared': False},
+    'drift_refresh': {'carried': 2.0, 'declared': False, 'sequence': 'refresh'},
+    'auto_drift': {'carried': 2.0, 'declared': False, 'sequence': 'auto'},
 }
+DRIFTING = ('drift', 'drift_refresh', 'auto_drift')      # apart from the pooled figures
 SMOKE = ('nominal', 'payload_5kg_masses_off')
 
 
@@ -131,6 +154,12 @@ def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
     declared = carried if scenario.get('declared', True) else 0.0
     model = AtPayload(predictor, declared)
     site = SiteErrors.from_dict(c['compensator']['error_bound'])
+    if 'sequence' in scenario:
+        phases = in_sequence(rig, c, region, region_name, seed + region_index, model,
+                             sorted(set(payloads)), site, scenario['sequence'])
+        return {'name': name, 'region': region_name, 'seed': seed, 'samples': len(collected),
+                'phases': phases, 'goals': [], 'refused': 0, 'out_of_reach': 0,
+                'wall_s': time.perf_counter() - started}
     servos = SiteErrors(np.asarray(c['error_sources']['repeatability']['sigma']), (0.0, 0.0),
                         (0.0, 0.0))      # the simulated servos' true errors, nothing else
     goals, refused, out_of_reach = [], 0, 0
@@ -153,6 +182,78 @@ def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
     return {'name': name, 'region': region_name, 'seed': seed, 'samples': len(collected),
             'goals': goals, 'refused': refused, 'out_of_reach': out_of_reach,
             'wall_s': time.perf_counter() - started}
+
+
+def in_sequence(rig: Rig, c: dict[str, Any], region: Any, region_name: str, seed: int,
+                model: AtPayload, payloads: list[float], site: SiteErrors, kind: str,
+                ) -> dict[str, list[tuple[float, ...]]]:
+    """Goals one after the other as the compensator runs them after the change: each planned
+    with the online bound's factor, moved, measured, held against its bound (which the online
+    bound then learns from) and filed in the model health; per phase, every goal's (true
+    position error, true angle error, stated position bound, stated angle bound, refused)."""
+    motion = CalibratedMotion(rig)
+    online = OnlineBound(OnlineSettings.from_dict(c['compensator']['online_bound']))
+    health = ModelHealth(HealthSettings.from_dict(c['compensator']['model_health']),
+                         {region_name: region})
+    tolerance = AUTO_TOLERANCE if kind == 'auto' else (0.0, 0.0)
+    mode = Mode.AUTO if kind == 'auto' else Mode.PREDICTIVE
+
+    def goals(model: AtPayload, version: str, phase_seed: int) -> list[tuple[float, ...]]:
+        online.reset(version)
+        health.reset(version)
+
+        def observe(joints: np.ndarray, measured: np.ndarray) -> None:
+            health.observe(measured, joints, measured - forward(rig.geometry, joints)
+                           - model.predict(joints))
+
+        rows = []
+        for target in random_targets(rig.geometry, region, DRIFT_GOALS, phase_seed):
+            planned = plan_goal(rig.compensator, mode, target, model, rig.limits,
+                                trained_payloads=payloads, site=site, tolerance=tolerance,
+                                inflation=online.inflation)
+            if not isinstance(planned, Planned):
+                rows.append((math.nan, math.nan, math.nan, math.nan, 1.0))
+                continue
+            spec = GoalSpec(target, planned.mode, *tolerance, rig.max_corrections,
+                            planned.bound, tuple(site.camera), mode == Mode.AUTO)
+            run = execute(spec, planned.plan, motion, rig.compensator, observe=observe)
+            if planned.parts is not None and run.first is not None:
+                online.account(pose_error(target, run.first), planned.parts, site.camera)
+            rows.append((*pose_error(target, rig.arm.truth()), *planned.bound, 0.0))
+        return rows
+
+    if kind == 'auto':
+        return {'auto': goals(model, '1', TARGET_SEED + 20 + seed)}
+    phases = {'under_drift': goals(model, '1', TARGET_SEED + 30 + seed)}
+    grown = region.grown(np.asarray(c['learner']['coverage_margin']))
+    poses = refresh_poses(rig.geometry, grown, health.worst_joints(region_name, REFRESH_SAMPLES),
+                          REFRESH_SAMPLES, seed=seed + 500)
+    poses = poses[travel_order(poses, rig.arm.positions(), rig.geometry.velocity)]
+    fresh: list[Any] = []
+    Collector(motion, rig.geometry, c['learner']['measurement_retries'],
+              clock=lambda: rig.arm.time).collect(poses, model.payload, fresh.append)
+    mended = refreshed(model.predictor, rig.geometry, np.array([s.joints for s in fresh]),
+                       np.array([s.deflection for s in fresh]),
+                       np.full(len(fresh), model.payload), '2')
+    phases['after_refresh'] = goals(AtPayload(mended, model.payload), '2',
+                                    TARGET_SEED + 40 + seed)
+    return phases
+
+
+def phase_figures(rows: list[dict[str, Any]], phase: str,
+                  tolerance: float = math.nan) -> dict[str, Any]:
+    """Coverage by the truth, sharpness and (AUTO) unsafe goals of one phase, pooled."""
+    goals = np.array([g for r in rows for g in r['phases'].get(phase, [])]).reshape(-1, 5)
+    moved = goals[goals[:, 4] == 0]
+    error, bound = moved[:, 0], moved[:, 2]
+    return {'goals': len(goals), 'refused': int(np.sum(goals[:, 4])),
+            'coverage': float(np.mean(error <= bound)) if len(moved) else math.nan,
+            'median_bound_mm': 1e3 * float(np.median(bound)) if len(moved) else math.nan,
+            'median_error_mm': 1e3 * float(np.median(error)) if len(moved) else math.nan,
+            'sharpness': float(np.median(bound) / np.median(error)) if len(moved) else math.nan,
+            'first_goal_errors_mm': [round(1e3 * r['phases'][phase][0][0], 4) for r in rows
+                                     if r['phases'].get(phase)],
+            'unsafe': int(np.sum(error > tolerance)) if tolerance == tolerance else None}
 
 
 def scenario_figures(rows: list[dict[str, Any]]) -> dict[str, Any]:
@@ -227,9 +328,14 @@ def main() -> None:
               f" / {s['median_error_mm']:.4f}  {s['max_error_mm']:12.4f} "
               f"({s['bound_at_max_mm']:.4f})  {s['refused']:7d}  {s['unsafe_moves']:6d}",
               flush=True)
-    pooled = [g for r in rows if r['name'] != 'drift' for g in r['goals']]
-    judged = {name: s for name, s in scenarios.items() if name != 'drift'}
-    nominal = scenarios.get('nominal')
+    pooled = [g for r in rows if r['name'] not in DRIFTING for g in r['goals']]
+    judged = {name: s for name, s in scenarios.items() if name not in DRIFTING}
+    nominal, payload = scenarios.get('nominal'), scenarios.get('payload_5kg')
+    phases = {phase: phase_figures([r for r in rows if r['name'] == name], phase, tolerance)
+              for name, phase, tolerance in (('drift_refresh', 'under_drift', math.nan),
+                                             ('drift_refresh', 'after_refresh', math.nan),
+                                             ('auto_drift', 'auto', AUTO_TOLERANCE[0]))
+              if name in names}
     out: dict[str, Any] = {
         'coverage': (float(np.mean([g[0] <= g[2] for g in pooled])) if pooled else math.nan),
         'coverage_min': min((s['coverage'] for s in judged.values()), default=math.nan),
@@ -240,13 +346,24 @@ def main() -> None:
         'unsafe_moves': sum(s['unsafe_moves'] for s in judged.values()),
         **dict(zip(('mlp_first_fit_s', 'mlp_fit_s'),
                    (round(t, 3) for t in mlp_fit_s(args.samples)))),
-        'drift': scenarios.get('drift'), 'scenarios': scenarios,
+        'coverage_under_drift': phases.get('under_drift', {}).get('coverage', math.nan),
+        'coverage_after_refresh': phases.get('after_refresh', {}).get('coverage', math.nan),
+        'sharpness_after_refresh': phases.get('after_refresh', {}).get('sharpness', math.nan),
+        'auto_under_drift_unsafe': phases.get('auto', {}).get('unsafe'),
+        'sharpness_payload': (payload['median_bound_mm'] / payload['median_error_mm']
+                              if payload else math.nan),
+        'coverage_payload': payload['coverage'] if payload else math.nan,
+        'drift': scenarios.get('drift'), 'phases': phases, 'scenarios': scenarios,
         'targets_per_region': args.targets, 'samples': args.samples, 'seeds': args.seeds,
         'regions': regions}
     print(f"coverage {out['coverage']:.3f} (worst scenario {out['coverage_min']:.3f}), "
           f"sharpness {out['sharpness']:.2f} (floor {out['sharpness_floor']:.2f}), "
           f"unsafe moves {out['unsafe_moves']}, "
           f"MLP ensemble fit {out['mlp_fit_s']:.2f} s (the first {out['mlp_first_fit_s']:.2f} s)")
+    for phase, f in phases.items():
+        print(f"{phase:<25} {f['goals']:5d}  {f['coverage']:8.3f}  {f['median_bound_mm']:12.4f}"
+              f" / {f['median_error_mm']:.4f}  refused {f['refused']}"
+              + (f", unsafe {f['unsafe']}" if f['unsafe'] is not None else ''))
     if args.json:
         print(json.dumps(out))
 

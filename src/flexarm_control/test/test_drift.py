@@ -114,7 +114,8 @@ def test_a_correction_from_eight_samples_mends_a_changed_arm(world, change):
 
 def test_a_refresh_states_the_bound_its_own_left_out_samples_show(world):
     """Trained and calibrated on the arm as it was, then 2 kg nobody declared: the old bound
-    holds few goals; the refreshed model's holds where its correction leaves the change."""
+    holds few goals; the refreshed model's adds its correction's uncertainty, scaled on the
+    refresh's own samples left out one at a time, and holds."""
     joints = world.joints('B', 40, 1)
     model = make_predictor('gp').fit(joints, world.plant.deflection(joints))
     model.metadata['error_bound'] = BoundCalibration(
@@ -130,8 +131,9 @@ def test_a_refresh_states_the_bound_its_own_left_out_samples_show(world):
                              <= predictor.error_bound(held_out)[:, 0]))
 
     assert covered(model) < 0.5 and covered(mended) >= 0.95, (covered(model), covered(mended))
-    assert model.metadata['error_bound']['position_plain'] == 0.0     # the old one kept
-    assert mended.metadata['error_bound']['position_plain'] > 0.0
+    assert np.all(model.error_bound(held_out) < mended.error_bound(held_out))   # old one kept
+    scales = mended.corrections[-1].scales                 # held out on the refresh's samples
+    assert all(0.0 < scale < 10.0 for scale in scales), scales
 
 
 def test_a_refresh_at_another_payload_corrects_what_a_carrying_model_misses_there(world):
@@ -159,6 +161,8 @@ def test_a_corrected_model_round_trips_and_corrections_compose(world, tmp_path):
     twice.save(tmp_path / 'm.model')
     loaded = load_model(tmp_path / 'm.model')
     assert np.allclose(loaded.predict(q), twice.predict(q))
+    for kept, made in zip(loaded.corrections, twice.corrections):
+        assert kept.scales == made.scales and np.array_equal(kept.covariance, made.covariance)
     assert not np.allclose(twice.predict(q), model.predict(q))
     with pytest.raises(ValueError):
         Correction.from_dict({'parameters': {}, 'lengths': [1, 2, 3]})

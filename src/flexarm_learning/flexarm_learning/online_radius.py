@@ -11,15 +11,10 @@ whatever the drift (the paper's guarantee: |mean miss − 0.05| ≤ (max(α₁, 
 over T goals). α ≤ 0 states no finite quantile: the model no longer knows its error, says so
 (:attr:`OnlineRadius.broken`), and the largest score in the window times ``BEYOND`` stands in.
 
-Two additions for a controller that states its bound before each goal:
-
-* ``gross``: a goal measured beyond ``gross`` times the radius it was stated is no 5 % tail
-  but a changed arm (an undeclared load misses by 10-100 times); α drops to 0 at once, and the
-  very next goal states the wide radius instead of missing a few more times while α walks
-  down by γ.
-* ``floor``: the factor is never below it. A model whose bound was calibrated on held-out
-  samples states factor 1 until measured goals show otherwise; a few lucky goals do not make
-  it bolder than its calibration.
+For a controller that states its bound before each goal, ``floor``: the factor is never below
+it. A model whose bound was calibrated on held-out samples states factor 1 until measured goals
+show otherwise; a few lucky goals do not make it bolder than its calibration. It may start
+with no scores at all (then the floor is the factor).
 
 Below the rank a window can state (fewer than 19 scores at 95 %), the largest score stands in.
 """
@@ -42,10 +37,9 @@ class OnlineRadius:
     each measured error."""
 
     def __init__(self, scores: Iterable[float] = (), level: float = LEVEL,
-                 gamma: float = GAMMA, window: int = WINDOW, floor: float = 0.0,
-                 gross: float = math.inf) -> None:
+                 gamma: float = GAMMA, window: int = WINDOW, floor: float = 0.0) -> None:
         self.target = 1.0 - level
-        self.alpha, self.gamma, self.floor, self.gross = self.target, gamma, floor, gross
+        self.alpha, self.gamma, self.floor = self.target, gamma, floor
         self.scores = deque(np.asarray(list(scores), float), maxlen=window)
 
     @property
@@ -67,11 +61,8 @@ class OnlineRadius:
     def update(self, error: float, spread: float) -> bool:
         """Account one measured goal: its error and its prediction's raw spread ρ [m].
         Whether the radius stated before it covered it."""
-        stated = self.factor
         score = error / spread
-        covered = score <= stated
+        covered = score <= self.factor
         self.alpha += self.gamma * (self.target - (0.0 if covered else 1.0))
-        if score > self.gross * stated:
-            self.alpha = min(self.alpha, 0.0)
         self.scores.append(score)
         return covered

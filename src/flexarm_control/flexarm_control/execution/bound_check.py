@@ -9,15 +9,23 @@ limit gives a tolerance (then the tolerance decides). A goal within its stated b
 without a tolerance is a success.
 
 **An online bound** (:class:`OnlineBound`): each PREDICTIVE goal's measured error is a new
-calibration sample of the model's bound. Its score is the factor on the model's part of the
-bound (the site's part and the camera's unchanged) that would just have covered it; the
-factor the next plan states is adaptive conformal inference over those scores
+calibration sample of the model's bound. Its scores, position and angle apart, are the factors
+on the model's part of the bound (the site's part and the camera's unchanged) that would just
+have covered it; the factors the next plan states are adaptive conformal inference over them
 (:class:`~flexarm_learning.online_radius.OnlineRadius`, Gibbs & Candès 2021), never below 1
-(the held-out calibration), and widened at once by a goal measured beyond ``gross`` times
-its bound: a changed arm, not a tail. A new model (training, refresh) starts at 1 again.
+(the held-out calibration).
+
+A goal measured beyond ``gross`` times its bound is no 5 % tail but a changed arm (a load nobody
+declared misses by 10-100 times). The model's bound then no longer says how far it misses: an
+undeclared load moves the tip by about as much everywhere, whatever the model's bound there,
+so a factor on that bound under-covers where it is small. From that goal on, until a new model
+comes, every plan states at least ``BEYOND`` times the largest error measured since
+(:attr:`Inflation.floor`), and the model health reports it stale. A new model (training,
+refresh) starts at factor 1 again.
 """
 from __future__ import annotations
 
+import dataclasses
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
@@ -27,19 +35,33 @@ import numpy as np
 
 from flexarm_learning.online_radius import OnlineRadius
 
+BEYOND = 2.0      # a changed arm: plans state at least this times the largest error since
+
+
+@dataclass(frozen=True)
+class Inflation:
+    """What the online bound does to a plan's bound, position and angle."""
+
+    factor: np.ndarray = dataclasses.field(default_factory=lambda: np.ones(2))  # on the model's
+    floor: np.ndarray = dataclasses.field(default_factory=lambda: np.zeros(2))  # [m, rad]
+
+
+AS_CALIBRATED = Inflation()     # nothing measured against the model yet
+
 
 @dataclass(frozen=True)
 class BoundParts:
     """A PREDICTIVE plan's bound in its parts, 95 % each [m, rad]: stated = the model's ×
-    the online factor, in quadrature with the site's."""
+    the online factor, in quadrature with the site's, at least the online floor."""
 
     model: np.ndarray      # (2,) the model's own (held-out calibration, payload prior)
     site: np.ndarray       # (2,) what no model sees (:class:`~.plan_bound.SiteErrors`)
-    factor: float = 1.0    # the online bound's, when planned
+    inflation: Inflation = AS_CALIBRATED
 
     @property
     def stated(self) -> tuple[float, float]:
-        position, angle = np.hypot(self.factor * self.model, self.site)
+        position, angle = np.maximum(np.hypot(self.inflation.factor * self.model, self.site),
+                                     self.inflation.floor)
         return float(position), float(angle)
 
 
@@ -56,12 +78,13 @@ def beyond_bound(error: tuple[float, float], stated: tuple[float, float],
             f'{camera[0] * 1e3:.3f} mm / {math.degrees(camera[1]):.4f} deg)')
 
 
-def needed_factor(error: tuple[float, float], parts: BoundParts, camera: np.ndarray) -> float:
-    """The least factor on the model's part that would have covered ``error`` [m, rad] (with
-    the site's part and the camera's): the goal's score."""
+def needed_factor(error: tuple[float, float], parts: BoundParts, camera: np.ndarray,
+                  ) -> np.ndarray:
+    """(2,): the least factors on the model's part, position and angle, that would have
+    covered ``error`` [m, rad] (with the site's part and the camera's): the goal's scores."""
     rest = np.hypot(parts.site, camera)
     excess = np.maximum(np.square(error) - np.square(rest), 0.0)
-    return float(np.max(np.sqrt(excess) / np.maximum(parts.model, 1e-12)))
+    return np.sqrt(excess) / np.maximum(parts.model, 1e-12)
 
 
 @dataclass(frozen=True)
@@ -79,7 +102,8 @@ class OnlineSettings:
 
 
 class OnlineBound:
-    """The online factor on one model's bound, from the goals measured against it."""
+    """The online factors on one model's bound, position and angle, from the goals measured
+    against it."""
 
     def __init__(self, settings: OnlineSettings) -> None:
         self.settings = settings
@@ -89,25 +113,34 @@ class OnlineBound:
         """A new model: its own calibration again, nothing measured against it."""
         s = self.settings
         self.version = version
-        self._radius = OnlineRadius(gamma=s.gamma, window=s.window, floor=1.0, gross=s.gross)
+        self._radii = [OnlineRadius(gamma=s.gamma, window=s.window, floor=1.0)
+                       for _ in range(2)]
         self.goals = self.misses = 0
         self.last = ''
+        self._changed = np.zeros(2, bool)      # since a gross miss, position and angle
+        self._largest = np.zeros(2)            # [m, rad] measured since
 
     @property
-    def factor(self) -> float:
-        return self._radius.factor
+    def inflation(self) -> Inflation:
+        """What the next plan states (module docstring)."""
+        return Inflation(np.array([radius.factor for radius in self._radii]),
+                         np.where(self._changed, BEYOND * self._largest, 0.0))
 
     @property
     def broken(self) -> bool:
-        """The measured goals left the model's bound by far: plans state the widest."""
-        return self._radius.broken
+        """A goal left the model's bound by far: the arm changed since the model learned it."""
+        return bool(self._changed.any())
 
     def account(self, error: tuple[float, float], parts: BoundParts,
                 camera: np.ndarray) -> bool:
         """One goal's measured ``error`` [m, rad] against the bound ``parts`` it was planned
         with; whether that bound covered it."""
         covered = not beyond_bound(error, parts.stated, camera)
-        self._radius.update(needed_factor(error, parts, camera), 1.0)
+        scores = needed_factor(error, parts, camera)
+        self._changed |= scores > self.settings.gross * parts.inflation.factor
+        self._largest = np.where(self._changed, np.maximum(self._largest, error), 0.0)
+        for radius, score in zip(self._radii, scores):
+            radius.update(float(score), 1.0)
         self.goals += 1
         if not covered:
             self.misses += 1
@@ -118,10 +151,15 @@ class OnlineBound:
     def summary(self) -> str:
         """For logs, results and the model health: the factor plans state now and why ('' at
         the calibration's own)."""
-        if self.factor <= 1.0:
+        inflation = self.inflation
+        position, angle = inflation.factor
+        if max(position, angle) <= 1.0 and not self.broken:
             return ''
-        return (f'plans of model {self.version} state {self.factor:.1f} times its calibrated '
-                f'95 % bound: {self.misses} of {self.goals} measured goals were beyond the '
-                f'bound stated for them ({self.last})'
-                + ('; the model no longer knows its error here: refresh it (`flexarm '
+        return (f'plans of model {self.version} state {position:.1f} (position) and '
+                f'{angle:.1f} (angle) times its calibrated 95 % bound: {self.misses} of '
+                f'{self.goals} measured goals were beyond the bound stated for them '
+                f'({self.last})'
+                + (f'; the arm changed since the model learned it: plans state at least '
+                   f'{inflation.floor[0] * 1e3:.3f} mm / {math.degrees(inflation.floor[1]):.4f}'
+                   ' deg (twice the largest error since); refresh the model (`flexarm '
                    'refresh`) or collect and train anew' if self.broken else ''))

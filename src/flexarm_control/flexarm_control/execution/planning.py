@@ -26,8 +26,8 @@ goal runs, and when the model is not trusted.
   (:attr:`Planned.mode` says which, :attr:`Planned.note` why).
 
 Every plan states the 95 % bound of the goal's true error before anything moves
-(:attr:`Planned.bound`, :mod:`.plan_bound`), the model's part times the online factor that
-measured goals set (``inflation``, :mod:`.bound_check`); NaN (none) for a model run at a payload it
+(:attr:`Planned.bound`, :mod:`.plan_bound`), widened as the goals measured before it
+say (``inflation``, :mod:`.bound_check`); NaN (none) for a model run at a payload it
 cannot predict at (:func:`payload_beyond`, extrapolation allowed). A PREDICTIVE goal with a
 tolerance its bound exceeds is refused (``BOUND_EXCEEDS_TOLERANCE``) with the bound and what
 would help, unless it allows extrapolation: moving to learn it missed is what the bound is
@@ -45,7 +45,7 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.execution.bound_check import BoundParts
+from flexarm_control.execution.bound_check import AS_CALIBRATED, BoundParts, Inflation
 from flexarm_control.execution.compensator import CompensationError, Compensator, Plan
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors
@@ -113,14 +113,14 @@ def plan_goal(compensator: Compensator, mode: Mode | str, target: np.ndarray,
               predictor: Predictor | AtPayload | None, limits: DataLimits,
               allow_extrapolation: bool = False, trained_payloads: Sequence[float] = (),
               site: SiteErrors | None = None, tolerance: tuple[float, float] = (0.0, 0.0),
-              inflation: float = 1.0) -> Planned | Refusal:
+              inflation: Inflation = AS_CALIBRATED) -> Planned | Refusal:
     """The plan for a goal in ``mode`` (module docstring) with its bound, or why it is refused.
 
     ``trained_payloads``: the payloads [kg] of the model's samples; with them, ``predictor``
     is the model :class:`AtPayload` the arm carries now, checked by :func:`payload_beyond`
     (empty: not checked). ``site``: what no model sees (None: nothing). ``tolerance`` [m, rad]:
-    the goal's (0: none; CLOSED_LOOP and AUTO need one). ``inflation``: the online factor on
-    the model's part of the bound."""
+    the goal's (0: none; CLOSED_LOOP and AUTO need one). ``inflation``: the online bound's
+    (:class:`~.bound_check.Inflation`)."""
     mode = Mode.of(mode)
     if mode == Mode.AUTO:
         return _auto(compensator, target, predictor, limits, trained_payloads, site, tolerance,
@@ -165,7 +165,7 @@ def _help(predictor: Predictor | AtPayload | None, planned: Planned) -> str:
 
 def _bound(compensator: Compensator, mode: Mode, planned: Planned,
            predictor: Predictor | AtPayload | None, site: SiteErrors | None,
-           tolerance: tuple[float, float], inflation: float) -> dict[str, Any]:
+           tolerance: tuple[float, float], inflation: Inflation) -> dict[str, Any]:
     """The plan's 95 % bound (:mod:`.plan_bound`) and, PREDICTIVE, its parts."""
     if mode == Mode.CLOSED_LOOP:
         position, angle = (site.closed_loop(tolerance) if site is not None
@@ -186,7 +186,7 @@ def _bound(compensator: Compensator, mode: Mode, planned: Planned,
 
 def _auto(compensator: Compensator, target: np.ndarray, predictor: Predictor | AtPayload | None,
           limits: DataLimits, trained_payloads: Sequence[float], site: SiteErrors | None,
-          tolerance: tuple[float, float], inflation: float) -> Planned | Refusal:
+          tolerance: tuple[float, float], inflation: Inflation) -> Planned | Refusal:
     """PREDICTIVE where it is bound within ``tolerance``, else CLOSED_LOOP, saying why."""
     if not min(tolerance) > 0:
         raise ValueError(f'AUTO needs a position and an angle tolerance, got {tolerance}')

@@ -13,12 +13,17 @@ tip, linear in small parameters p:
 
 Nine parameters from as few as five samples (three equations each): a ridge toward zero with
 the prior scales ``PRIOR`` keeps them finite, and residuals are weighted by the measurement
-noise ``NOISE``. Corrections compose: a refresh of a refreshed model adds another. The model's
+noise ``NOISE``. The parameters' covariance (the ridge's posterior, scaled by the residuals'
+scatter over the degrees of freedom left where that exceeds ``NOISE``) gives every corrected
+prediction its own uncertainty (:meth:`Correction.std`): small near the refresh's samples,
+large where the few samples say little, which a bound over the refreshed model needs.
+Corrections compose: a refresh of a refreshed model adds another. The model's
 training samples are not used again (they describe the arm before the change): the refresh is
 incremental, its cost the few samples it measures.
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
@@ -71,15 +76,26 @@ class Correction:
     samples: int
     residual_before: float
     residual_after: float
+    covariance: np.ndarray = dataclasses.field(
+        default_factory=lambda: np.zeros((len(PARAMETERS), len(PARAMETERS))))   # of parameters
+    scales: tuple[float, float] = (1.0, 1.0)   # of its position and angle std, held out
 
     def apply(self, joints: np.ndarray, deflection: np.ndarray) -> np.ndarray:
         """The corrected deflection (M, 3) for the model's ``deflection`` (M, 3) at joints."""
         return deflection + features(self.lengths, joints, deflection) @ self.parameters
 
+    def std(self, joints: np.ndarray, deflection: np.ndarray) -> np.ndarray:
+        """(M, 3) [m, m, rad]: the standard deviation of the correction at joints (M, 4),
+        for the model's ``deflection`` (M, 3) there, from its parameters' covariance."""
+        f = features(self.lengths, joints, deflection)
+        std = np.sqrt(np.einsum('mxi,ij,mxj->mx', f, self.covariance, f))
+        return std * np.array([self.scales[0], self.scales[0], self.scales[1]])
+
     def as_dict(self) -> dict[str, Any]:
         return {'parameters': dict(zip(PARAMETERS, self.parameters.tolist())),
                 'lengths': list(self.lengths), 'samples': self.samples,
-                'residual_before': self.residual_before, 'residual_after': self.residual_after}
+                'residual_before': self.residual_before, 'residual_after': self.residual_after,
+                'covariance': self.covariance.tolist(), 'scales': list(self.scales)}
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> Correction:
@@ -87,11 +103,15 @@ class Correction:
         try:
             values = np.array([float(d['parameters'][name]) for name in PARAMETERS])
             lengths = tuple(float(v) for v in d['lengths'])
+            covariance = np.asarray(d.get('covariance', np.zeros((len(PARAMETERS),) * 2)),
+                                    dtype=float)    # a file from before covariances: none
+            scales = tuple(float(v) for v in d.get('scales', (1.0, 1.0)))
             correction = cls(values, lengths, int(d['samples']), float(d['residual_before']),
-                             float(d['residual_after']))
+                             float(d['residual_after']), covariance, scales)
         except (KeyError, TypeError, ValueError) as exc:
             raise ValueError(f'incomplete drift correction {d!r}: {exc}') from exc
-        if len(lengths) != 3 or not np.all(np.isfinite(values)):
+        if (len(lengths) != 3 or not np.all(np.isfinite(values))
+                or covariance.shape != (len(PARAMETERS),) * 2 or len(scales) != 2):
             raise ValueError(f'invalid drift correction {d!r}')
         return correction
 
@@ -101,29 +121,36 @@ def position_residuals(residuals: np.ndarray) -> np.ndarray:
     return np.hypot(residuals[:, 0], residuals[:, 1])
 
 
-def left_out_residuals(lengths: tuple[float, float, float], joints: np.ndarray,
-                       measured: np.ndarray, predicted: np.ndarray) -> np.ndarray:
-    """(M, 3): each sample's residual under the correction fitted on the others: what a
-    refreshed model leaves where it was not fitted (leave-one-out)."""
+def left_out(lengths: tuple[float, float, float], joints: np.ndarray, measured: np.ndarray,
+             predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(M, 3) each: every sample's residual under the correction fitted on the others, and the
+    standard deviation that correction states there: what a refreshed model leaves, and says it
+    leaves, where it was not fitted (leave-one-out)."""
     joints, measured, predicted = (np.atleast_2d(np.asarray(a, dtype=float))
                                    for a in (joints, measured, predicted))
-    out = np.empty_like(measured)
+    residuals, std = np.empty_like(measured), np.empty_like(measured)
     for i in range(len(joints)):
         others = np.arange(len(joints)) != i
-        p = _solve(lengths, joints[others], measured[others], predicted[others])
-        out[i] = measured[i] - predicted[i] - features(lengths, joints[i:i + 1],
-                                                       predicted[i:i + 1])[0] @ p
-    return out
+        p, covariance = _solve(lengths, joints[others], measured[others], predicted[others])
+        f = features(lengths, joints[i:i + 1], predicted[i:i + 1])[0]
+        residuals[i] = measured[i] - predicted[i] - f @ p
+        std[i] = np.sqrt(np.einsum('xi,ij,xj->x', f, covariance, f))
+    return residuals, std
 
 
 def _solve(lengths: tuple[float, float, float], joints: np.ndarray, measured: np.ndarray,
-           predicted: np.ndarray) -> np.ndarray:
-    """The parameters (9,) of the noise-weighted ridge fit (module docstring)."""
-    f = features(lengths, joints, predicted) / NOISE[None, :, None]
-    r = (measured - predicted) / NOISE
-    a = np.concatenate([f.reshape(-1, len(PARAMETERS)), np.diag(1.0 / PRIOR)])
-    b = np.concatenate([r.reshape(-1), np.zeros(len(PARAMETERS))])
-    return np.linalg.lstsq(a, b, rcond=None)[0]
+           predicted: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The parameters (9,) of the noise-weighted ridge fit and their covariance (9, 9)
+    (module docstring)."""
+    f = (features(lengths, joints, predicted) / NOISE[None, :, None]).reshape(
+        -1, len(PARAMETERS))
+    r = ((measured - predicted) / NOISE).reshape(-1)
+    a = np.concatenate([f, np.diag(1.0 / PRIOR)])
+    p = np.linalg.lstsq(a, np.concatenate([r, np.zeros(len(PARAMETERS))]), rcond=None)[0]
+    covariance = np.linalg.pinv(a.T @ a)
+    left = len(r) - np.trace(f @ covariance @ f.T)       # degrees of freedom left
+    scatter = np.sum((r - f @ p) ** 2) / left if left > 0 else 1.0
+    return p, covariance * max(scatter, 1.0)
 
 
 def fit_correction(lengths: tuple[float, float, float], joints: np.ndarray,
@@ -136,8 +163,8 @@ def fit_correction(lengths: tuple[float, float, float], joints: np.ndarray,
     if len(joints) < 1 or measured.shape != predicted.shape or measured.shape != (
             len(joints), 3):
         raise ValueError('a correction needs joints (M, 4) and deflections (M, 3), M >= 1')
-    p = _solve(lengths, joints, measured, predicted)
+    p, covariance = _solve(lengths, joints, measured, predicted)
     before = position_residuals(measured - predicted)
     after = position_residuals(measured - predicted - features(lengths, joints, predicted) @ p)
     return Correction(p, tuple(float(v) for v in lengths), len(joints),
-                      float(np.median(before)), float(np.median(after)))
+                      float(np.median(before)), float(np.median(after)), covariance)

@@ -82,10 +82,13 @@ class BoundCalibration:
 
     def floored(self, residuals: np.ndarray) -> BoundCalibration:
         """This calibration with its plain bounds raised to the 95 % point of held-out
-        residuals (n, 3) [m, m, rad] of samples taken since (a refresh's)."""
+        residuals (n, 3) [m, m, rad] of samples taken since (a refresh's): the normal errors'
+        95 % point at the residuals' RMS. A refresh has a handful of samples: the upper
+        confidence limit :func:`scale` puts on the RMS would state 1.4 times it from eight,
+        and the compensator's online bound widens a bound the next goals show too tight."""
         position, angle = split(residuals)
-        return replace(self, position_plain=max(self.position_plain, scale(position, 2)),
-                       angle_plain=max(self.angle_plain, scale(angle, 1)))
+        return replace(self, position_plain=max(self.position_plain, Z_2D * _rms(position)),
+                       angle_plain=max(self.angle_plain, Z_1D * _rms(angle)))
 
     def bound(self, std: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
         """95 % bounds (..., 2) [m, rad] from raw stds (..., 3) [m, m, rad] and the prior's
@@ -99,6 +102,14 @@ class BoundCalibration:
         prior_position, prior_angle = split(prior)
         return np.hypot(bound, np.stack([Z_1D * prior_position, Z_1D * prior_angle],
                                         axis=-1))
+
+
+def correction_bound(std: np.ndarray) -> np.ndarray:
+    """95 % [m, rad] (..., 2) of a refresh's correction error of standard deviations (..., 3)
+    [m, m, rad] (its parameters' covariance, :mod:`.drift_correction`): normal, two
+    components in position."""
+    position, angle = split(std)
+    return np.stack([Z_2D * position, Z_1D * angle], axis=-1)
 
 
 def split(values: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -120,6 +131,10 @@ def conformal_rank(n: int) -> int:
 
     return next((k for k in range(math.ceil((n + 1) * LEVEL), n + 1)
                  if beta.ppf(RISK, k, n + 1 - k) >= FLOOR_COVERAGE), n)
+
+
+def _rms(values: np.ndarray) -> float:
+    return float(np.sqrt(np.mean(np.square(values))))
 
 
 def scale(scores: np.ndarray, components: int) -> float:

@@ -8,20 +8,23 @@ down where goals missed and across the region. :func:`refreshed` fits the
 returns the corrected model under a new version, with its bound recalibrated: the bound the
 model was trained with knows nothing of the change, and the correction leaves some of it (an
 8-sample refresh after an undeclared load left up to 0.28 mm where the old bound stated
-0.08 mm). Each refresh sample's residual under the correction fitted on the others
-(leave-one-out) is an honest held-out error of the refreshed model; their 95 % point
-(:func:`~flexarm_control.learning.error_bound.scale`, the plain rule: too few samples for a
-conformal rank) becomes the bound's floor everywhere, the model's own scaled std above it.
+0.08 mm). The correction's own uncertainty (its parameters' covariance,
+:meth:`~flexarm_control.learning.drift_correction.Correction.std`) is added to the model's
+bound, scaled on the refresh's samples: each one's residual under the correction fitted on
+the others (leave-one-out) against the std that correction stated there, the position's and
+the angle's scale apart (the correction's turn is the less certain: its held-out angle
+residuals ran 2-3 times its std, its position ones 0.2-1.3 times).
 """
 from __future__ import annotations
 
+import dataclasses
 from collections.abc import Collection, Sequence
 from typing import Any
 
 import numpy as np
 
-from flexarm_control.learning.drift_correction import fit_correction, left_out_residuals
-from flexarm_control.learning.error_bound import BoundCalibration
+from flexarm_control.learning.drift_correction import fit_correction, left_out
+from flexarm_control.learning.error_bound import split
 from flexarm_control.learning.predictors import Predictor
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry
@@ -75,10 +78,10 @@ def refreshed(predictor: Predictor, geometry: ArmGeometry, joints: np.ndarray,
         joints, np.asarray(payload, dtype=float) if predictor.carries_payload else None)
     lengths = (geometry.link3, geometry.link4, geometry.offset)
     correction = fit_correction(lengths, joints, deflections, predicted)
-    mended = predictor.corrected(correction, version)
-    calibration = predictor.metadata.get('error_bound')
-    if calibration is not None and len(joints) >= 2:
-        left = left_out_residuals(lengths, joints, deflections, predicted)
-        mended.metadata['error_bound'] = BoundCalibration.from_dict(
-            calibration).floored(left).as_dict()
-    return mended
+    if len(joints) >= 2:
+        residuals, std = left_out(lengths, joints, deflections, predicted)
+        (position, angle), (spread, turn) = split(residuals), split(std)
+        correction = dataclasses.replace(correction, scales=(
+            float(np.sqrt(np.sum(position ** 2) / np.sum(spread ** 2))),
+            float(np.sqrt(np.sum(angle ** 2) / np.sum(turn ** 2)))))
+    return predictor.corrected(correction, version)

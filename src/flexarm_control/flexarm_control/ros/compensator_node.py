@@ -327,12 +327,13 @@ class CompensatorNode(Node):
             version, threshold = self._health.version, self._health.settings.stale_residual
             worst = {r.name: self._health.worst_joints(r.name, 4) for r in report}
             online = self._online
-            bound = (online.factor, online.goals, online.misses, online.broken)
+            factor, goals, misses, broken = (online.inflation.factor, online.goals,
+                                             online.misses, online.broken)
         self._health_pub.publish(HealthMsg(
             stamp=self.get_clock().now().to_msg(), model_version=version,
-            stale=any(r.stale for r in report) or bound[3], summary=summary,
-            stale_residual=threshold, bound_factor=bound[0], bound_goals=bound[1],
-            bound_misses=bound[2],
+            stale=any(r.stale for r in report) or broken, summary=summary,
+            stale_residual=threshold, bound_factor=float(factor[0]),
+            angle_bound_factor=float(factor[1]), bound_goals=goals, bound_misses=misses,
             regions=[RegionHealth(
                 name=r.name, observations=r.observations,
                 median_position_residual=r.median_position,
@@ -430,7 +431,7 @@ class CompensatorNode(Node):
         self._target_pub.publish(pose_stamped(target, self.get_clock().now().to_msg()))
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         with self._health_lock:
-            inflation = self._online.factor
+            inflation = self._online.inflation
         try:
             planned = plan_goal(self._compensator, mode, target, predictor, self._limits,
                                 goal.allow_extrapolation,

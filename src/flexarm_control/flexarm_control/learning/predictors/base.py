@@ -73,7 +73,7 @@ from typing import TYPE_CHECKING, Any, ClassVar
 import numpy as np
 
 from flexarm_control.learning.drift_correction import Correction
-from flexarm_control.learning.error_bound import BoundCalibration
+from flexarm_control.learning.error_bound import BoundCalibration, correction_bound
 from flexarm_core.atomic_file import atomic_write
 
 if TYPE_CHECKING:
@@ -281,12 +281,16 @@ class Predictor(ABC):
                 ) -> np.ndarray:
         """Deflection (3,) for joints (4,), or (M, 3) for joints (M, 4)."""
         q, p, single = self._query(joints, payload)
-        normalisation = self._require_fitted()
-        y = (self._predict_physical(q, p) if self.physical else normalisation.outputs_back(
-            self._predict_normalised(normalisation.inputs(self._model_inputs(q, p)))))
+        y = self._uncorrected(q, p)
         for correction in self.corrections:
-            y = correction.apply(np.atleast_2d(np.asarray(joints, dtype=float)), y)
+            y = correction.apply(q, y)
         return y[0] if single else y
+
+    def _uncorrected(self, q: np.ndarray, p: np.ndarray | None) -> np.ndarray:
+        """(M, 3): the fitted model's deflection at joints (M, 4), before any refresh."""
+        normalisation = self._require_fitted()
+        return (self._predict_physical(q, p) if self.physical else normalisation.outputs_back(
+            self._predict_normalised(normalisation.inputs(self._model_inputs(q, p)))))
 
     def corrected(self, correction: Correction, version: str) -> Predictor:
         """This model with ``correction`` added to its prediction (a refresh), as ``version``;
@@ -332,8 +336,22 @@ class Predictor(ABC):
         calibration = self.metadata.get('error_bound')
         if calibration is None:
             return np.full(std.shape[:-1] + (2,), np.nan)
-        return BoundCalibration.from_dict(calibration).bound(
-            std, self.prior_std(joints, payload))
+        bound = BoundCalibration.from_dict(calibration).bound(std, self.prior_std(joints, payload))
+        if not self.corrections:
+            return bound
+        return np.hypot(bound, correction_bound(self._correction_std(joints, payload)))
+
+    def _correction_std(self, joints: np.ndarray, payload: np.ndarray | float | None,
+                        ) -> np.ndarray:
+        """(…, 3) [m, m, rad]: the refreshes' own uncertainty, independent, in quadrature."""
+        q, p, single = self._query(joints, payload)
+        y = self._uncorrected(q, p)
+        variance = np.zeros_like(y)
+        for correction in self.corrections:
+            variance += correction.std(q, y) ** 2
+            y = correction.apply(q, y)
+        std = np.sqrt(variance)
+        return std[0] if single else std
 
     def save(self, path: str | Path) -> None:
         """Write the fitted model to ``path`` atomically (format: module docstring)."""

@@ -1,6 +1,7 @@
 """Node-level: the payload the graph declares reaches the simulator, the samples, the model and
-the compensator; a change nobody declared is caught by the model health and mended by a
-refresh.
+the compensator; a change nobody declared is caught by the goal that measures it beyond its
+stated bound and by the model health, widens the next plans' bounds, and is mended by a
+refresh whose bound covers the goals after it.
 
 The tests share one graph and client (started once for the module). What one test leaves
 behind another does not rely on: each declares the payload it starts at and waits until the
@@ -187,11 +188,22 @@ def test_an_undeclared_change_is_caught_and_refreshed(graph):
     wait_until(client, lambda: health and health[-1].model_version == trained
                and health[-1].regions, 10.0, 'model health')
     assert not health[-1].stale, health[-1].summary
+    calm = plan(client, extrapolate=False)
     client.set_node_parameter('flexarm_sim', 'plant.payload', 2.0)    # nobody declares it
-    for target in GOALS:
+    first = client.move_to(*GOALS[0], mode='predictive', timeout=120)
+    assert first.error_code == Result.SUCCESSFUL                      # no tolerance: warned
+    assert first.position_error > 3 * first.position_error_bound
+    assert (f'measured error {first.position_error * 1e3:.3f} mm' in first.error_string
+            and f"beyond the plan's 95 % bound {first.position_error_bound * 1e3:.3f} mm"
+            in first.error_string), first.error_string
+    wait_until(client, lambda: health[-1].bound_misses == 1, 10.0, 'the miss in the health')
+    assert health[-1].stale and 'the arm changed' in health[-1].summary, health[-1].summary
+    wider = plan(client, extrapolate=False)             # the next plan states the wider bound
+    assert wider.position_error_bound >= 2 * first.position_error > calm.position_error_bound
+    for target in GOALS[1:]:
         warned = client.move_to(*target, mode='predictive', timeout=120)
+        assert warned.position_error <= warned.position_error_bound, warned.error_string
     assert 'stale in region B' in warned.error_string, warned.error_string
-    wait_until(client, lambda: health[-1].stale, 10.0, 'a stale model health')
     stale_version = health[-1].model_version
     refresh = client.refresh(timeout=300)
     assert refresh.error_code == RefreshModel.Result.SUCCESSFUL, refresh.error_string
@@ -201,8 +213,11 @@ def test_an_undeclared_change_is_caught_and_refreshed(graph):
     wait_until(client, lambda: health[-1].model_version == refresh.model.version, 10.0,
                'the health of the refreshed model')
     assert refresh.model.version != stale_version and not health[-1].stale
-    mended = client.move_to(*GOALS[0], mode='predictive', timeout=120)
-    assert mended.error_code == Result.SUCCESSFUL and 'stale' not in mended.error_string
+    assert health[-1].bound_factor == 1.0 and health[-1].bound_goals == 0
+    for target in GOALS[:3]:                # the refreshed model's bound covers its goals
+        mended = client.move_to(*target, mode='predictive', timeout=120)
+        assert mended.error_code == Result.SUCCESSFUL and 'stale' not in mended.error_string
+        assert mended.position_error <= mended.position_error_bound, mended.error_string
     assert mended.position_error < 0.5e-3 < warned.position_error
     nothing = client.refresh(timeout=60)                     # nothing stale now
     assert nothing.error_code == RefreshModel.Result.INVALID_GOAL

@@ -42,9 +42,9 @@ JSON (last line):
   than ``TRUTH_GAP`` in the kept truth before that stamp leaves the goal unjudged)
   misses the target by more than the goal's bound plus ``camera_margin_mm``:
   CLOSED_LOOP, the compensator's ``position_tolerance``; PREDICTIVE (no tolerance given, never
-  extrapolating), the server's sanity bound max(``sanity_floor``, ``sanity_factor`` x
-  hypot(max_error_x, max_error_y) of the model the goal ran, as announced on
-  learner/model and compensator/active_model); RIGID: none. ``camera_margin_mm``: 3 x the
+  extrapolating), the 95 % position bound its plan stated (``position_error_bound``), unless
+  the result warned that the camera measured it beyond that bound (then it said so: not
+  judged); RIGID: none. ``camera_margin_mm``: 3 x the
   largest |vision - truth| of 20 settled frames at rest before the run, at least vision's
   settle.stability (0.02 mm): the server judges by the camera. ``unjudged``: successes whose
   truth or model was not known. Must be 0.
@@ -116,7 +116,6 @@ from std_msgs.msg import Float64
 from flexarm_bringup.experiments.experiment import reserved_domain
 from flexarm_bringup.orchestration.launcher import node_name
 from flexarm_bringup.orchestration.supervisor import Graph
-from flexarm_control.execution.goal_execution import sanity_bound
 from flexarm_control.learning.dataset import load_dataset
 from flexarm_control.ros.client import (
     FlexarmClient,
@@ -130,7 +129,7 @@ from flexarm_core.kinematics import ArmGeometry, UnreachableError, inverse
 from flexarm_core.params import load_config
 from flexarm_core.ros.taken import Taken, take
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
-from flexarm_msgs.msg import GoalOutcome, ModelInfo, TipPose
+from flexarm_msgs.msg import GoalOutcome, TipPose
 
 READY_S = 120.0          # [s, wall] bound of the graph's bring-up
 BACK_S = 120.0           # [s, wall] bound of a killed node's return
@@ -262,14 +261,10 @@ class Observer:
         self.truths: deque[tuple[int, TipPose]] = deque(maxlen=TRUTH_KEPT)   # (stamp ns, msg)
         self.ended: dict[str, int] = {}      # trial -> its outcome's stamp [ns, sim]
         self._group = group
-        self._models = [sub(ModelInfo, name, lambda _: None, QoSProfile(
-            depth=20, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL), callback_group=group)
-            for name in (topics.MODEL, topics.ACTIVE_MODEL)]
         self._payload = sub(Float64, topics.PAYLOAD, lambda _: None, QoSProfile(
             depth=20, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL), callback_group=group)
         self.lock = threading.Lock()
         self.sim = 0.0
-        self.models: dict[str, ModelInfo] = {}
         self.payloads: list[tuple[float, float]] = []     # (monotonic, kg) heard on /payload
         self._stop = threading.Event()
         self._taker = threading.Thread(target=self._keep_taking, name='flexarm_soak_truth',
@@ -285,17 +280,10 @@ class Observer:
             return self.sim
 
     def poll(self) -> None:
-        """Take the models and payloads announced since the last look."""
+        """Take the payloads announced since the last look."""
         with self.lock:
-            for subscription in self._models:
-                while (msg := take(subscription)) is not None:
-                    self.models[msg.version] = msg
             while (msg := take(self._payload)) is not None:
                 self.payloads.append((time.monotonic(), msg.data))
-
-    def model(self, version: str) -> ModelInfo | None:
-        self.poll()
-        return self.models.get(version)
 
     def take_truth(self) -> None:
         """Keep the true tips and the goals' end stamps that came since the last look (by its
@@ -398,7 +386,7 @@ class Soak:
         regions = load_config('learner.yaml', node_name=LEARNER)['regions']
         self.regions = {name: regions[name] for name in ('A', 'B')}
         self.geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
-        self.tolerance = self.factor = self.floor = 0.0      # the compensator's, read at start
+        self.tolerance = 0.0      # the compensator's, read at start
         self.margin = 0.0                                     # [m] camera_margin
         self.camera_errors: list[float] = []    # [m] |measured - true| of measured successes
 
@@ -446,13 +434,9 @@ class Soak:
                                                          result.measured_pose.y - truth.pose.y))
         if outcome.mode == 'closed_loop':
             outcome.bound = self.tolerance + self.margin
-        elif outcome.mode == 'predictive':
-            model = self.observer.model(result.model_version)
-            if model is not None:
-                outcome.bound = sanity_bound(model.metrics.max_error_x, model.metrics.max_error_y,
-                                             self.factor, self.floor) + self.margin
-            else:
-                outcome.bound = math.nan          # unjudged
+        elif outcome.mode == 'predictive' and "beyond the plan's 95 % bound" not in (
+                result.error_string):
+            outcome.bound = result.position_error_bound + self.margin    # NaN: unjudged
 
 
 class Operator:
@@ -1057,8 +1041,6 @@ def read_server_settings(soak: Soak, client: FlexarmClient) -> None:
     node = node_name('compensator')
     timeout = liveness.limit(10.0)
     soak.tolerance = client.node_parameter(node, 'position_tolerance', timeout)
-    soak.factor = client.node_parameter(node, 'sanity_factor', timeout)
-    soak.floor = client.node_parameter(node, 'sanity_floor', timeout)
 
 
 def finished(soak: Soak, args: argparse.Namespace, arm_s: float) -> bool:

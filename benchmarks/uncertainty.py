@@ -22,12 +22,12 @@ beforehand. Scenarios (the simulated arm's truth; the model knows the nominal de
 - ``drift``: 2 kg carried and not declared (no model can know it; the model health does),
   reported apart from the pooled figures: the bound as trained, nothing measured.
 - ``drift_refresh``: the same change, then as the compensator runs (:mod:`flexarm_control.
-  execution.bound_check`): ``DRIFT_GOALS`` PREDICTIVE goals one after the other, each
+  execution.bound_check`): ``--drift-goals`` PREDICTIVE goals one after the other, each
   measured by the camera and held against its stated bound, which the online bound widens from
   each one (``under_drift``); then an ``REFRESH_SAMPLES``-sample refresh where the model
   health saw the worst residuals (:mod:`flexarm_control.learning.refresh`: its bound
-  recalibrated) and ``DRIFT_GOALS`` goals more on the refreshed model (``after_refresh``).
-- ``auto_drift``: the same change, ``DRIFT_GOALS`` AUTO goals at ``AUTO_TOLERANCE`` one after
+  recalibrated) and as many goals more on the refreshed model (``after_refresh``).
+- ``auto_drift``: the same change, ``--drift-goals`` AUTO goals at ``AUTO_TOLERANCE`` one after
   the other with the online bound (AUTO corrects when it measures its tolerance missed).
 
 Keys: ``coverage`` (share of goals whose true position error is within the stated position
@@ -48,7 +48,7 @@ nor within their tolerance by the truth). At the untrained payload (``payload_5k
 coverage, median bound and error, the largest error and what it stated there, ``refused``.
 
     python benchmarks/uncertainty.py [--targets 15] [--samples 40] [--seeds 1] [--json]
-    python benchmarks/uncertainty.py --smoke --json      (~20 s: two scenarios, small)
+    python benchmarks/uncertainty.py --smoke --json      (~10 s: three scenarios, small)
 """
 from __future__ import annotations
 
@@ -108,7 +108,7 @@ SCENARIOS: dict[str, dict[str, Any]] = {
     'auto_drift': {'carried': 2.0, 'declared': False, 'sequence': 'auto'},
 }
 DRIFTING = ('drift', 'drift_refresh', 'auto_drift')      # apart from the pooled figures
-SMOKE = ('nominal', 'payload_5kg_masses_off')
+SMOKE = ('nominal', 'payload_5kg_masses_off', 'drift_refresh')
 
 
 def plant_config(c: dict[str, Any], masses: dict[str, Any] | None) -> dict[str, Any]:
@@ -124,9 +124,9 @@ def plant_config(c: dict[str, Any], masses: dict[str, Any] | None) -> dict[str, 
     return c
 
 
-def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
+def run(job: tuple[str, str, int, int, int, int, str, int]) -> dict[str, Any]:
     """One scenario in one region with one seed: learn, then every target PREDICTIVE."""
-    name, region_name, region_index, seed, samples, targets, kind = job
+    name, region_name, region_index, seed, samples, targets, kind, drift_goals = job
     scenario = SCENARIOS[name]
     started = time.perf_counter()
     c = plant_config(config(), scenario.get('masses'))
@@ -156,7 +156,7 @@ def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
     site = SiteErrors.from_dict(c['compensator']['error_bound'])
     if 'sequence' in scenario:
         phases = in_sequence(rig, c, region, region_name, seed + region_index, model,
-                             sorted(set(payloads)), site, scenario['sequence'])
+                             sorted(set(payloads)), site, scenario['sequence'], drift_goals)
         return {'name': name, 'region': region_name, 'seed': seed, 'samples': len(collected),
                 'phases': phases, 'goals': [], 'refused': 0, 'out_of_reach': 0,
                 'wall_s': time.perf_counter() - started}
@@ -186,7 +186,7 @@ def run(job: tuple[str, str, int, int, int, int, str]) -> dict[str, Any]:
 
 def in_sequence(rig: Rig, c: dict[str, Any], region: Any, region_name: str, seed: int,
                 model: AtPayload, payloads: list[float], site: SiteErrors, kind: str,
-                ) -> dict[str, list[tuple[float, ...]]]:
+                count: int) -> dict[str, list[tuple[float, ...]]]:
     """Goals one after the other as the compensator runs them after the change: each planned
     with the online bound's factor, moved, measured, held against its bound (which the online
     bound then learns from) and filed in the model health; per phase, every goal's (true
@@ -207,7 +207,7 @@ def in_sequence(rig: Rig, c: dict[str, Any], region: Any, region_name: str, seed
                            - model.predict(joints))
 
         rows = []
-        for target in random_targets(rig.geometry, region, DRIFT_GOALS, phase_seed):
+        for target in random_targets(rig.geometry, region, count, phase_seed):
             planned = plan_goal(rig.compensator, mode, target, model, rig.limits,
                                 trained_payloads=payloads, site=site, tolerance=tolerance,
                                 inflation=online.inflation)
@@ -298,6 +298,8 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument('--targets', type=int, default=15, help='targets per region and seed')
     parser.add_argument('--samples', type=int, default=40)
+    parser.add_argument('--drift-goals', type=int, default=DRIFT_GOALS,
+                        help='goals per phase after the change, per region and seed')
     parser.add_argument('--seeds', type=int, default=1)
     parser.add_argument('--regions', default='A,B')
     parser.add_argument('--kind', help="predictor kind (default: the learner's default_kind)")
@@ -309,13 +311,13 @@ def main() -> None:
     args = parser.parse_args()
     if args.smoke:
         args.only, args.targets, args.samples, args.regions = ','.join(SMOKE), 3, 12, 'A'
-        args.kind, args.workers = 'greybox', 1
+        args.kind, args.workers, args.drift_goals = 'greybox', 1, 4
     names = args.only.split(',') if args.only else list(SCENARIOS)
     unknown = sorted(set(names) - set(SCENARIOS))
     if unknown:
         parser.error(f'unknown scenarios {unknown}; known: {", ".join(SCENARIOS)}')
     regions = args.regions.split(',')
-    jobs = [(name, region, i, seed, args.samples, args.targets, args.kind or '')
+    jobs = [(name, region, i, seed, args.samples, args.targets, args.kind or '', args.drift_goals)
             for name in names for i, region in enumerate(regions) for seed in range(args.seeds)]
     with ProcessPoolExecutor(args.workers) as pool:
         rows = list(pool.map(run, jobs))

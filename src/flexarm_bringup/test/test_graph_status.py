@@ -206,3 +206,18 @@ def test_status_says_whether_the_camera_is_calibrated():
     assert calibration_text(Heard(ERROR, 'damaged')) == 'camera calibration: PROBLEM: damaged'
     text = status_text(status(camera_calibration=calibration_text(made)), None)
     assert f'\ncamera calibration: {made.message}\n' in text
+
+
+def test_the_health_line_gives_the_online_bound_and_says_why_it_widened():
+    health = {'model_version': '4', 'stale': True, 'stale_residual': 1.5e-4,
+              'summary': 'plans of model 4 state 1.0 (position) ... the arm changed',
+              'bound_factor': 1.0, 'angle_bound_factor': 2.5, 'bound_goals': 6,
+              'bound_misses': 1,
+              'regions': [{'name': 'B', 'observations': 6, 'median_position_residual': 3e-3,
+                           'max_position_residual': 6e-3, 'stale': True}]}
+    text = status_text(status(model_health=health), None)
+    assert '1 of 6 measured goals beyond their stated bound' in text
+    assert 'plans state 1.0 x (position) and 2.5 x (angle)' in text
+    assert 'WARNING: plans of model 4' in text
+    calm = health | {'stale': False, 'summary': 'plans of model 4 state 1.3 (position)'}
+    assert 'note: plans of model 4' in status_text(status(model_health=calm), None)

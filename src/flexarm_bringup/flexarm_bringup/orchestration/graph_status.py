@@ -412,7 +412,9 @@ def health_summary(msg: ModelHealth | None) -> dict[str, Any] | None:
     if msg is None:
         return None
     return {'model_version': msg.model_version, 'stale': msg.stale, 'summary': msg.summary,
-            'stale_residual': msg.stale_residual,
+            'stale_residual': msg.stale_residual, 'bound_factor': msg.bound_factor,
+            'angle_bound_factor': msg.angle_bound_factor, 'bound_goals': msg.bound_goals,
+            'bound_misses': msg.bound_misses,
             'regions': [{'name': r.name, 'observations': r.observations,
                          'median_position_residual': r.median_position_residual,
                          'max_position_residual': r.max_position_residual,

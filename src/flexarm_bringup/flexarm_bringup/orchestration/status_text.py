@@ -61,8 +61,12 @@ def health_line(health: dict[str, Any] | None, compensator: bool, model: bool) -
                         f'({r["observations"]} measurements{", STALE" if r["stale"] else ""})'
                         for r in health['regions'])
     line = (f'model health (median residual; stale above '
-            f'{health["stale_residual"] * 1e3:.3f} mm): {regions}')
-    return line + (f'\n  WARNING: {health["summary"]}' if health['stale'] else '')
+            f'{health["stale_residual"] * 1e3:.3f} mm): {regions}; '
+            f'{health["bound_misses"]} of {health["bound_goals"]} measured goals beyond their '
+            f'stated bound, plans state {health["bound_factor"]:.1f} x (position) and '
+            f'{health["angle_bound_factor"]:.1f} x (angle) the calibrated one')
+    label = 'WARNING' if health['stale'] else 'note'
+    return line + (f'\n  {label}: {health["summary"]}' if health['summary'] else '')
 
 
 def model_line(label: str, model: dict[str, Any] | None) -> str:

@@ -10,7 +10,7 @@
   ``flexarm up`` reserve one, so other runs on the machine skip it too); the domain is empty
   when the module starts (no process of this machine runs in it).
 - DDS transports: nodes get the Fast DDS profile of their discovery range from the launcher
-  (:mod:`flexarm_bringup.orchestration.transport`); this process has none of its own, and the
+  (:mod:`flexarm_core.transport`); this process has none of its own, and the
   one a test's in-process ``flexarm`` command sets is removed when the test ends.
 - Processes: every test stops the nodes it started and checks they were reaped; every process
   a module started (its scope token is inherited through the environment) is killed and reaped
@@ -285,9 +285,9 @@ def _no_process_left_behind(request: pytest.FixtureRequest) -> Iterator[None]:
 @pytest.fixture(autouse=True)
 def _transport_env_restored() -> Iterator[None]:
     """Undo the Fast DDS profile that ``flexarm``'s ``main`` called in this process puts in its
-    environment (:func:`flexarm_bringup.orchestration.transport.apply`): a later test's processes
+    environment (:func:`flexarm_core.transport.apply`): a later test's processes
     of another discovery range (tests/test_hosts.py: SUBNET) must not inherit it."""
-    from flexarm_bringup.orchestration.transport import PROFILES_ENV, SKIP_CWD_ENV
+    from flexarm_core.transport import PROFILES_ENV, SKIP_CWD_ENV
 
     saved = {key: os.environ.get(key) for key in (PROFILES_ENV, SKIP_CWD_ENV)}
     yield

@@ -13,18 +13,24 @@ import pytest
 
 from flexarm_bringup import cli
 from flexarm_bringup.cli import graph as graph_commands
-from flexarm_bringup.orchestration import supervisor
 from flexarm_bringup.orchestration.running_graphs import (
     AmbiguousGraph,
     NoSuchGraph,
-    RunningGraph,
     graph_table,
-    lock_holders,
-    running_graphs,
     select,
     stop,
 )
-from flexarm_bringup.orchestration.supervisor import RECORD, lock_name, parse_lock_name
+from flexarm_core import graph_locks
+from flexarm_core.graph_locks import (
+    RECORD,
+    RunningGraph,
+    SeveralGraphs,
+    graph_domain,
+    lock_holders,
+    lock_name,
+    parse_lock_name,
+    running_graphs,
+)
 from flexarm_core.parent_death import terminate_with_parent
 
 # Locks LOCK_FILE as supervisor._lock_domain does, says so, then waits; SIGINT (Python's
@@ -165,7 +171,7 @@ def test_stop_says_so_when_the_supervisor_does_not_end_in_time(dirs, holders):
 def test_flexarm_down_stops_the_only_graph_and_ps_shows_none(dirs, holders, monkeypatch,
                                                              capsys):
     lock_dir, runs_dir = dirs
-    monkeypatch.setattr(supervisor, 'LOCK_DIR', lock_dir)
+    monkeypatch.setattr(graph_locks, 'LOCK_DIR', lock_dir)
     monkeypatch.setattr(graph_commands, 'RUNS_DIR', runs_dir)
     hold(holders, lock_dir, runs_dir, 7, 'arm1')
     hold(holders, lock_dir, runs_dir, 8)
@@ -177,3 +183,20 @@ def test_flexarm_down_stops_the_only_graph_and_ps_shows_none(dirs, holders, monk
     assert cli.main(['ps', '--json']) == 0
     result = json.loads(capsys.readouterr().out.splitlines()[-1])
     assert [g['domain_id'] for g in result['graphs']] == [8]
+
+
+def test_a_client_finds_the_one_graph_of_this_machine_and_asks_when_there_are_several(
+        dirs, holders):
+    """A second shell without ROS_DOMAIN_ID: the graph `flexarm up` started in the first free
+    domain, said; two graphs: which one, by --domain-id; an exported domain: rcl's."""
+    lock_dir, runs_dir = dirs
+    assert graph_domain('', {}, lock_dir, runs_dir) == (None, '')      # none: rcl's default
+    first = hold(holders, lock_dir, runs_dir, 3)
+    domain, note = graph_domain('', {}, lock_dir, runs_dir)
+    assert domain == 3 and 'ROS_DOMAIN_ID=3' in note and str(first.pid) in note
+    assert graph_domain('', {'ROS_DOMAIN_ID': '9'}, lock_dir, runs_dir) == (None, '')
+    hold(holders, lock_dir, runs_dir, 5)
+    with pytest.raises(SeveralGraphs, match=r'ROS domains 3, 5: pass --domain-id'):
+        graph_domain('', {}, lock_dir, runs_dir)
+    hold(holders, lock_dir, runs_dir, 5, 'arm2')                        # one arm of it
+    assert graph_domain('arm2', {}, lock_dir, runs_dir)[0] == 5

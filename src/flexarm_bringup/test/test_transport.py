@@ -6,7 +6,7 @@ from pathlib import Path
 import pytest
 
 from flexarm_bringup.orchestration.launcher import ros_env
-from flexarm_bringup.orchestration.transport import (
+from flexarm_core.transport import (
     PEERS_ENV,
     PROFILES_ENV,
     RANGE_ENV,

@@ -12,8 +12,7 @@ from typing import Any
 
 import pytest
 
-from flexarm_bringup.orchestration import domains, supervisor
-from flexarm_bringup.orchestration.running_graphs import RunningGraph, running_graphs
+from flexarm_bringup.orchestration import domains
 from flexarm_bringup.orchestration.up_domain import (
     EXPORTED,
     FREE,
@@ -24,6 +23,7 @@ from flexarm_bringup.orchestration.up_domain import (
 )
 from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import liveness
+from flexarm_core.graph_locks import LOCK_DIR, RunningGraph, running_graphs
 from flexarm_core.paths import RUNS_DIR
 
 UP_S = 60.0        # [s, liveness-scaled] for `flexarm up` to start its node, or to refuse
@@ -136,7 +136,8 @@ def test_another_arm_shares_its_exported_domain(unreserved: int) -> None:
 GATED = 'import os, sys; sys.stdin.readline(); os.execv(sys.argv[1], sys.argv[1:])'
 
 
-def up(did: int, *args: str, gated: bool = False) -> subprocess.Popen:
+def up(did: int, *args: str, gated: bool = False, env: dict[str, str] | None = None,
+       ) -> subprocess.Popen:
     """``ROS_DOMAIN_ID=did flexarm up --only sim ARGS``: one node is enough to see where the
     graph runs (the rest of it would be expected from other hosts). ``gated``: the process
     runs in ``did`` from now on, and starts ``flexarm up`` when a line comes on its stdin."""
@@ -144,7 +145,7 @@ def up(did: int, *args: str, gated: bool = False) -> subprocess.Popen:
                f'exported-{did}-{os.getpid()}', *args]
     return subprocess.Popen(
         [sys.executable, *(('-c', GATED, sys.executable) if gated else ()), *command],
-        env={**os.environ, 'ROS_DOMAIN_ID': str(did), 'PYTHONUNBUFFERED': '1'},
+        env={**(env or os.environ), 'ROS_DOMAIN_ID': str(did), 'PYTHONUNBUFFERED': '1'},
         stdin=subprocess.PIPE if gated else subprocess.DEVNULL, stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True)
 
@@ -177,7 +178,7 @@ def test_up_runs_in_the_exported_domain_and_a_held_one_is_refused(
                 line, first.stderr.read() if not line else '')
             wait_for(lambda: 'flexarm_sim' in ros_node.get_node_names(), UP_S,
                      f'the simulator in ROS domain {domain_id}')
-            mine = wait_for(lambda: [g for g in running_graphs(supervisor.LOCK_DIR, RUNS_DIR)
+            mine = wait_for(lambda: [g for g in running_graphs(LOCK_DIR, RUNS_DIR)
                                      if g.supervisor_pid == first.pid], UP_S, 'its graph lock')
             assert [g.domain_id for g in mine] == [domain_id]
             assert domains.hold(domain_id) is None       # it reserves the domain it runs in
@@ -193,3 +194,35 @@ def test_up_runs_in_the_exported_domain_and_a_held_one_is_refused(
                 pytest.fail('flexarm up did not stop on SIGINT')
         assert 'stopped: flexarm_sim (0)' in out, out
     assert first.returncode == Exit.OK
+
+
+@pytest.mark.node
+def test_a_second_shell_without_a_domain_finds_the_graph_up_started(
+        domain_id: int, domain_pool: Any, tmp_path: Any) -> None:
+    """`flexarm up` in one shell, `flexarm status` in another with no ROS_DOMAIN_ID exported:
+    the status is of that graph, and says which domain it found. Both shells see only each
+    other's graph lock (their own TMPDIR): other tests' graphs run meanwhile."""
+    private = {k: v for k, v in os.environ.items() if k != 'ROS_DOMAIN_ID'}
+    private['TMPDIR'] = str(tmp_path)
+    first = up(domain_id, '--timeout', str(liveness.limit(UP_S)), gated=True, env=private)
+    with domain_pool.lent(domain_id):
+        first.stdin.write('go\n')
+        first.stdin.flush()
+        try:
+            line = first.stdout.readline()
+            assert f' in ROS_DOMAIN_ID={domain_id}' in line, (line, first.stderr.read())
+            second = subprocess.run(
+                [sys.executable, '-m', 'flexarm_bringup.cli', 'status'], env=private,
+                capture_output=True, text=True,
+                timeout=liveness.limit(UP_S))
+        finally:
+            first.send_signal(signal.SIGINT)
+            try:
+                first.communicate(timeout=liveness.limit(GONE_S))
+            except subprocess.TimeoutExpired:
+                first.kill()
+                pytest.fail('flexarm up did not stop on SIGINT')
+    assert (f'using the flexarm graph of this machine in ROS_DOMAIN_ID={domain_id}'
+            in second.stderr), second.stderr
+    assert f'ROS_DOMAIN_ID={domain_id}' in second.stdout, second.stdout
+    assert 'flexarm_sim' in second.stdout, second.stdout

@@ -7,7 +7,7 @@ import json
 import os
 from pathlib import Path
 
-from flexarm_bringup.orchestration.supervisor import RECORD
+from flexarm_core.graph_locks import RECORD
 from flexarm_core.paths import RUNS_DIR
 
 

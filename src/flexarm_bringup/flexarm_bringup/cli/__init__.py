@@ -9,7 +9,7 @@ says which flexarm this is. Whatever takes more than a moment shows progress on 
 waiting lines, goal feedback) unless ``--quiet`` or ``--json``. The graph must be running
 (``flexarm up``) for move/collect/train, in the same ROS_DOMAIN_ID. DDS stays on this machine
 (ROS_AUTOMATIC_DISCOVERY_RANGE=LOCALHOST, and transports confined to shared memory and loopback:
-:mod:`flexarm_bringup.orchestration.transport`) unless the environment sets another range or static
+:mod:`flexarm_core.transport`) unless the environment sets another range or static
 peers, or ``flexarm up --discovery subnet`` widens it on purpose.
 
 Exit codes (:class:`flexarm_bringup.results.outcome_text.Exit`):
@@ -40,8 +40,8 @@ from typing import Any
 from flexarm_bringup.cli.arguments import SUBCOMMANDS, UsageError, build_parser
 from flexarm_bringup.cli.common import Outcome
 from flexarm_bringup.cli.graph import interrupt_handler
-from flexarm_bringup.orchestration import transport
 from flexarm_bringup.results.outcome_text import Exit
+from flexarm_core import transport
 
 
 def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:

@@ -160,6 +160,19 @@ def check_bag_path(path: str) -> None:
             raise usage(f'{file} is not an MCAP bag')
 
 
+def graph_client(args: argparse.Namespace, learner_node: str = 'flexarm_learner') -> Any:
+    """A client of the graph ``args`` address (``--domain-id``, ``--namespace``; without
+    either domain, the one graph of this machine, said on stderr); several graphs without a
+    ``--domain-id`` are a usage error naming their domains."""
+    from flexarm_control.ros.client import init_client
+    from flexarm_core.graph_locks import SeveralGraphs
+
+    try:
+        return init_client(args.domain_id, args.namespace, learner_node, progress_printer(args))
+    except SeveralGraphs as exc:
+        raise usage(str(exc)) from None
+
+
 @contextlib.contextmanager
 def client_session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
     """A client of the graph once its servers answer (a waiting line meanwhile); shut down
@@ -167,9 +180,8 @@ def client_session(args: argparse.Namespace, learner: bool) -> Iterator[Any]:
     import rclpy
 
     from flexarm_bringup.orchestration.launcher import node_name
-    from flexarm_control.ros.client import init_client
 
-    client = init_client(args.domain_id, args.namespace, node_name('learner'))
+    client = graph_client(args, node_name('learner'))
     try:
         domain = client.context.get_domain_id()
         try:

@@ -11,12 +11,12 @@ import threading
 from types import FrameType
 from typing import Any
 
-from flexarm_bringup.cli.common import Outcome, timed_step, usage, world_settings
-from flexarm_bringup.orchestration import transport
+from flexarm_bringup.cli.common import Outcome, graph_client, timed_step, usage, world_settings
 from flexarm_bringup.orchestration.launcher import node_name
 from flexarm_bringup.results.outcome_text import (
     Exit,
 )
+from flexarm_core import transport
 from flexarm_core.paths import RUNS_DIR
 
 _GENERATED_MESSAGE = re.compile(r'[/\\](?:msg|srv|action)[/\\]_\w+\.py$')   # rosidl's Python
@@ -31,10 +31,10 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
 
     from flexarm_bringup.orchestration import supervisor
     from flexarm_bringup.orchestration.graph_watch import FirstReports, GraphWatch
-    from flexarm_bringup.orchestration.running_graphs import running_graphs
     from flexarm_bringup.orchestration.supervisor import Graph
     from flexarm_bringup.orchestration.up_domain import DomainRefused, claim_domain
     from flexarm_core import liveness
+    from flexarm_core.graph_locks import LOCK_DIR, running_graphs
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
@@ -65,7 +65,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     try:
         supervisor.graph_specs(args.robot, optional, args.only)     # arguments first
         claim = claim_domain(args.domain_id, os.environ, args.namespace,
-                             lambda: running_graphs(supervisor.LOCK_DIR, RUNS_DIR))
+                             lambda: running_graphs(LOCK_DIR, RUNS_DIR))
     except (ValueError, DomainRefused) as exc:
         raise usage(str(exc)) from None
     domain = claim.domain_id
@@ -233,27 +233,26 @@ def interrupt_handler(signum: int, frame: FrameType | None) -> None:
 
 def cmd_ps(args: argparse.Namespace) -> dict[str, Any]:
     """List the flexarm graphs running on this machine: domain, namespace, supervisor, robot."""
-    from flexarm_bringup.orchestration import supervisor
-    from flexarm_bringup.orchestration.running_graphs import graph_table, running_graphs
+    from flexarm_bringup.orchestration.running_graphs import graph_table
+    from flexarm_core.graph_locks import LOCK_DIR, running_graphs
 
-    graphs = running_graphs(supervisor.LOCK_DIR, RUNS_DIR)
+    graphs = running_graphs(LOCK_DIR, RUNS_DIR)
     print(graph_table(graphs) if graphs else 'no flexarm graph runs on this machine')
     return {'ok': True, 'graphs': [g.as_dict() for g in graphs]}
 
 
 def cmd_down(args: argparse.Namespace) -> dict[str, Any]:
     """Stop a graph of this machine (as Ctrl-C in its shell) and wait until it has ended."""
-    from flexarm_bringup.orchestration import supervisor
     from flexarm_bringup.orchestration.running_graphs import (
         AmbiguousGraph,
         NoSuchGraph,
-        running_graphs,
         select,
         stop,
     )
+    from flexarm_core.graph_locks import LOCK_DIR, running_graphs
 
     try:
-        graph = select(running_graphs(supervisor.LOCK_DIR, RUNS_DIR), args.domain_id,
+        graph = select(running_graphs(LOCK_DIR, RUNS_DIR), args.domain_id,
                        args.namespace)
     except NoSuchGraph as exc:
         raise Outcome(str(exc), Exit.NO_GRAPH) from None
@@ -281,9 +280,8 @@ def cmd_status(args: argparse.Namespace) -> dict[str, Any]:
         supervisor_record,
     )
     from flexarm_bringup.orchestration.status_text import status_text
-    from flexarm_control.ros.client import init_client
 
-    client = init_client(args.domain_id, args.namespace, node_name('learner'))
+    client = graph_client(args, node_name('learner'))
     try:
         record = supervisor_record(RUNS_DIR, client.context.get_domain_id(), args.namespace)
         with timed_step('asking the graph', args):

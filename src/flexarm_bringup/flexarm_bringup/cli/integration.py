@@ -6,7 +6,7 @@ import argparse
 import sys
 from typing import Any
 
-from flexarm_bringup.cli.common import Outcome, timed_step, usage
+from flexarm_bringup.cli.common import Outcome, graph_client, timed_step, usage
 from flexarm_bringup.results.outcome_text import Exit
 
 
@@ -37,11 +37,10 @@ def cmd_param(args: argparse.Namespace) -> dict[str, Any]:
     import rclpy
 
     from flexarm_bringup.cli.parameter_text import typed_value, value_text
-    from flexarm_control.ros.client import init_client
 
     _check_param(args)
     node, name = args.node, args.name
-    client = init_client(args.domain_id, args.namespace)
+    client = graph_client(args)
     try:
         with timed_step(f'asking {node}', args):
             current = client.node_parameters(node, [name] if name and args.action != 'list'

@@ -43,9 +43,9 @@ from flexarm_bringup.orchestration.status_text import (
     clock_text,
     real_time_factor,
 )
-from flexarm_bringup.orchestration.supervisor import RECORD
 from flexarm_control.learning.models import model_metadata
 from flexarm_core import liveness, topics
+from flexarm_core.graph_locks import RECORD
 from flexarm_core.health_report import ERROR, LEVEL_NAMES
 from flexarm_msgs.msg import ModelHealth, ModelInfo
 

@@ -22,10 +22,10 @@ from typing import IO, Any
 
 import yaml
 
-from flexarm_bringup.orchestration.transport import transport_env
 from flexarm_core import processes
 from flexarm_core.params import SAFE_LOADER, config_path, load_config
 from flexarm_core.parent_death import signal_on_parent_death
+from flexarm_core.transport import transport_env
 
 # Set by ros-wheels-bootstrapper after it re-executed Python with LD_LIBRARY_PATH; a child
 # that inherits it skips its own re-exec, and imports rclpy only if it inherits that path too.
@@ -150,7 +150,7 @@ def ros_env(domain_id: int, log_dir: Path | None = None,
     ``discovery`` (ROS_AUTOMATIC_DISCOVERY_RANGE) is LOCALHOST unless the caller widens it on
     purpose: the DDS of the PyPI wheels has no security plugins, so every participant that
     reaches the graph can publish commands to it. With LOCALHOST every transport stays on
-    this machine too (:mod:`flexarm_bringup.orchestration.transport`).
+    this machine too (:mod:`flexarm_core.transport`).
 
     numpy's BLAS runs one thread (``OPENBLAS_NUM_THREADS``, unless set): a node's matrices are
     a few joints or holes wide, too small to share out, and the pool OpenBLAS starts at import

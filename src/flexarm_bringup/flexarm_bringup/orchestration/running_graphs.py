@@ -1,116 +1,15 @@
-"""The flexarm graphs running on this machine, for ``flexarm ps`` and ``flexarm down``.
-
-A graph's supervisor holds an flock on its domain's lock file (``supervisor.lock_name``, in
-``supervisor.LOCK_DIR``) for as long as it runs; the kernel drops the lock when the process
-ends, however it ends, so a held lock is what "live" means here (a pid written in the file may
-have been reused since). Who holds a lock is read from ``/proc/locks`` without touching it: a
-probe that took the lock itself, even for a moment, could make a ``flexarm up`` starting just
-then refuse the domain. The run folder's graph record (``supervisor.RECORD``) adds the robot
-and the run folder. No rclpy: this is files and processes only.
-"""
+"""Acting on the flexarm graphs running on this machine (:mod:`flexarm_core.graph_locks`
+finds them), for ``flexarm ps`` and ``flexarm down``: which one a command means, stopping it,
+and a table for people."""
 from __future__ import annotations
 
-import json
 import os
 import select as io_select
 import signal
 from collections.abc import Iterable
-from dataclasses import asdict, dataclass
 from datetime import datetime
-from pathlib import Path
 
-from flexarm_bringup.orchestration.supervisor import RECORD, parse_lock_name
-
-PROC_LOCKS = Path('/proc/locks')
-
-
-def lock_holders(proc_locks: str) -> dict[tuple[int, int, int], int]:
-    """(device major, minor, inode): pid of every FLOCK in ``/proc/locks``' text."""
-    holders = {}
-    for line in proc_locks.splitlines():
-        fields = line.split()
-        if len(fields) < 6 or fields[1] != 'FLOCK':
-            continue            # another kind, or '->': a process waiting for the lock
-        try:
-            major, minor, inode = fields[5].split(':')
-            holders[int(major, 16), int(minor, 16), int(inode)] = int(fields[4])
-        except ValueError:
-            continue
-    return holders
-
-
-def lock_holder(path: Path, holders: dict[tuple[int, int, int], int]) -> int | None:
-    """The pid holding an flock on ``path`` (per :func:`lock_holders`), None if none does."""
-    try:
-        st = path.stat()
-    except OSError:
-        return None
-    return holders.get((os.major(st.st_dev), os.minor(st.st_dev), st.st_ino))
-
-
-@dataclass(frozen=True)
-class RunningGraph:
-    """A live graph of this machine: its domain, arm, supervisor and when it took the domain
-    (``started``: seconds since the epoch, the lock file's last write)."""
-
-    domain_id: int
-    namespace: str
-    supervisor_pid: int
-    started: float
-    robot: str = '?'
-    run_dir: str = ''
-    nodes: tuple[str, ...] = ()
-
-    def as_dict(self) -> dict[str, object]:
-        return asdict(self) | {'nodes': list(self.nodes)}
-
-
-def running_graphs(lock_dir: Path, runs_dir: Path, proc_locks: Path = PROC_LOCKS
-                   ) -> list[RunningGraph]:
-    """Every graph whose supervisor holds its lock in ``lock_dir``, by domain and namespace,
-    with what its record under ``runs_dir`` says."""
-    try:
-        holders = lock_holders(proc_locks.read_text())
-    except OSError:
-        holders = {}
-    records = _records(runs_dir)
-    graphs = []
-    for path in sorted(Path(lock_dir).glob('*.lock')):
-        key, pid = parse_lock_name(path.name), lock_holder(path, holders)
-        if key is None or pid is None:
-            continue
-        try:
-            started = path.stat().st_mtime
-        except OSError:
-            continue            # stopped meanwhile
-        record = records.get((pid, *key), {})
-        graphs.append(RunningGraph(
-            key[0], key[1], pid, started, str(record.get('robot', '?')),
-            str(record.get('run_dir', '')), tuple(record.get('nodes', {}))))
-    return sorted(graphs, key=lambda g: (g.domain_id, g.namespace))
-
-
-def _records(runs_dir: Path) -> dict[tuple[int, int, str], dict[str, object]]:
-    """The graph records under ``runs_dir`` by (supervisor pid, domain id, namespace), the
-    newest where a pid was reused."""
-    found: dict[tuple[int, int, str], dict[str, object]] = {}
-    paths = sorted(Path(runs_dir).glob(f'*/{RECORD}'), key=_mtime)
-    for path in paths:
-        try:
-            record = json.loads(path.read_text())
-            key = (int(record['supervisor_pid']), int(record['domain_id']),
-                   str(record.get('namespace', '')))
-        except (OSError, ValueError, KeyError, TypeError):
-            continue
-        found[key] = record | {'run_dir': str(path.parent)}
-    return found
-
-
-def _mtime(path: Path) -> float:
-    try:
-        return path.stat().st_mtime
-    except OSError:
-        return 0.0
+from flexarm_core.graph_locks import RunningGraph
 
 
 class NoSuchGraph(LookupError):

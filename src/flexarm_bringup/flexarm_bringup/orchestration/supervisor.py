@@ -40,7 +40,6 @@ import contextlib
 import fcntl
 import json
 import os
-import tempfile
 import time
 from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
@@ -61,13 +60,12 @@ from flexarm_bringup.orchestration.launcher import (
 from flexarm_core import liveness, topics
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.goal_owner import full_name
+from flexarm_core.graph_locks import LOCK_DIR, RECORD, lock_name
 from flexarm_core.params import load_config
 
 # Wall-clock limits, times the liveness factor (flexarm_core.liveness):
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
 CLOCK_WAIT = 5.0       # [s] more for a namespaced arm to find another arm's /clock
-RECORD = 'graph.json'  # in the run folder: supervisor, domain, node processes, restarts
-LOCK_DIR = Path(tempfile.gettempdir()) / 'flexarm-domains'   # <domain id>.lock per graph
 # Per-arm folders: (node's role, parameter).
 ARM_FOLDERS = (('learner', 'data_directory'), ('learner', 'model_directory'),
                ('vision', 'tool_calibration_file'), ('vision', 'camera_calibration_file'))
@@ -326,21 +324,6 @@ def arm_folders(parameters: Mapping[str, Mapping[str, Any]], namespace: str
         result.setdefault(node, {})[name] = str(
             value.parent / namespace / value.name if value.suffix else value / namespace)
     return result
-
-
-def lock_name(domain_id: int, namespace: str = '') -> str:
-    """The lock file name of ``domain_id`` and the arm in ``namespace`` (the '/' of a nested
-    namespace as '.', which no name part holds, so the name stays one file of LOCK_DIR)."""
-    ns = namespace.strip('/').replace('/', '.')
-    return f'{domain_id}-{ns}.lock' if ns else f'{domain_id}.lock'
-
-
-def parse_lock_name(name: str) -> tuple[int, str] | None:
-    """(domain id, namespace) of a :func:`lock_name`; None for another file name."""
-    if not name.endswith('.lock'):
-        return None
-    domain, _, ns = name.removesuffix('.lock').partition('-')
-    return (int(domain), ns.replace('.', '/')) if domain.isdigit() else None
 
 
 def lock_domain(domain_id: int, namespace: str = '') -> int:

@@ -62,8 +62,9 @@ from unique_identifier_msgs.msg import UUID
 
 from flexarm_control.execution.modes import Mode
 from flexarm_control.ros.arm_claim import ArmClaim
-from flexarm_core import liveness, topics
+from flexarm_core import liveness, topics, transport
 from flexarm_core.goal_owner import own_participant, participant, send_goal_writers, sender_of
+from flexarm_core.graph_locks import graph_domain
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
 from flexarm_msgs.srv import Train, UseModel
@@ -631,8 +632,25 @@ class FlexarmClient(Node):
 
 
 def init_client(domain_id: int | None = None, namespace: str = '',
-                learner_node: str = 'flexarm_learner') -> FlexarmClient:
+                learner_node: str = 'flexarm_learner',
+                say: Callable[[str], None] | None = None) -> FlexarmClient:
     """Initialise rclpy (default context, SIGINT left to Python) and create a client node (of
-    the arm in ``namespace``)."""
+    the arm in ``namespace``), as the ``flexarm`` commands do:
+
+    * transports confined to this machine unless the environment widens them
+      (``ROS_AUTOMATIC_DISCOVERY_RANGE`` LOCALHOST by default, :mod:`flexarm_core.transport`);
+    * without ``domain_id`` and without an exported ``ROS_DOMAIN_ID``, the domain of the one
+      flexarm graph running on this machine (:func:`flexarm_core.graph_locks.graph_domain`;
+      ``flexarm up`` takes the first free domain), said through ``say`` (default: the client's
+      logger); :class:`~flexarm_core.graph_locks.SeveralGraphs` when several could be meant.
+    """
+    os.environ.setdefault(transport.RANGE_ENV, 'LOCALHOST')
+    transport.apply(os.environ)      # before the process's first participant: read once
+    note = ''
+    if domain_id is None:
+        domain_id, note = graph_domain(namespace, os.environ)
     rclpy.init(domain_id=domain_id, signal_handler_options=rclpy.SignalHandlerOptions.NO)
-    return FlexarmClient(namespace=namespace, learner_node=learner_node)
+    client = FlexarmClient(namespace=namespace, learner_node=learner_node)
+    if note:
+        (say or client.get_logger().info)(note)
+    return client

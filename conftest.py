@@ -328,10 +328,12 @@ class Launcher:
             NodeProcess,
             load_graph,
             load_optional,
+            load_rehearsal,
             ros_env,
         )
 
-        specs = {**load_optional(robot), **{s.name: s for s in load_graph(robot)}}
+        specs = {**{s.name: s for s in load_rehearsal()}, **load_optional(robot),
+                 **{s.name: s for s in load_graph(robot)}}
         owner = next(s for s in specs.values() if s.role == 'arm_owner')
         if arm_owner and specs[name].role in self.MOVERS and not any(
                 n.spec.name == owner.name and n.namespace == namespace.strip('/')

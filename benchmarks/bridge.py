@@ -30,7 +30,13 @@ from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.orchestration.launcher import NodeProcess, load_graph, ros_env, stop_all
+from flexarm_bringup.orchestration.launcher import (
+    NodeProcess,
+    load_graph,
+    load_rehearsal,
+    ros_env,
+    stop_all,
+)
 from flexarm_core import topics
 from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 
@@ -77,9 +83,9 @@ def step_latencies(robot: str, tap: bool, moves: int, domain: int, run_dir: Path
     overrides = {'flexarm_bridge': {'use_sim_time': False, 'port': bridge_port},
                  'flexarm_fake_controller': {'port': controller_port}}
     env = ros_env(domain, run_dir / 'ros_log')
+    specs = [*(load_rehearsal() if robot == 'bridge' else ()), *load_graph(robot)]
     nodes = [NodeProcess(spec, env, run_dir / f'{spec.name}.log', overrides.get(spec.name))
-             for spec in load_graph(robot)
-             if not robot_only or spec.name in ROBOT_NODES[robot]]
+             for spec in specs if not robot_only or spec.name in ROBOT_NODES[robot]]
     # The relay marks its stages from its own thread, possibly after /joint_states (it relays
     # first): a tapped step is complete only when all three are in.
     timer = StepTimer(STAGES if tap else ('joint_states',))

@@ -77,7 +77,7 @@ from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_bringup.orchestration.domains import reserved
 from flexarm_bringup.orchestration.launcher import (
     NodeProcess,
-    load_graph,
+    load_rehearsal,
     owned_shm,
     remove_shm_of_dead,
     ros_env,
@@ -745,7 +745,7 @@ def replayed_handshakes(graph: Graph, row: Row) -> None:
     with socket.socket() as probe:
         probe.bind(('127.0.0.1', 0))
         port = probe.getsockname()[1]
-    spec = next(s for s in load_graph('bridge') if s.name == 'flexarm_fake_controller')
+    spec = next(s for s in load_rehearsal() if s.name == 'flexarm_fake_controller')
     controller = NodeProcess(
         spec, {**ros_env(graph.domain, run_dir / 'ros_log'), MARKER: f'{graph.marker}-client'},
         run_dir / 'fake_controller.log', {'port': port, 'link_key_file': str(key)})

@@ -37,7 +37,8 @@ def keyed(launch, domain_id, tmp_path, wait_for):
     port = 47000 + 2 * domain_id
     key = str(make_key(tmp_path / 'site.key'))
     controller = launch('flexarm_fake_controller', robot='bridge', port=port, link_key_file=key,
-                        heartbeat_timeout=TIMEOUT, real_time_factor=2.0)
+                        heartbeat_timeout=TIMEOUT, real_time_factor=2.0,
+                        clock_source='own')
     wait_for(lambda: 'controller protocol v' in controller.log_path.read_text(), 30.0,
              'the fake controller to listen')
     return port, key, port + 1, controller

@@ -39,7 +39,7 @@ def test_a_host_starts_its_part_and_expects_the_rest_of_the_graph(tmp_path):
     assert 'flexarm_recorder' not in learning_side.remote            # optional: never expected
     assert Graph(0, tmp_path).remote == ()
     bridge = Graph(0, tmp_path, robot='bridge', only=('compensator',))
-    assert bridge.remote[:2] == ('flexarm_bridge', 'flexarm_fake_controller')
+    assert bridge.remote[:2] == ('flexarm_bridge', 'flexarm_arm_owner')   # nothing simulated
     with pytest.raises(ValueError, match='unknown node.s. sim'):
         Graph(0, tmp_path, robot='bridge', only=('sim',))
 

@@ -11,7 +11,7 @@ from typing import Any
 
 import yaml
 
-from flexarm_core.paths import CONFIG_DIR
+from flexarm_core.paths import CONFIG_DIR, SITE_CONFIG_DIR
 
 # libyaml's parser (PyYAML's wheels carry it) reads config/ some 8 times faster than the pure
 # Python one: every node process and command reads several files as it starts.
@@ -21,6 +21,14 @@ SAFE_LOADER = getattr(yaml, 'CSafeLoader', yaml.SafeLoader)
 def config_path(name: str) -> Path:
     """``config/<name>``: the clone's, else the installed one (see flexarm_core.paths)."""
     return CONFIG_DIR / name
+
+
+def config_layers(name: str) -> list[Path]:
+    """The files of ``config/<name>``, later ones winning parameter by parameter: the clone's,
+    then the site's if it has one (:mod:`flexarm_core.paths`). A node gets them as that many
+    ``--params-file`` arguments, in this order, as ROS layers params files."""
+    site = SITE_CONFIG_DIR / name if SITE_CONFIG_DIR else None
+    return [config_path(name), *([site] if site and site.is_file() else [])]
 
 
 def load_node_params(path: str | Path, node_name: str) -> dict[str, Any]:
@@ -37,10 +45,12 @@ def load_node_params(path: str | Path, node_name: str) -> dict[str, Any]:
 
 
 def load_config(*names: str, node_name: str = '/**') -> dict[str, Any]:
-    """Merge the parameters of several ``config/`` files, later files winning."""
+    """Merge the parameters of several ``config/`` files (each with its site layer, see
+    :func:`config_layers`), later files winning."""
     merged: dict[str, Any] = {}
     for name in names:
-        _deep_update(merged, load_node_params(config_path(name), node_name))
+        for path in config_layers(name):
+            _deep_update(merged, load_node_params(path, node_name))
     return merged
 
 

@@ -11,10 +11,16 @@ lone ``sim_node`` would need the whole graph. ``config/`` is taken from, in orde
 3. ``share/flexarm_core/config`` of a copying install (plain ``colcon build``, a binary
    package), found through the ament index that the workspace's setup script extends.
 
+A site's own settings live outside the clone, in a site folder (``FLEXARM_SITE``, or
+``flexarm --site DIR``; ``flexarm site init DIR`` writes a starting point): its ``config/``
+holds params files that layer over the clone's of the same name, parameter by parameter, and a
+``graph.yaml`` whose robot entries and settings replace the clone's of the same name
+(:mod:`flexarm_core.params`). Nothing in the clone is edited for a real arm.
+
 The runtime directories (data, models, runs, results, bags, calibration) are git-ignored folders
-beside ``config/`` in the clone; an install outside a clone makes them in the working directory.
-``FLEXARM_STATE_DIR`` moves them elsewhere: the test suite points it at a temporary folder, so
-no test reads or changes an operator's files.
+beside ``config/`` in the clone, in the site folder when there is one; an install outside a
+clone makes them in the working directory. ``FLEXARM_STATE_DIR`` moves them elsewhere: the test
+suite points it at a temporary folder, so no test reads or changes an operator's files.
 """
 from __future__ import annotations
 
@@ -44,10 +50,14 @@ def _installed_config() -> Path:
             'clone') from error
 
 
+SITE_ENV = 'FLEXARM_SITE'
 CLONE = _clone()
 CONFIG_DIR = CLONE / 'config' if CLONE else _installed_config()
+SITE = (Path(os.environ[SITE_ENV]).expanduser().resolve() if os.environ.get(SITE_ENV)
+        else None)
+SITE_CONFIG_DIR = SITE / 'config' if SITE else None     # the site's layer over CONFIG_DIR
 STATE = (Path(os.environ['FLEXARM_STATE_DIR']).expanduser().resolve()
-         if os.environ.get('FLEXARM_STATE_DIR') else CLONE or Path.cwd())
+         if os.environ.get('FLEXARM_STATE_DIR') else SITE or CLONE or Path.cwd())
 DATA_DIR = STATE / 'data'         # collected samples (JSON lines)
 MODELS_DIR = STATE / 'models'     # trained models and current.json
 RUNS_DIR = STATE / 'runs'         # per-graph logs and supervisor records

@@ -47,6 +47,11 @@ another publisher of it (checked every ``CLOCK_CHECK`` s), so one arm alone hear
 restarted owner that had no follower starts again at 0. The role is in the ``controller``
 diagnostics (``clock``).
 
+``clock_source: wall`` plays a real controller instead (a rehearsal of a site's arm,
+:mod:`flexarm_sim.fake_controller`): no ``/clock``; its ticks are those of the wall clock
+(stamps are wall time, as a driver's are), and a wall timer steps the arm up to now at real
+time (``real_time_factor`` 1), at most ``WALL_CATCH_UP`` ticks a wake-up.
+
 Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
 :func:`controller_status` and the commands' :class:`~flexarm_core.health_report.CommandLog`.
 """
@@ -91,6 +96,8 @@ from flexarm_vision.camera_model import CameraModel
 FABRICATION = ('link3', 'link4', 'offset')   # writable plant.fabrication.* [m]
 
 FOLLOW_CATCH_UP = 200    # steps at most on one /clock, following (2 s of sim time)
+WALL_CATCH_UP = 200      # steps at most a wake-up on the wall clock
+WALL = 'wall'            # clock_source of a stand-in for a real controller
 CLOCK_SILENCE = 1.0      # [s, wall; liveness-scaled] of silent /clock before a takeover
 CLOCK_CHECK = 0.5        # [s, wall] between looks at the domain's /clock publishers
 ACHIEVED_SPAN = 1.0      # [s, wall] the achieved real-time factor is measured over at least
@@ -102,6 +109,12 @@ def ticks_at(sec: int, nanosec: int, rate: float) -> int:
     inverse (exact for the times it gives)."""
     numerator, denominator = float(rate).as_integer_ratio()
     return -(-((sec * 1_000_000_000 + nanosec) * numerator) // (1_000_000_000 * denominator))
+
+
+def ticks_now(rate: float) -> int:
+    """The whole ticks of ``rate`` Hz of the wall clock up to now (never ahead of it)."""
+    numerator, denominator = float(rate).as_integer_ratio()
+    return time.time_ns() * numerator // (1_000_000_000 * denominator)
 
 
 def tick_time(tick: int, rate: float) -> tuple[int, int]:
@@ -143,7 +156,11 @@ class SimNode(Node):
                               bounds=(0.1, 100.0))
         clock_source = declare(self, 'clock_source', OWN,
                                'own: publish /clock; follow: step to the /clock of another '
-                               "arm's simulator in the domain")
+                               "arm's simulator in the domain; wall: no /clock, real time on "
+                               'the wall clock (a stand-in for a real controller)')
+        self._wall = clock_source == WALL
+        if self._wall:
+            self._rtf = 1.0
         seed = declare(self, 'seed', 0, 'seed of the camera noise')
         initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
                           'joint1..joint4 at start [rad, m, rad, rad]')
@@ -179,7 +196,8 @@ class SimNode(Node):
         self._marks = [(time.monotonic(), 0)] * 2
 
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
-        self._share = ClockShare(clock_source, self.get_fully_qualified_name(),
+        self._share = ClockShare(OWN if self._wall else clock_source,
+                                 self.get_fully_qualified_name(),
                                  liveness.limit(CLOCK_SILENCE), 2 * self._clock_every,
                                  time.monotonic())
         self._clock_pub: Publisher | None = None
@@ -192,12 +210,17 @@ class SimNode(Node):
         self._setup_joint_io()
         self._camera_info = self._make_camera_info()
         self._info_pub.publish(self._camera_info)
-        if clock_source == OWN:
+        steady = RosClock(clock_type=ClockType.STEADY_TIME)
+        if self._wall:
+            self._tick = ticks_now(self._js_rate)
+            self._wake = self.create_timer(self._clock_every * self._dt, self._on_wall,
+                                           clock=steady)
+        elif clock_source == OWN:
             self._own_clock()
         else:
             self._listen_to_clock(True)
-        self.create_timer(CLOCK_CHECK, self._check_clock,
-                          clock=RosClock(clock_type=ClockType.STEADY_TIME))
+        if not self._wall:
+            self.create_timer(CLOCK_CHECK, self._check_clock, clock=steady)
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._now)
@@ -267,7 +290,8 @@ class SimNode(Node):
         return [controller_status(self.get_name(), self._hardware_id,
                                   self._dynamics.state.is_moving, tick * self._dt, self._rtf,
                                   achieved, self._dynamics.plant.payload,
-                                  self._share.text(self._dt)),
+                                  'wall clock, no /clock' if self._wall
+                                  else self._share.text(self._dt)),
                 self._commands.status(self.get_name(), self._hardware_id)]
 
     def _on_payload(self, msg: Float64) -> None:
@@ -384,6 +408,12 @@ class SimNode(Node):
     def _on_wake(self) -> None:
         """Owning the clock: step one clock period (its last tick publishes /clock)."""
         for _ in range(self._clock_every):
+            self._advance()
+
+    def _on_wall(self) -> None:
+        """On the wall clock: step up to now."""
+        due = ticks_now(self._js_rate)
+        for _ in range(min(due - self._tick, WALL_CATCH_UP)):
             self._advance()
 
     def _advance(self) -> None:

@@ -23,7 +23,7 @@ from typing import IO, Any
 import yaml
 
 from flexarm_core import processes
-from flexarm_core.params import SAFE_LOADER, config_path, load_config
+from flexarm_core.params import SAFE_LOADER, config_layers, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 from flexarm_core.transport import transport_env
 
@@ -44,6 +44,7 @@ class NodeSpec:
     params_files: tuple[str, ...] = ()
     parameters: Mapping[str, Any] = field(default_factory=dict)
     restart: bool = False
+    remappings: Mapping[str, str] = field(default_factory=dict)   # a site's: topic -> topic
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> NodeSpec:
@@ -54,8 +55,21 @@ class NodeSpec:
 
 
 def _graph_file(path: Path | None) -> dict[str, Any]:
-    with open(path or config_path('graph.yaml'), encoding='utf-8') as f:
-        return yaml.load(f, Loader=SAFE_LOADER)
+    """graph.yaml (``path``, else config/'s), with a site's layer (:func:`config_layers`): its
+    ``robots`` and ``robot_settings`` entries replace those of the same robot, and its
+    ``remappings`` (per node name: {topic: topic}) are added to the nodes'."""
+    layers = [path] if path else config_layers('graph.yaml')
+    graph: dict[str, Any] = {}
+    for layer in layers:
+        with open(layer, encoding='utf-8') as f:
+            doc = yaml.load(f, Loader=SAFE_LOADER) or {}
+        if not graph:
+            graph = doc
+            continue
+        for key in ('robots', 'robot_settings'):
+            graph[key] = {**graph.get(key, {}), **(doc.get(key) or {})}
+        graph['remappings'] = {**graph.get('remappings', {}), **(doc.get('remappings') or {})}
+    return graph
 
 
 def load_graph(robot: str = 'sim', path: Path | None = None) -> list[NodeSpec]:
@@ -63,7 +77,7 @@ def load_graph(robot: str = 'sim', path: Path | None = None) -> list[NodeSpec]:
     graph.yaml, each with the entry's settings it lists in ``robot_parameters``."""
     graph = _graph_file(path)
     settings = robot_settings(robot, path)
-    return [_with_settings(d, settings)
+    return [_with_settings(d, settings, graph)
             for d in [*(graph['robots'][robot] or ()), *graph['nodes']]]
 
 
@@ -76,25 +90,33 @@ def robot_settings(robot: str = 'sim', path: Path | None = None) -> dict[str, An
     return dict(graph['robot_settings'][robot])
 
 
-def _with_settings(d: Mapping[str, Any], settings: Mapping[str, Any]) -> NodeSpec:
+def _with_settings(d: Mapping[str, Any], settings: Mapping[str, Any],
+                   graph: Mapping[str, Any]) -> NodeSpec:
     spec = NodeSpec.from_dict(d)
     wanted = d.get('robot_parameters') or ()
-    return replace(spec, parameters={**{k: settings[k] for k in wanted}, **spec.parameters})
+    return replace(spec, parameters={**{k: settings[k] for k in wanted}, **spec.parameters},
+                   remappings=dict((graph.get('remappings') or {}).get(spec.name) or {}))
 
 
 def load_optional(robot: str = 'sim', path: Path | None = None) -> dict[str, NodeSpec]:
     """Nodes of graph.yaml started only on request (e.g. the recorder), by name, each with the
     settings of the robot entry it lists in ``robot_parameters``."""
-    settings = robot_settings(robot, path)
-    return {d['name']: _with_settings(d, settings)
-            for d in _graph_file(path).get('optional') or ()}
+    settings, graph = robot_settings(robot, path), _graph_file(path)
+    return {d['name']: _with_settings(d, settings, graph) for d in graph.get('optional') or ()}
+
+
+def load_rehearsal(path: Path | None = None) -> list[NodeSpec]:
+    """The programs of graph.yaml that stand in for a site's controller and camera driver
+    (``rehearsal``: started by ``flexarm rehearse``, never by ``flexarm up``)."""
+    graph = _graph_file(path)
+    return [_with_settings(d, {}, graph) for d in graph.get('rehearsal') or ()]
 
 
 def all_nodes(path: Path | None = None) -> list[NodeSpec]:
     """Every node graph.yaml describes, robot entries first, each once."""
     graph = _graph_file(path)
     entries = [*(d for nodes in graph['robots'].values() for d in nodes or ()),
-               *graph['nodes'], *(graph.get('optional') or ())]
+               *graph['nodes'], *(graph.get('optional') or ()), *(graph.get('rehearsal') or ())]
     return list({d['name']: NodeSpec.from_dict(d) for d in entries}.values())
 
 
@@ -207,7 +229,10 @@ def node_command(spec: NodeSpec, overrides_file: Path | None = None, namespace: 
     if namespace.strip('/'):
         cmd += ['-r', f'__ns:=/{namespace.strip("/")}']
     for name in spec.params_files:
-        cmd += ['--params-file', str(config_path(name))]
+        for path in config_layers(name):
+            cmd += ['--params-file', str(path)]
+    for source, target in spec.remappings.items():
+        cmd += ['-r', f'{source}:={target}']
     if overrides_file is not None:
         cmd += ['--params-file', str(overrides_file)]
     return cmd

@@ -43,6 +43,7 @@ BAD_INPUT = [
     (['bag', 'info', 'bags/nope'], 'no bag at bags/nope'),
     (['bag', 'export', README], 'README.md is not an MCAP bag'),
     (['bag', 'info', 'bags/nope', '--domain-id', '3'], 'unrecognized arguments: --domain-id'),
+    (['bag', 'info', 'bags/nope', '--out', 'x'], 'unrecognized arguments: --out'),
     (['study', '--wait', '3'], 'unrecognized arguments: --wait'),
     (['study', '--region', 'Z'], 'unknown region "Z"'),
     (['study', '--seeds', '0'], 'argument --seeds: must be a whole number > 0'),
@@ -130,6 +131,25 @@ def test_offline_commands_take_only_their_own_options(name, capsys):
     assert main([name, '--help']) == 0
     out = capsys.readouterr().out
     assert '--domain-id' not in out and '--wait' not in out and '--quiet' in out
+
+
+ACTION_HELP = [(['bag', 'info'], ['PATH'], ['--out', '--namespace']),
+               (['bag', 'export'], ['--out DIR', '--namespace'], []),
+               (['model', 'list'], ['--models', '--namespace'], ['--wait', '--domain-id',
+                                                                  'VERSION']),
+               (['model', 'use'], ['VERSION', '--wait', '--domain-id'], ['--models']),
+               (['param', 'get'], ['NODE NAME'], ['VALUE', 'PREFIX']),
+               (['param', 'list'], ['NODE [PREFIX]'], ['VALUE'])]
+
+
+@pytest.mark.parametrize('argv, shown, absent', ACTION_HELP,
+                         ids=[' '.join(argv) for argv, _, _ in ACTION_HELP])
+def test_each_action_shows_only_its_own_arguments(argv, shown, absent, capsys):
+    """`bag info --help` is info's: export's --out is not there (nor taken)."""
+    assert main([*argv, '--help']) == 0
+    out = ' '.join(capsys.readouterr().out.split())     # unwrapped
+    assert all(word in out for word in [*shown, '--quiet']), out
+    assert not any(word in out for word in absent), out
 
 
 @pytest.mark.node

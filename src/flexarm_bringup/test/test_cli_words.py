@@ -26,6 +26,14 @@ from flexarm_msgs.action import MoveToPose
 PARSER = cli.build_parser()
 SUBPARSERS: dict[str, argparse.ArgumentParser] = next(
     a for a in PARSER._actions if isinstance(a, argparse._SubParsersAction)).choices
+
+
+def _with_actions(parser: argparse.ArgumentParser) -> list[argparse.ArgumentParser]:
+    """A command's parser and those of its actions (bag info, bag export: each its own)."""
+    actions = [a for a in parser._actions if isinstance(a, argparse._SubParsersAction)]
+    return [parser, *(sub for a in actions for sub in a.choices.values())]
+
+
 # modules whose messages reach the operator through `flexarm`
 CLI = ('arguments', 'common', 'experiments', 'graph', 'learning', 'motion', 'site')
 SPEAKING = ['flexarm_bringup.cli', *(f'flexarm_bringup.cli.{m}' for m in CLI),
@@ -75,7 +83,8 @@ def _texts() -> list[tuple[str | None, str]]:
              + [('collect', t) for t in COLLECT_HINTS.values()]
              + [('train', TRAIN_HINT), (None, busy_text('/move_to_pose'))]
              + [(None, t) for t in EXIT_MEANINGS.values()]
-             + [(name, a.help) for name, p in SUBPARSERS.items() for a in p._actions if a.help]
+             + [(name, a.help) for name, p in SUBPARSERS.items() for sub in _with_actions(p)
+                for a in sub._actions if a.help]
              + [(None, a.help) for a in PARSER._actions if a.help])
     return texts + [literal for module in SPEAKING for literal in _literals(module)]
 
@@ -110,7 +119,8 @@ def test_every_suggested_command_line_parses(line, capsys):
 
 @pytest.mark.parametrize('command, option', OPTIONS, ids=[f'{c} {o}' for c, o in OPTIONS])
 def test_every_option_named_exists_on_its_command(command, option):
-    parsers = [SUBPARSERS[command]] if command else [PARSER, *SUBPARSERS.values()]
+    parsers = (_with_actions(SUBPARSERS[command]) if command
+               else [PARSER, *(p for s in SUBPARSERS.values() for p in _with_actions(s))])
     assert any(option in p._option_string_actions for p in parsers), (
         f'{option} is no option of flexarm {command or "any command"}')
 

@@ -35,6 +35,7 @@ import os
 import signal
 import sys
 from collections.abc import Sequence
+from pathlib import Path
 from typing import Any
 
 from flexarm_bringup.cli.arguments import SUBCOMMANDS, UsageError, build_parser
@@ -42,6 +43,7 @@ from flexarm_bringup.cli.common import Outcome
 from flexarm_bringup.cli.graph import interrupt_handler
 from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import transport
+from flexarm_core.paths import SITE_ENV
 
 
 def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:
@@ -62,7 +64,27 @@ def _run(args: argparse.Namespace) -> tuple[dict[str, Any], Exit]:
     return {'ok': False, 'error_string': message} | fields | {'outcome': message}, code
 
 
+def _in_site(site: str, argv: list[str], from_shell: bool) -> str:
+    """Run this command in the site folder ``site``: every path of the process (and of the
+    nodes it starts) is fixed when flexarm_core.paths is first imported, so a site other than
+    ``FLEXARM_SITE``'s runs the command again in a process that has it from the start (from a
+    shell: exec, the same pid). What is wrong, or '' when this process is in the site."""
+    folder = Path(site).expanduser().resolve()
+    if not folder.is_dir():
+        return f'--site {site}: no such folder (make one: `flexarm site init {site}`)'
+    if os.environ.get(SITE_ENV) and Path(os.environ[SITE_ENV]).expanduser().resolve() == folder:
+        return ''
+    if not from_shell:
+        return f'--site {site} in a running process: set {SITE_ENV} before it starts'
+    sys.stdout.flush()
+    sys.stderr.flush()
+    os.execve(sys.executable, [sys.executable, '-m', 'flexarm_bringup.cli', *argv],
+              {**os.environ, SITE_ENV: str(folder)})
+    return ''
+
+
 def main(argv: Sequence[str] | None = None) -> int:
+    from_shell = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
     try:
         args = build_parser().parse_args(argv)
@@ -74,6 +96,9 @@ def main(argv: Sequence[str] | None = None) -> int:
             message = str(exc).splitlines()[-1]
             print(json.dumps({'ok': False, 'error_string': message, 'outcome': message,
                               'exit_code': int(Exit.USAGE)}))
+        return int(Exit.USAGE)
+    if args.site is not None and (message := _in_site(args.site, argv, from_shell)):
+        print(f'flexarm: {message}', file=sys.stderr, flush=True)
         return int(Exit.USAGE)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')
     transport.apply(os.environ)    # before any participant: Fast DDS reads its profile once

@@ -13,7 +13,7 @@ from typing import Any
 from flexarm_bringup.cli.accuracy import cmd_accuracy
 from flexarm_bringup.cli.common import IDEAL_HELP, learner_default
 from flexarm_bringup.cli.experiments import cmd_benchmark, cmd_demo, cmd_study
-from flexarm_bringup.cli.graph import cmd_down, cmd_ps, cmd_status, cmd_up
+from flexarm_bringup.cli.graph import cmd_down, cmd_ps, cmd_rehearse, cmd_status, cmd_up
 from flexarm_bringup.cli.integration import cmd_param, cmd_urdf
 from flexarm_bringup.cli.learning import (
     cmd_collect,
@@ -23,7 +23,7 @@ from flexarm_bringup.cli.learning import (
     cmd_train,
 )
 from flexarm_bringup.cli.motion import cmd_cancel, cmd_move
-from flexarm_bringup.cli.site import cmd_bag, cmd_calibrate, cmd_keygen
+from flexarm_bringup.cli.site import cmd_bag, cmd_calibrate, cmd_keygen, cmd_site
 from flexarm_bringup.orchestration.domains import MAX_DOMAIN_ID
 from flexarm_bringup.results.outcome_text import (
     EXIT_MEANINGS,
@@ -102,6 +102,10 @@ def _output_options(parser: argparse.ArgumentParser, default: Any) -> None:
                              '(SI units; implies --quiet)')
     parser.add_argument('--quiet', action='store_true', default=default,
                         help='no progress output (bars, waiting lines, goal feedback)')
+    parser.add_argument('--site', default=None if default is False else default, metavar='DIR',
+                        help="the site folder: its config/ over the clone's, its calibration, "
+                             'data, models and runs (default: $FLEXARM_SITE; one is written by '
+                             '`flexarm site init DIR`)')
 
 
 def _graph_options(parser: argparse.ArgumentParser, graph: str) -> None:
@@ -332,20 +336,34 @@ def _accuracy_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--plot', default=None, metavar='DIR', help='write the figures to DIR')
 
 
-def _bag_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument('action', choices=['info', 'export'])
-    p.add_argument('path', help='bag folder (bags/NAME) or .mcap file')
-    p.add_argument('--out', default='', help='export folder (default: the bag folder)')
+def _bag_path(p: argparse.ArgumentParser) -> None:
+    p.add_argument('path', metavar='PATH', help='bag folder (bags/NAME) or .mcap file')
+
+
+def _bag_export_arguments(p: argparse.ArgumentParser) -> None:
+    _bag_path(p)
+    p.add_argument('--out', default='', metavar='DIR',
+                   help='export folder (default: the bag folder)')
     _namespace_option(p)
 
 
-def _model_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument('action', choices=['list', 'use'])
-    p.add_argument('version', nargs='?', default='', help='use: the model version to make '
-                   'current again (roll back); the compensator switches to it')
+def _site_init_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('dir', metavar='DIR', help='the site folder (made if missing; existing '
+                   'files are never overwritten)')
+    p.add_argument('--robot', choices=['bridge', 'ros2_control'], default='bridge',
+                   help='the controller side of the site')
+
+
+def _model_list_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--models', default='', metavar='DIR',
-                   help="list: the learner's model directory (default: models/, models/NS "
-                        'with --namespace NS)')
+                   help="the learner's model directory (default: models/, models/NS with "
+                        '--namespace NS)')
+    _namespace_option(p)
+
+
+def _model_use_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument('version', metavar='VERSION',
+                   help='the model version (see `flexarm model list`)')
 
 
 def _urdf_arguments(p: argparse.ArgumentParser) -> None:
@@ -354,18 +372,33 @@ def _urdf_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--robot', default='sim', help='controller entry of config/graph.yaml')
 
 
-def _param_arguments(p: argparse.ArgumentParser) -> None:
-    p.add_argument('action', choices=['get', 'set', 'list'])
-    p.add_argument('node', help='the node\'s name (e.g. flexarm_learner; under --namespace)')
-    p.add_argument('name', nargs='?', default='',
-                   help='the parameter (list: only those whose names start with it)')
-    p.add_argument('value', nargs='?', default=None,
-                   help='set: the value, read as YAML as ros2 param set reads it (2.5, true, '
-                        'text, "[0.0, 1.0]"); a whole number sets a double parameter')
+def _param_arguments(p: argparse.ArgumentParser, action: str) -> None:
+    """NODE and what ``action`` takes after it: get NAME, set NAME VALUE, list [PREFIX]
+    (``value`` is None but for set: cmd_param reads it)."""
+    p.add_argument('node', metavar='NODE',
+                   help='the node\'s name (e.g. flexarm_learner; under --namespace)')
+    if action == 'list':
+        p.add_argument('name', nargs='?', default='', metavar='PREFIX',
+                       help='only the parameters whose names start with it (default: all)')
+    else:
+        p.add_argument('name', metavar='NAME', help='the parameter')
+    if action == 'set':
+        p.add_argument('value', metavar='VALUE',
+                       help='read as YAML as ros2 param set reads it (2.5, true, text, '
+                            '"[0.0, 1.0]"); a whole number sets a double parameter')
+    else:
+        p.set_defaults(value=None)
 
 
 def _keygen_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('path', help='key file to create')
+
+
+def _rehearse_arguments(p: argparse.ArgumentParser) -> None:
+    _namespace_option(p)
+    p.add_argument('--domain-id', type=_domain, default=None, metavar='N',
+                   help='ROS_DOMAIN_ID of the running graph that drives it, or of the '
+                        'one `flexarm up` will start (default: the exported one)')
 
 
 def _down_arguments(p: argparse.ArgumentParser) -> None:
@@ -382,14 +415,40 @@ def _down_arguments(p: argparse.ArgumentParser) -> None:
 
 DESCRIPTION = 'flexarm: the command line of the flexarm system.'
 Command = Callable[[argparse.Namespace], dict[str, Any]]
-# subcommand: (what runs it, its arguments, graph options (_graph_options): None = none,
-# 'start' = it starts a graph, 'up' = it starts one in the exported domain, 'running' = it asks
-# a running one, 'wait' = it sends requests to a running one). The command's docstring is its
-# help.
-SUBCOMMANDS: dict[str, tuple[Command, Callable[[argparse.ArgumentParser], None], str | None]] = {
+Arguments = Callable[[argparse.ArgumentParser], None]
+# an action of a subcommand (bag info, bag export): (its help, its arguments, its graph
+# options); a parser of its own, so that each action shows and takes only what it uses
+ActionEntry = tuple[str, Arguments, str | None]
+BAG_ACTIONS: dict[str, ActionEntry] = {
+    'info': ('its topics, message counts and duration', _bag_path, None),
+    'export': ('its trials as CSV + PNG and its figures, into --out', _bag_export_arguments,
+               None),
+}
+MODEL_ACTIONS: dict[str, ActionEntry] = {
+    'list': ('every trained model (a refresh: of which version, its samples, residual '
+             'before/after); * = current', _model_list_arguments, None),
+    'use': ('make an earlier model current again (roll back); the compensator switches to it',
+            _model_use_arguments, 'wait'),
+}
+PARAM_ACTIONS: dict[str, ActionEntry] = {
+    'get': ("a parameter's value", lambda p: _param_arguments(p, 'get'), 'wait'),
+    'set': ('set a parameter (a node that refuses says why)',
+            lambda p: _param_arguments(p, 'set'), 'wait'),
+    'list': ("the node's parameters and their values", lambda p: _param_arguments(p, 'list'),
+             'wait'),
+}
+SITE_ACTIONS: dict[str, ActionEntry] = {
+    'init': ("write the site folder's starting point", _site_init_arguments, None),
+}
+# subcommand: (what runs it, its arguments or its actions (args.action), graph options
+# (_graph_options): None = none, 'start' = it starts a graph, 'up' = it starts one in the
+# exported domain, 'running' = it asks a running one, 'wait' = it sends requests to a running
+# one). The command's docstring is its help.
+SUBCOMMANDS: dict[str, tuple[Command, Arguments | dict[str, ActionEntry], str | None]] = {
     'up': (cmd_up, _up_arguments, 'up'),
     'status': (cmd_status, _namespace_option, 'running'),
     'ps': (cmd_ps, lambda p: None, None),
+    'rehearse': (cmd_rehearse, _rehearse_arguments, None),
     'down': (cmd_down, _down_arguments, None),
     'move': (cmd_move, _move_arguments, 'wait'),
     'collect': (cmd_collect, _collect_arguments, 'wait'),
@@ -401,12 +460,13 @@ SUBCOMMANDS: dict[str, tuple[Command, Callable[[argparse.ArgumentParser], None],
     'benchmark': (cmd_benchmark, _benchmark_arguments, 'start'),
     'study': (cmd_study, _study_arguments, None),
     'accuracy': (cmd_accuracy, _accuracy_arguments, None),
-    'bag': (cmd_bag, _bag_arguments, None),
-    'model': (cmd_model, _model_arguments, 'wait'),
+    'bag': (cmd_bag, BAG_ACTIONS, None),
+    'model': (cmd_model, MODEL_ACTIONS, None),
     'keygen': (cmd_keygen, _keygen_arguments, None),
+    'site': (cmd_site, SITE_ACTIONS, None),
     'calibrate': (cmd_calibrate, _calibrate_arguments, 'wait'),
     'urdf': (cmd_urdf, _urdf_arguments, None),
-    'param': (cmd_param, _param_arguments, 'wait'),
+    'param': (cmd_param, PARAM_ACTIONS, None),
 }
 
 
@@ -423,10 +483,22 @@ def build_parser() -> argparse.ArgumentParser:
     _output_options(output, argparse.SUPPRESS)     # after the subcommand: only when given
     sub = parser.add_subparsers(dest='command', required=True, metavar='COMMAND')
     for name, (run, arguments, graph) in SUBCOMMANDS.items():
-        doc = run.__doc__
-        p = sub.add_parser(name, help=doc, description=doc, parents=[output],
-                           formatter_class=_HelpFormatter)
-        arguments(p)
-        if graph is not None:
-            _graph_options(p, graph)
+        _add_parser(sub, name, run.__doc__ or '', arguments, graph, output)
     return parser
+
+
+def _add_parser(sub: argparse._SubParsersAction, name: str, text: str,
+                arguments: Arguments | dict[str, ActionEntry], graph: str | None,
+                output: argparse.ArgumentParser) -> None:
+    """The parser of a subcommand or of one of its actions (``output``: --json, --quiet and
+    --site after it too)."""
+    p = sub.add_parser(name, help=text, description=text, parents=[output],
+                       formatter_class=_HelpFormatter)
+    if isinstance(arguments, dict):
+        actions = p.add_subparsers(dest='action', required=True, metavar='ACTION')
+        for action, (help_text, action_arguments, action_graph) in arguments.items():
+            _add_parser(actions, action, help_text, action_arguments, action_graph, output)
+    else:
+        arguments(p)
+    if graph is not None:
+        _graph_options(p, graph)

@@ -231,6 +231,42 @@ def interrupt_handler(signum: int, frame: FrameType | None) -> None:
     raise KeyboardInterrupt
 
 
+def cmd_rehearse(args: argparse.Namespace) -> dict[str, Any]:
+    """Play a site's controller and tip camera on this machine, on wall time (graph.yaml's
+    rehearsal programs: the simulated arm behind the controller protocol), until Ctrl-C; then
+    flexarm up --robot bridge in the same domain drives it as it would the real arm."""
+    import time
+    from datetime import datetime
+
+    from flexarm_bringup.orchestration.launcher import (
+        NodeProcess,
+        load_rehearsal,
+        ros_env,
+        stop_all,
+    )
+
+    domain = args.domain_id if args.domain_id is not None else os.environ.get('ROS_DOMAIN_ID')
+    if domain is None or str(domain).strip() == '':
+        raise usage('--domain-id N: the ROS domain that `flexarm up --robot bridge` runs in (or '
+                    'export ROS_DOMAIN_ID in both shells)')
+    run_dir = RUNS_DIR / f'rehearse-{datetime.now():%Y%m%d-%H%M%S}'
+    nodes = [NodeProcess(spec, ros_env(int(domain), run_dir / 'ros_log'),
+                         run_dir / f'{spec.name}.log', None, args.namespace)
+             for spec in load_rehearsal()]
+    for node in nodes:
+        node.start()
+    print(f'rehearsing {", ".join(n.spec.name for n in nodes)} in ROS_DOMAIN_ID={domain} on '
+          f'wall time; logs in {run_dir}; Ctrl-C stops', flush=True)
+    try:
+        while all(node.returncode is None for node in nodes):
+            time.sleep(0.2)
+    except KeyboardInterrupt:
+        pass
+    codes = stop_all(nodes)
+    print('stopped: ' + ', '.join(f'{name} ({code})' for name, code in codes.items()))
+    return {'ok': True, 'domain_id': int(domain), 'run_dir': str(run_dir), 'exit_codes': codes}
+
+
 def cmd_ps(args: argparse.Namespace) -> dict[str, Any]:
     """List the flexarm graphs running on this machine: domain, namespace, supervisor, robot."""
     from flexarm_bringup.orchestration.running_graphs import graph_table

@@ -69,12 +69,7 @@ def cmd_param(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def _check_param(args: argparse.Namespace) -> None:
-    """What each action takes: get NODE NAME, set NODE NAME VALUE, list NODE [PREFIX]."""
+    """A NODE that is a ROS node name (each action's parser takes its own arguments)."""
     if not all(part.isidentifier() for part in args.node.strip('/').split('/')):
         raise usage(f'{args.node!r} is not a ROS node name (letters, digits, _ and / between '
                     'names)')
-    if args.action != 'list' and not args.name:
-        raise usage(f'param {args.action} needs the parameter\'s NAME')
-    if (args.value is None) == (args.action == 'set'):
-        raise usage('param set needs a VALUE' if args.action == 'set'
-                    else f'param {args.action} takes no VALUE')

@@ -1,5 +1,5 @@
-"""``flexarm bag``, ``calibrate`` and ``keygen``: the files of a site (bags, calibrations, the
-link key)."""
+"""``flexarm bag``, ``calibrate``, ``keygen`` and ``site``: the files of a site (bags,
+calibrations, the link key, the site folder)."""
 from __future__ import annotations
 
 import argparse
@@ -89,3 +89,15 @@ def cmd_keygen(args: argparse.Namespace) -> dict[str, Any]:
     print(f'site key written to {path} (mode 600). Use it on both ends: '
           f'flexarm up --robot bridge --link-key {path}, and the controller\'s configuration')
     return {'ok': True, 'path': str(path)}
+
+
+def cmd_site(args: argparse.Namespace) -> dict[str, Any]:
+    """Write a site folder's starting point (init): the site's own params files over the
+    clone's, for a real arm behind the bridge or ros2_control (then: flexarm up --site DIR)."""
+    from flexarm_bringup.site.site_folder import write_site
+
+    folder = Path(args.dir).expanduser().resolve()
+    written = write_site(folder, args.robot)
+    print('\n'.join(f'wrote {path}' for path in written)
+          + f'\nnext: edit them, then flexarm up --site {folder} --robot {args.robot}')
+    return {'ok': True, 'site': str(folder), 'files': [str(path) for path in written]}

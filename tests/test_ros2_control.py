@@ -1,19 +1,25 @@
 """Node-level: the ``ros2_control`` robot entry drives an arm through joint_trajectory_controller's
-FollowJointTrajectory action on wall time, with no simulator node and no ``/clock``: a stand-in
-for the controller_manager and the camera driver (tests/ros2_control_standin.py) plays the arm,
-the graph's own nodes start with config/graph.yaml's ``ros2_control`` settings. The arm is
-learned and reaches a PREDICTIVE goal through the action; a goal beyond the stand-in's
-hardware limits (narrower than flexarm's) fails with the controller's reason. The tests share
-one graph (learning it is what takes the time).
+FollowJointTrajectory action on wall time, with no simulator node and no ``/clock``. The steps
+of docs/connecting-your-arm.md's recipe, as written: a stand-in for the controller_manager and
+the camera driver (flexarm_test_support.ros2_control_standin) starts first, in the domain, and
+brings its controllers up only once ``/robot_description`` reaches it; then ``flexarm up
+--robot ros2_control --domain-id N``, whose state publisher serves it. The arm is learned and
+reaches a PREDICTIVE goal through the action; a goal beyond the stand-in's hardware limits
+(narrower than flexarm's) fails with the controller's reason. The tests share one graph
+(learning it is what takes the time).
 """
 import math
+import os
+import signal
+import subprocess
+import sys
 
 import pytest
 from action_msgs.msg import GoalStatus, GoalStatusArray
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
 from flexarm_bringup.orchestration.launcher import NodeProcess, NodeSpec, ros_env, stop_all
-from flexarm_core import topics
+from flexarm_core import liveness, topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_test_support.learned_goal import learn_and_reach
 
@@ -25,6 +31,9 @@ ROBOT = 'ros2_control'
 JOINT1_LIMIT = 1.0
 BEYOND = (0.30, 1.20, math.radians(90))
 ACTION = topics.absolute(topics.FOLLOW_JOINT_TRAJECTORY)
+# Runs the command line of its arguments in this process once a line came on stdin: started
+# in the domain before the run lends it (conftest's DomainPool.lent).
+GATED = 'import os, sys; sys.stdin.readline(); os.execv(sys.argv[1], sys.argv[1:])'
 
 
 @pytest.fixture(scope='module')
@@ -42,16 +51,28 @@ def stand_in(domain_id, tmp_path_factory):
 
 
 @pytest.fixture(scope='module')
-def graph(stand_in, module_launch, tmp_path_factory):
-    """The vision node, the learner and the compensator of the ros2_control entry."""
-    folder = tmp_path_factory.mktemp('graph')
-    module_launch('flexarm_vision', robot=ROBOT,
-                  tool_calibration_file=str(folder / 'none.json'),
-                  camera_calibration_file=str(folder / 'none_camera.json'))
-    module_launch('flexarm_learner', robot=ROBOT, data_directory=str(folder / 'data'),
-                  model_directory=str(folder / 'models'))
-    module_launch('flexarm_compensator', robot=ROBOT)
-    return module_launch
+def graph(stand_in, domain_id, domain_pool):
+    """``flexarm up --robot ros2_control --domain-id N`` (in the run's state folder), once
+    ready; stopped as Ctrl-C stops it."""
+    up = subprocess.Popen(
+        [sys.executable, '-c', GATED, sys.executable, '-m', 'flexarm_bringup.cli', 'up',
+         '--robot', ROBOT, '--domain-id', str(domain_id), '--timeout',
+         str(liveness.limit(60.0))], env={**os.environ, 'PYTHONUNBUFFERED': '1'},
+        stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)
+    with domain_pool.lent(domain_id):
+        up.stdin.write('go\n')
+        up.stdin.flush()
+        try:
+            started, ready = up.stdout.readline(), up.stdout.readline()
+            assert 'graph ready' in ready, (started, ready, '' if ready else up.stderr.read())
+            yield up
+        finally:
+            up.send_signal(signal.SIGINT)
+            try:
+                up.communicate(timeout=liveness.limit(30.0))
+            except subprocess.TimeoutExpired:
+                up.kill()
+                pytest.fail('flexarm up did not stop on SIGINT')
 
 
 def goal_statuses(client):

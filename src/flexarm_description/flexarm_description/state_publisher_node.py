@@ -134,11 +134,16 @@ class StatePublisher(Node):
         hardware = declare(self, 'hardware_plugin', MOCK_HARDWARE,
                            'ros2_control hardware plugin of the URDF\'s <ros2_control> system; '
                            "'': no <ros2_control> block", read_only=True)
+        driver = declare(self, 'hardware_parameters', [''],
+                         "NAME=VALUE parameters of the hardware plugin (a real driver's "
+                         "address, port, ...): <param> elements of its <hardware>",
+                         read_only=True)
         self._joints = arm_joints(geometry, camera['offset'])
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.create_publisher(String, topics.ROBOT_DESCRIPTION, latched).publish(String(
             data=published_description({'arm': arm, 'camera': camera,
-                                        'hardware_plugin': hardware})))
+                                        'hardware_plugin': hardware,
+                                        'hardware_parameters': driver})))
         static = [*fixed_transforms(self._joints), plane_transform()]
         self.create_publisher(TFMessage, topics.TF_STATIC, latched).publish(TFMessage(
             transforms=[transform_msg(t, Header()) for t in static]))

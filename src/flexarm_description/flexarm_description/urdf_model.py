@@ -150,12 +150,30 @@ def _param(parent: ET.Element, name: str, value: float) -> None:
     ET.SubElement(parent, 'param', name=name).text = _fmt((value,))
 
 
-def ros2_control(geometry: ArmGeometry, plugin: str = MOCK_HARDWARE) -> ET.Element:
-    """The ``<ros2_control>`` system on hardware ``plugin``: each joint commanded in position
-    within its limits, position and velocity read back; a joint starts (on mock hardware) at
-    the position nearest zero within its limits, so joint2 retracted."""
+def hardware_parameters(pairs: Sequence[str]) -> dict[str, str]:
+    """``NAME=VALUE`` strings (a ROS parameter cannot be a map) as the ``<param>`` elements
+    of a hardware plugin (a real driver's address, port, ...); '' entries are none (a ROS
+    list parameter is never empty); ValueError naming a bad one."""
+    out = {}
+    for pair in filter(str.strip, pairs):
+        name, sep, value = pair.partition('=')
+        if not sep or not name.strip():
+            raise ValueError(f'hardware parameter {pair!r}: NAME=VALUE expected')
+        out[name.strip()] = value.strip()
+    return out
+
+
+def ros2_control(geometry: ArmGeometry, plugin: str = MOCK_HARDWARE,
+                 parameters: Mapping[str, str] | None = None) -> ET.Element:
+    """The ``<ros2_control>`` system on hardware ``plugin`` with its ``parameters``: each
+    joint commanded in position within its limits, position and velocity read back; a joint
+    starts (on mock hardware) at the position nearest zero within its limits, so joint2
+    retracted."""
     system = ET.Element('ros2_control', name=SYSTEM_NAME, type='system')
-    ET.SubElement(ET.SubElement(system, 'hardware'), 'plugin').text = plugin
+    hardware = ET.SubElement(system, 'hardware')
+    ET.SubElement(hardware, 'plugin').text = plugin
+    for name, value in (parameters or {}).items():
+        ET.SubElement(hardware, 'param', name=name).text = value
     for joint in arm_joints(geometry):
         if joint.kind == 'fixed':
             continue
@@ -171,10 +189,11 @@ def ros2_control(geometry: ArmGeometry, plugin: str = MOCK_HARDWARE) -> ET.Eleme
 
 def robot_description(geometry: ArmGeometry, inertia: Mapping[str, Any],
                       camera_offset: Sequence[float] = (0.0, 0.0),
-                      hardware: str = MOCK_HARDWARE) -> str:
+                      hardware: str = MOCK_HARDWARE,
+                      hardware_params: Mapping[str, str] | None = None) -> str:
     """The URDF (XML text) of the arm with its tool and tip camera; ``inertia``: config/arm.yaml
     ``arm.inertia``; ``hardware``: the ros2_control hardware plugin, '' for no
-    ``<ros2_control>`` block."""
+    ``<ros2_control>`` block, with ``hardware_params``."""
     robot = ET.Element('robot', name=ROBOT_NAME)
     for name, rgba in COLOURS.items():
         ET.SubElement(ET.SubElement(robot, 'material', name=name), 'color', rgba=rgba)
@@ -200,16 +219,17 @@ def robot_description(geometry: ArmGeometry, inertia: Mapping[str, Any],
     for joint in arm_joints(geometry, camera_offset):
         _joint(robot, joint, efforts)
     if hardware:
-        robot.append(ros2_control(geometry, hardware))
+        robot.append(ros2_control(geometry, hardware, hardware_params))
     ET.indent(robot)
     return '<?xml version="1.0"?>\n' + ET.tostring(robot, encoding='unicode') + '\n'
 
 
 def published_description(parameters: Mapping[str, Any]) -> str:
     """The URDF the state publisher publishes on ``/robot_description``, from its parameters
-    (nested: ``arm``, ``camera``, ``hardware_plugin``): one function for the node and for
-    ``flexarm urdf``, which makes it without a running graph."""
+    (nested: ``arm``, ``camera``, ``hardware_plugin``, ``hardware_parameters``): one function
+    for the node and for ``flexarm urdf``, which makes it without a running graph."""
     arm = parameters['arm']
     return robot_description(ArmGeometry.from_dict(arm), arm['inertia'],
                              parameters['camera']['offset'],
-                             parameters.get('hardware_plugin', MOCK_HARDWARE))
+                             parameters.get('hardware_plugin', MOCK_HARDWARE),
+                             hardware_parameters(parameters.get('hardware_parameters', ())))

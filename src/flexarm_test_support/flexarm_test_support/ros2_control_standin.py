@@ -27,6 +27,12 @@ arm.yaml's): a goal whose trajectory leaves them is refused before anything move
 controller that checks its joints' limits does. A ROS 2 action's rejection carries no reason,
 so it accepts the goal and aborts it at once with INVALID_GOAL and an ``error_string`` naming
 the joint and its limit; the running goal goes on. A test narrows them to have goals refused.
+Its description served: like Jazzy's controller_manager it takes the URDF from
+``/robot_description`` (latched) and brings nothing up before it has one whose
+``<ros2_control>`` system commands every joint of config/arm.yaml (flexarm's state publisher
+serves it; the spawner's controllers come up then): a recipe that starts the controller side
+first works only if the description reaches it.
+
 Run as a node process::
 
     python -m flexarm_test_support.ros2_control_standin --ros-args ...
@@ -35,6 +41,7 @@ from __future__ import annotations
 
 import math
 import time
+import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 
 import numpy as np
@@ -45,7 +52,7 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rclpy.task import Future
 from sensor_msgs.msg import CameraInfo, Image, JointState
-from std_msgs.msg import Header
+from std_msgs.msg import Header, String
 from trajectory_msgs.msg import JointTrajectory
 
 from control_msgs.action import FollowJointTrajectory
@@ -113,17 +120,31 @@ class Ros2ControlStandIn(Node):
         self._held = START.copy()         # the reference without a trajectory
         self._tip = self._plant.pose(self._q)
         self._ticks = 0
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
+        self._description = self.create_subscription(
+            String, topics.ROBOT_DESCRIPTION, self._on_description, latched)
+
+    def _on_description(self, msg: String) -> None:
+        """The controllers come up once the description names every joint in its
+        ``<ros2_control>`` system (as spawned by ``spawner``)."""
+        system = ET.fromstring(msg.data).find('ros2_control')
+        named = set() if system is None else {j.get('name') for j in system.iter('joint')}
+        if not set(JOINT_NAMES) <= named:
+            self.get_logger().error(f'/robot_description has no <ros2_control> system with '
+                                    f'{JOINT_NAMES}: no controller started')
+            return
+        self.destroy_subscription(self._description)
+        latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._joints = self.create_publisher(JointState, topics.JOINT_STATES, 10)
         self._images = self.create_publisher(Image, topics.CAMERA_IMAGE, 5)
-        self._infos = self.create_publisher(
-            CameraInfo, topics.CAMERA_INFO,
-            QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL))
+        self._infos = self.create_publisher(CameraInfo, topics.CAMERA_INFO, latched)
         self.create_subscription(JointTrajectory, topics.JOINT_TRAJECTORY, self._on_trajectory,
                                  10)
         self._server = ActionServer(self, FollowJointTrajectory, topics.FOLLOW_JOINT_TRAJECTORY,
                                     self._execute,
                                     cancel_callback=lambda _: CancelResponse.ACCEPT)
         self.create_timer(1.0 / RATE, self._update)
+        self.get_logger().info('robot description received: controllers active')
 
     def _reference_now(self) -> tuple[np.ndarray, np.ndarray]:
         if self._trajectory is None:

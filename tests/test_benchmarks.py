@@ -37,6 +37,7 @@ class Smoke:
     domain: str = ''             # its option that takes the test's ROS domain, if any
     check: Callable[[dict[str, Any]], None] | None = None   # more to check in its JSON
     seconds: float = 5.0         # [s] about how long it runs in the suite (scheduling only)
+    endurance: bool = False      # a pass/fail harness of hours of operation: its own tier
 
     def __str__(self) -> str:
         return self.name
@@ -124,7 +125,7 @@ NODE = [
            'recorder.cores.collect_x10'),
           timeout=150.0, domain='--domain-id', seconds=25),
     Smoke('faults', ('--only', 'sigterm_idle'), ('lost_samples', 'orphans', 'scenarios'),
-          ('max_detect_s',), timeout=120.0, check=_faults_ran, seconds=14),
+          ('max_detect_s',), timeout=120.0, check=_faults_ran, seconds=14, endurance=True),
     Smoke('multi_arm', ('--arms', '1', '--goals', '1', '--kind', 'kinematic'),
           ('goals_per_min', 'crosstalk', 'cpu'), ('goals_per_min.1.total',), timeout=120.0,
           seconds=30),
@@ -140,14 +141,14 @@ NODE = [
     Smoke('lifecycle', ('--cycles', '1', '--nodes', 'state_publisher'),
           ('crashes', 'hung', 'signal_exits', 'stops', 'graph_stops', 'per_node'),
           ('crashes', 'stops', 'graph_stops'), check=_graph_stop_judged,
-          timeout=150.0, domain='--domain-id', seconds=30),
+          timeout=150.0, domain='--domain-id', seconds=30, endurance=True),
     Smoke('soak', ('--smoke',),
           ('goals', 'succeeded', 'unfinished_goals', 'false_success', 'concurrent_motion',
            'crashes', 'rss_growth_mb', 'fd_growth', 'lost_samples', 'arm_hours', 'wall_s',
            'restarts', 'refused_busy', 'achieved_rtf'),
           ('goals.total', 'unfinished_goals', 'false_success', 'concurrent_motion', 'crashes',
            'lost_samples', 'arm_hours', 'achieved_rtf'),
-          timeout=360.0, domain='--domain-id', seconds=105),
+          timeout=360.0, domain='--domain-id', seconds=105, endurance=True),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id', seconds=13),
 ]
@@ -157,8 +158,10 @@ PENDING: set[str] = set()
 
 def scheduled(smoke: Smoke) -> Any:
     """The smoke run as a test parameter with its expected duration (conftest's scheduler
-    runs each of this module's tests as a unit of its own, the longest first)."""
-    return pytest.param(smoke, marks=pytest.mark.duration(smoke.seconds))
+    runs each of this module's tests as a unit of its own, the longest first), in the
+    endurance tier if it is one of its harnesses."""
+    marks = [pytest.mark.duration(smoke.seconds)]
+    return pytest.param(smoke, marks=marks + [pytest.mark.endurance] * smoke.endurance)
 
 
 def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:

@@ -82,6 +82,7 @@ import os
 import threading
 import traceback
 from contextlib import ExitStack
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -163,6 +164,18 @@ def describe(goal: Goal) -> str:
     """A goal as logs and refusals name it: its trial name and mode."""
     mode = Mode(goal.mode).label if goal.mode < len(Mode) else f'mode {goal.mode}'
     return f'{goal.trial or "(no trial name)"} ({mode})'
+
+
+@dataclass
+class GoalPlan:
+    """A goal as planned: where it goes, the plan and its execution's spec, the model at the
+    payload carried, and the notes its result will carry."""
+
+    target: np.ndarray
+    planned: Planned
+    spec: GoalSpec
+    predictor: AtPayload | None
+    notes: list[str]
 
 
 class CompensatorNode(Node):
@@ -402,13 +415,24 @@ class CompensatorNode(Node):
 
     def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack
              ) -> Result:
-        """Validate, plan and (unless a dry run) claim the arm in ``arm`` and move."""
+        """Plan; unless refused or a dry run, claim the arm in ``arm`` and move."""
         result = unbound()
+        plan = self._plan(handle, goal, result)
+        if plan is None:
+            return result
+        if goal.dry_run:
+            result.error_string = '; '.join(filter(None, ['dry run: nothing moved',
+                                                          *plan.notes]))
+            return result
+        return self._move(handle, goal, owner, arm, plan, result)
+
+    def _plan(self, handle: ServerGoalHandle, goal: Goal, result: Result) -> GoalPlan | None:
+        """Validate and plan ``goal``, the plan's figures in ``result``; None when refused
+        (``result`` says why)."""
         target = np.array([goal.target.x, goal.target.y, goal.target.phi])
 
-        def fail(code: int, reason: str) -> Result:
+        def fail(code: int, reason: str) -> None:
             result.error_code, result.error_string = code, reason
-            return result
 
         reason = goal_error(target, goal.mode, goal.position_tolerance, goal.angle_tolerance,
                             goal.max_corrections, self._bounds)
@@ -427,7 +451,6 @@ class CompensatorNode(Node):
         measuring = mode in (Mode.CLOSED_LOOP, Mode.AUTO)     # the server's default tolerance
         tolerance = (goal.position_tolerance or (self._pos_tol if measuring else 0.0),
                      goal.angle_tolerance or (self._ang_tol if measuring else 0.0))
-
         self._target_pub.publish(pose_stamped(target, self.get_clock().now().to_msg()))
         self._feedback(handle, 0, Feedback.PHASE_PLANNING, target, None)
         with self._health_lock:
@@ -446,9 +469,6 @@ class CompensatorNode(Node):
         spec = GoalSpec(target, planned.mode, *tolerance,
                         goal.max_corrections or self._max_corrections, planned.bound,
                         tuple(self._site.camera), mode == Mode.AUTO)
-        result.mode_run = int(planned.mode)
-        result.position_error_bound, result.angle_error_bound = planned.bound
-        plan = planned.plan
         notes = [planned.note]
         result.model_version = info.version if planned.uses_model else ''
         self._goal_model_version = result.model_version
@@ -458,16 +478,21 @@ class CompensatorNode(Node):
                                                  predictor.payload)]
             notes.append(f'warning: model {info.version}: {"; ".join(filter(None, fit))}'
                          if any(fit) else '')
+        plan = planned.plan
+        result.mode_run = int(planned.mode)
+        result.position_error_bound, result.angle_error_bound = planned.bound
         result.data_distance = planned.data_distance
         result.prediction_std = planned.prediction_std
         result.compensation_iterations = plan.iterations
         result.predicted_deflection = planar(plan.predicted_deflection)
         result.joint_positions = plan.joints.tolist()
         result.commanded_pose = planar(plan.commanded_pose)
-        if goal.dry_run:
-            notes.insert(0, 'dry run: nothing moved')
-            result.error_string = '; '.join(filter(None, notes))
-            return result
+        return GoalPlan(target, planned, spec, predictor, notes)
+
+    def _move(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack,
+              plan: GoalPlan, result: Result) -> Result:
+        """Claim the arm in ``arm``, run the plan, and put its outcome in ``result``."""
+        target, notes = plan.target, plan.notes
         if any(notes):
             self.get_logger().warn(f'goal {goal.trial or "(no trial name)"}: '
                                    f'{"; ".join(filter(None, notes))}')
@@ -477,7 +502,7 @@ class CompensatorNode(Node):
             within=goal.motion))
         started = self._arm.arm_time()
         watch = GoalWatch(
-            time_limit(spec.max_moves, self._geometry, self._motion.settings),
+            time_limit(plan.spec.max_moves, self._geometry, self._motion.settings),
             lambda: (self._arm.arm_time() - started).nanoseconds * 1e-9,
             lambda: self._sender_left(owner))
 
@@ -492,15 +517,20 @@ class CompensatorNode(Node):
 
         if stop():
             result.joint_positions = self._arm.positions().tolist()
-            return fail(Result.CANCELED, ended_by('nothing moved'))
+            result.error_code = Result.CANCELED
+            result.error_string = ended_by('nothing moved')
+            return result
 
-        def progress(phase: str, move: int, plan: Plan, measured: np.ndarray | None) -> None:
-            self._feedback(handle, move, phase, plan.commanded_pose, planned, measured, target)
+        def progress(phase: str, move: int, now: Plan, measured: np.ndarray | None) -> None:
+            self._feedback(handle, move, phase, now.commanded_pose, plan.planned, measured,
+                           target)
 
+        predictor = plan.predictor
         observe = ((lambda q, measured: self._observe(predictor, q, measured))
                    if predictor is not None else (lambda q, measured: None))
-        run = execute(spec, plan, self._motion, self._compensator, stop, progress, observe)
-        self._account(planned, target, run.first)
+        run = execute(plan.spec, plan.planned.plan, self._motion, self._compensator, stop,
+                      progress, observe)
+        self._account(plan.planned, target, run.first)
         result.error_code = OUTCOMES[run.status]
         if run.status == SUCCEEDED:
             notes.append(run.reason)

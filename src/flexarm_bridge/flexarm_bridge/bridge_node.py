@@ -1,35 +1,15 @@
 """Bridge to a real robot controller: the ros2_control topic contract over the flexarm wire
 protocol (src/flexarm_bridge/PROTOCOL.md).
 
-Publishes ``/joint_states`` from the controller's JOINT_STATE frames and forwards
-``/forward_position_controller/commands`` as JOINT_COMMAND frames — with the same checks as
-the simulator (length, finite, joint limits from config/arm.yaml): a command that violates
-them is never forwarded. So nothing else in the graph changes between ``--robot sim`` and
-``--robot bridge``.
+Forwards ``/forward_position_controller/commands`` as JOINT_COMMAND frames, with the
+simulator's checks (length, finite, joint limits from config/arm.yaml), and publishes
+``/joint_states`` from the controller's JOINT_STATE frames, so nothing else in the graph
+changes between ``--robot sim`` and ``--robot bridge``. The frames are
+:mod:`flexarm_bridge.controller_protocol`, the authentication with a site key
+:mod:`flexarm_bridge.link_auth`; this node keeps the link up in a thread of its own (ROS
+callbacks never block).
 
-Link handling (a background thread does all socket I/O; ROS callbacks never block):
-* controller unreachable → logged, retried with exponential backoff (``retry_min`` doubling
-  to ``retry_max``);
-* link lost (closed, error, or no frame for ``heartbeat_timeout``) → logged, commands are
-  dropped (not queued) while it is down, reconnect after ``retry_min``; after reconnecting the
-  arm moves only on a fresh command — nothing is replayed. The controller holds the arm on
-  link loss (protocol). The backoff restarts from ``retry_min`` only once a link came up, so
-  a controller that accepts and drops connections (or never proves the key) is not hammered;
-* the link is up ("linked": diagnostics OK, commands forwarded) from the connection's first
-  accepted JOINT_STATE: after the HELLO was accepted, and with a key, authenticated;
-* with ``link_key_file`` the link is authenticated (PROTOCOL.md, Authentication, version 3):
-  the bridge answers the HELLO with AUTH (its nonce and proof of the key), trusts the
-  controller only once its AUTH_OK proved the key for this connection's nonces, and from then
-  on tags every frame; only authenticated frames count as a sign of life, so the session must
-  start within ``heartbeat_timeout``. The controller's ERROR before the session (e.g. busy) is
-  logged and reported as unauthenticated information. Without a key the bridge refuses to start
-  for a controller that is not on a loopback address.
-* malformed frames → rejected and logged; the link survives, unless ``max_errors``
-  consecutive frames are rejected, then it is reset.
-
-Health on ``/diagnostics`` (hardware id: the controller's ``host:port``): :func:`link_status`,
-and the commands' :class:`~flexarm_core.health_report.CommandLog` (rejected: refused by the
-checks, dropped without a link, or refused by the controller's ACK after forwarding).
+Explained in docs/nodes.md#the-bridge-flexarm_bridge.
 """
 from __future__ import annotations
 
@@ -131,7 +111,7 @@ class BridgeNode(Node):
         self._diagnostics = DiagnosticsPublisher(self, self.statuses)
 
     def statuses(self) -> list[Status]:
-        """The node's health (module docstring): controller link, commands."""
+        """The node's health (docs/nodes.md): controller link, commands."""
         controller, down_since = f'{self._host}:{self._port}', self._down_since
         return [link_status(self.get_name(), controller, down_since is None,
                             0.0 if down_since is None else time.monotonic() - down_since,

@@ -1,54 +1,14 @@
 """``flexarm_state_publisher``: the arm in rviz and Foxglove (a small robot_state_publisher).
 
-Publishes the URDF (:mod:`.urdf_model`, from config/arm.yaml) latched on
-``/robot_description``, with the ``<ros2_control>`` system on ``hardware_plugin`` that a
-controller_manager reads from it (config/controllers.yaml configures its controllers); the
-fixed frames (tool, tip camera and its optical frame) and ``arm_plane``, the frame of the
-planar messages (:mod:`flexarm_core.frames`), latched on ``/tf_static``; on ``/tf`` the
-four moving joints from ``/joint_states`` with the rigid model (:mod:`.chain`), and the frames
-``tip_measured`` (``/tip_pose``, valid measurements only) and, in simulation, ``tip_true``
-(``/sim/tip_pose_truth``) in ``base_link``. So ``tip_link`` is where the rigid model puts the
-tool, ``tip_measured`` where the camera sees it, and the gap between them is the deflection.
-The two tips are also published as ``geometry_msgs/PoseStamped`` on ``/scene/measured_tip`` and
-``/scene/true_tip``.
+Publishes the URDF (:mod:`flexarm_description.urdf_model`, from config/arm.yaml) latched on
+``/robot_description``, the fixed frames and ``arm_plane`` latched on ``/tf_static``, and on
+``/tf`` the four moving joints from ``/joint_states`` through the rigid chain
+(:mod:`flexarm_description.chain`) and the tips ``tip_measured`` (``/tip_pose``) and
+``tip_true`` (``/sim/tip_pose_truth``), also as poses on ``/scene/measured_tip`` and
+``/scene/true_tip``. Each input is subscribed only while what it makes is watched, and taken
+raw (:class:`flexarm_core.ros.taken.Taken`) at most ``publish_frequency`` times a wall second.
 
-Each stream is published at most ``publish_frequency`` times a second of wall-clock time (the
-simulator publishes joint states and the ground truth at 100 Hz of sim time, 1000 a second
-each at 10x real time), with the stamp of the message it comes from, like
-robot_state_publisher's ``publish_frequency``. No input message wakes the node: the inputs are
-taken raw (:class:`flexarm_core.ros.taken.Taken`) by one wall timer at ``publish_frequency``,
-which runs while an input is subscribed and publishes the newest of each stream (the newest
-valid measured tip) that came since the last, parsing only that one. Measured at 10x real
-time with a recorder on /tf (benchmarks/footprint.py): a callback per input message (the ground
-truth parsed each time) cost the node 0.30-0.32 of a core, the timer 0.09-0.10, most of it
-Fast DDS receiving 2000 messages a second and the 30 wake-ups. ``publish_frequency`` <= 0: a
-callback per message, each published.
-
-On demand (:mod:`flexarm_core.demand`'s rule, fed by the publishers' matched events): each input is
-subscribed only while what it makes is watched — ``/joint_states`` while ``/tf`` has a subscriber,
-``/sim/tip_pose_truth`` while ``/tf`` or ``/scene/true_tip`` has one, and ``/tip_pose`` while
-``/tf`` or ``/scene/measured_tip`` has a *viewer*: a subscriber that is not a recorder
-(``recorders``: node names). Decision: watching the arm (rviz, Foxglove, a test) asks for the
-measured tip too, so the vision node and the simulated camera run while someone watches (about half
-a core at 10x real time: rendering and measuring 50 frames a wall second); a recorder's
-subscription asks only for the frames that cost little (the joints and the true tip, from streams
-the recorder takes anyway) and records the measured tip whenever the graph measures for someone
-else (flexarm_bringup.recording.recorder_node: a recording does not make the graph measure). A
-subscriber's node name may be known a moment after its subscription matched (Fast DDS); until then
-it does not count as a viewer (were it a recorder, the graph would measure for nothing meanwhile),
-and the decision is taken again every ``RECHECK`` s until every subscriber is known: a viewer's
-measured tip starts that much later.
-
-Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second): ``/tf`` and the
-tips carry the stamp of their message, ``/diagnostics`` the graph's time (the newest ``/clock``
-taken when they are published, :class:`flexarm_core.ros.stamps.GraphTime`), ``/tf_static`` 0 (it is
-published at start, before any data; tf2 holds a static transform at every time, and a
-robot_state_publisher on sim time stamps it so before ``/clock``).
-
-Health on ``/diagnostics`` (``flexarm_state_publisher: frames``): OK and idle while nobody
-watches ``/tf``; then STALE until a ``/joint_states`` message comes, WARN when none came for
-``JOINTS_STALE`` seconds or the last one lacked a joint, OK otherwise, with the /tf messages
-published and the tips seen.
+Explained in docs/nodes.md#the-state-publisher-flexarm_state_publisher.
 """
 from __future__ import annotations
 
@@ -100,7 +60,7 @@ UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'     # rmw's name of a node it does not know
 
 
 def wanted_inputs(subscribers: dict[str, int], recording: dict[str, int]) -> dict[str, bool]:
-    """Which inputs to subscribe (module docstring), from the subscriber count of each output
+    """Which inputs to subscribe (docs/nodes.md), from the subscriber count of each output
     (``/tf``, ``/scene/measured_tip``, ``/scene/true_tip``) and how many of them are
     recorders'."""
     def viewers(output: str) -> int:

@@ -1,21 +1,13 @@
 """A robot controller that speaks the flexarm wire protocol (PROTOCOL.md), for tests and demos.
 
 The simulator (:class:`~flexarm_sim.sim_node.SimNode`) with its joint interface moved from ROS
-topics to a TCP server: it serves JOINT_STATE frames at the joint-state rate and executes
-JOINT_COMMAND frames, so ``flexarm_bridge`` can stand between it and the graph. What the real
-world provides outside a robot controller stays on ROS: ``/clock``, the tip camera and the
-ground truth. Listens on loopback unless ``host`` says otherwise, and refuses to listen
-anywhere else without ``link_key_file`` (PROTOCOL.md, Authentication); with a key it speaks
-only the authenticated protocol (version 3) and streams and executes nothing before the PC's
-AUTH proved the key. One PC at a time: another connection gets an ERROR frame (code 5, busy)
-and is closed at once, never queued, while the PC holding the link is authenticated or its
-handshake is younger than ``heartbeat_timeout``; a PC that has not authenticated by then is
-disconnected (at the latest when the next one connects), so a peer without the key cannot keep
-the slot. On link loss (peer closed, or no frame for ``heartbeat_timeout``; with a key only
-authenticated frames count) it holds the arm, as PROTOCOL.md requires of a controller.
+topics to a TCP server: it serves JOINT_STATE frames and executes JOINT_COMMAND frames, so
+``flexarm_bridge`` can stand between it and the graph; what the real world provides outside a
+robot controller stays on ROS (``/clock``, the tip camera, the ground truth). One PC at a time,
+on loopback unless a site key (``link_key_file``) is given; the frames are
+:mod:`flexarm_bridge.controller_protocol`, the authentication :mod:`flexarm_bridge.link_auth`.
 
-Health on ``/diagnostics``: the simulator's statuses, with the listening ``host:port`` as the
-controller's hardware id, and :func:`link_status`.
+Explained in docs/nodes.md#the-fake-controller-flexarm_fake_controller.
 """
 from __future__ import annotations
 
@@ -104,7 +96,7 @@ class FakeController(SimNode):
         self.get_logger().info(f'controller protocol v{version} on {host}:{port}')
 
     def statuses(self) -> list[Status]:
-        """The simulator's statuses and the link to the PC (module docstring)."""
+        """The simulator's statuses and the link to the PC (docs/nodes.md)."""
         peer = self._peer
         return [*super().statuses(), link_status(
             self.get_name(), self._hardware_id, peer is not None, self._site_key is not None,

@@ -1,59 +1,16 @@
 """Simulated robot controller: the flexible arm behind ros2_control's topic contract.
 
-Publishes ``/joint_states`` and the simulation ``/clock``, executes
-``/forward_position_controller/commands`` (a set-point: the drive's own profile to it) and
-``/joint_trajectory_controller/joint_trajectory`` (followed in simulated time from its arrival;
-the empty trajectory holds the arm), each checked against the joint limits, renders the tip camera
-(``/camera/image_raw`` + ``/camera/camera_info``) at the actual, deflected and vibrating tip
-pose, and publishes the ground-truth tip pose on ``/sim/tip_pose_truth`` for evaluation only.
+Executes ``/forward_position_controller/commands`` and
+``/joint_trajectory_controller/joint_trajectory`` (checked against the joint limits) and
+follows the payload declared on ``/payload``; publishes ``/joint_states``, the simulation
+``/clock`` (or follows another arm's), the tip camera (``/camera/image_raw``,
+``/camera/camera_info``) and the ground truth on ``/sim/tip_pose_truth``, for evaluation only.
+The arm is :mod:`flexarm_sim.plant` (deflection) and :mod:`flexarm_sim.dynamics` (joints and
+vibration), a real arm's errors are :mod:`flexarm_sim.errors` and :mod:`flexarm_sim.true_camera`,
+the one ``/clock`` of a domain :mod:`flexarm_sim.clock_share`; this node steps them in
+simulated time and publishes what someone consumes.
 
-Error sources (config/sim.yaml ``error_sources``, off by default): the arm's joint
-repeatability, friction hysteresis and thermal drift (:mod:`flexarm_sim.errors`), a true camera
-that differs from the calibration it publishes on camera_info (:mod:`flexarm_sim.true_camera`),
-and payload changes at run time: ``plant.payload`` is writable, and setting it to 5.0 [kg]
-(any ROS 2 parameter client: rclpy's ``AsyncParameterClient``, or ``ros2 param set`` where a ROS
-2 command line is installed; the venv has none) loads the tip (refused while the source is
-off); the deflection and the tip frequency follow at once. The simulator also follows the
-payload the graph declares on the latched ``/payload`` (the tool really was picked up); setting
-``plant.payload`` directly is a load nobody declared. ``plant.fabrication.link3``, ``link4``
-and ``offset`` [m] are writable too while error sources are on: a knock bends a link (e.g.
-``plant.fabrication.offset`` + 1 mm: the No.2 arm's end 1 mm off its axis), for drift studies.
-
-Time: every tick advances simulated time by exactly ``1 / joint_state_rate`` seconds (the
-dynamics sub-step their vibration, config/sim.yaml ``dynamics.max_step``), counted in integer
-ticks so that stamps never drift or step back (:func:`tick_time`). A wall timer wakes the node
-once per ``/clock`` (``clock_rate`` times a wall second, at most once a tick), and each wake-up
-steps the ticks of one clock period (40 at a 10x factor) and publishes ``/clock`` with the
-last: the ticks' messages leave in one burst, so the simulator and its subscribers wake up once
-per burst, not once per tick (a wake-up costs more than the step). When the CPU cannot keep
-up the simulation slows down, it never skips steps; ``benchmarks/sim_node.py`` measures the
-achieved rate.
-
-Only what someone consumes is made: ``/joint_states``, the ground truth and the camera images
-are built and published while they have a subscriber (an image costs ~10 ms to render; the
-vision node subscribes only while a node measures, :mod:`flexarm_core.demand`). The
-plant is stepped regardless: its state is the arm's.
-
-Several arms in one ROS domain (``flexarm up --namespace``) share one ``/clock``: the simulator
-of the first arm owns it (``clock_source: own``); the simulators started later follow it
-(``follow``, chosen by the supervisor when it finds a ``/clock`` publisher): they publish no
-clock, start at the owner's time and step, on each ``/clock`` of the owner, until their time
-has caught up with it (at most ``FOLLOW_CATCH_UP`` steps a ``/clock``). Their stamps are
-therefore on the one clock every node of the domain waits on. When the owner goes a follower
-takes the clock over after ``CLOCK_SILENCE`` s (wall, liveness-scaled) from the time it had
-reached, and a restarted owner yields to it and continues from there
-(:mod:`flexarm_sim.clock_share`). An owner listens to ``/clock`` only while the domain has
-another publisher of it (checked every ``CLOCK_CHECK`` s), so one arm alone hears no clock. A
-restarted owner that had no follower starts again at 0. The role is in the ``controller``
-diagnostics (``clock``).
-
-``clock_source: wall`` plays a real controller instead (a rehearsal of a site's arm,
-:mod:`flexarm_sim.fake_controller`): no ``/clock``; its ticks are those of the wall clock
-(stamps are wall time, as a driver's are), and a wall timer steps the arm up to now at real
-time (``real_time_factor`` 1), at most ``WALL_CATCH_UP`` ticks a wake-up.
-
-Health on ``/diagnostics`` (1 Hz wall, stamped with the simulated time):
-:func:`controller_status` and the commands' :class:`~flexarm_core.health_report.CommandLog`.
+Explained in docs/nodes.md#the-simulator-flexarm_sim.
 """
 from __future__ import annotations
 
@@ -281,7 +238,7 @@ class SimNode(Node):
         self._dynamics.hold()
 
     def statuses(self) -> list[Status]:
-        """The node's health (module docstring): controller, commands."""
+        """The node's health (docs/nodes.md): controller, commands."""
         wall, tick = time.monotonic(), self._tick
         if wall - self._marks[1][0] >= ACHIEVED_SPAN:
             self._marks = [self._marks[1], (wall, tick)]

@@ -1,57 +1,15 @@
 """Vision node: tip camera images -> absolute tip pose on ``/tip_pose``.
 
-Subscribes ``/camera/image_raw`` (mono8, mono16, rgb8, bgr8, rgba8, bgra8 or Bayer 8-bit:
-:mod:`.image_encoding`), ``/camera/camera_info`` and ``/joint_states`` (joint stillness);
-publishes one ``flexarm_msgs/TipPose`` per image, stamped with the image's capture time, in
-the arm's plane (frame ``arm_plane``, :mod:`flexarm_core.frames`). The pose comes from
-:class:`TipPoseEstimator`; whether the arm was at rest from :class:`SettleDetector`. An
-invalid measurement carries NaN coordinates and the reason in ``status``.
+Consumes ``/camera/image_raw``, ``/camera/camera_info`` and ``/joint_states``, the images and
+joint states only while ``/tip_pose`` has a subscriber (:mod:`flexarm_core.demand`); publishes
+one ``flexarm_msgs/TipPose`` per image, stamped with its capture time, in frame ``arm_plane``,
+the intrinsics in use on ``~/camera_info`` and the calibrated camera mount on ``/tf_static``.
+The pose is :class:`~flexarm_vision.pose_estimator.TipPoseEstimator`'s, stillness
+:class:`~flexarm_vision.settling.SettleDetector`'s, and the tool and camera corrections are
+:mod:`flexarm_core.tool_correction` and :mod:`flexarm_vision.camera_calibration`, read from the
+site's files by :mod:`flexarm_vision.stored_correction`; this node maps ROS to them.
 
-On demand (:mod:`flexarm_core.demand`): images and joint states are subscribed only while
-``/tip_pose`` has a subscriber — a node that measures (the learner and the compensator
-subscribe for a measurement only), the state publisher while someone watches ``/tf``, a
-recorder, a viewer. Otherwise nothing is received or estimated, and the simulator renders no
-image. Each start of measuring begins a new settle detection: stillness seen before is no
-evidence about the arm now. Of the images only the newest is kept: a frame that waited
-behind others would report the tip late.
-
-Intrinsics: the camera's calibration as its driver publishes it wins. config/camera.yaml gives
-the mounting (standoff, offset) and the intrinsics used until the first camera_info; a
-camera_info with other values (K, plumb_bob D up to k3, size) replaces them, with one log line
-per change. A camera_info the model cannot use (another distortion model, skew) makes every
-image invalid, with the reason, until a usable one comes. The camera correction
-``camera_correction`` [focal scale, k1, k2]
-(:class:`~flexarm_vision.camera_calibration.CameraCorrection`, measured from the plate by
-``flexarm calibrate --camera`` and kept in ``camera_calibration_file``) changes those
-intrinsics; the ones in use are published latched on ``~/camera_info``. A valid pose's
-``status`` warns when the plate no longer looks as the calibration says (:func:`lens_warning`).
-
-Tool calibration: the reported pose is the tool's, through ``tool_correction`` [axial m,
-lateral m, angle rad] (:class:`~flexarm_core.tool_correction.ToolCorrection`: the camera's
-error in the tool frame, measured against a reference by ``flexarm calibrate``). Each
-correction's value comes from the site's calibration file (``tool_calibration_file``,
-``camera_calibration_file``, written by ``flexarm calibrate``) when there is one, else the
-neutral one; ``flexarm calibrate`` also sets the parameter on the running node
-(:class:`~flexarm_vision.stored_correction.StoredCorrection`). A damaged file is reported, in
-the log and as an ERROR on ``/diagnostics`` (which ``flexarm status`` and ``flexarm up`` show: a
-log line alone went unseen while every pose was off by the camera's error), and the node runs
-without that correction.
-
-Where the tool correction puts the camera is on ``/tf_static``: ``tip_link`` ->
-``tip_camera_calibrated`` (:func:`calibrated_mount`), beside the URDF's nominal
-``tip_camera_link``, published at start and again whenever the correction changes. This node
-publishes it because it owns the correction: it knows each change the moment it uses it, so
-the frame and the poses it reports never disagree (another node would have to follow the
-parameter, and would lag it).
-
-Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second); its
-``/diagnostics`` carry the graph's time, the newest ``/clock`` taken when they are published
-(:class:`flexarm_core.ros.stamps.GraphTime`), or wall time in a graph without one.
-
-Health on ``/diagnostics`` (hardware id: the camera's frame id, from its images):
-:func:`measurement_status` over the last ``HEALTH_WINDOW`` seconds (:func:`idle_status` while
-nobody asks for tip poses), :func:`lens_status`, :func:`camera_info_status` and
-:func:`calibration_status` (tool and camera).
+Explained in docs/nodes.md#the-vision-node-flexarm_vision.
 """
 from __future__ import annotations
 
@@ -279,7 +237,7 @@ class VisionNode(Node):
 
     def _stored(self, what: str, default_file: str, read: Any, neutral: Any
                 ) -> StoredCorrection:
-        """The ``<what>_calibration_file`` parameter's correction (module docstring)."""
+        """The ``<what>_calibration_file`` parameter's correction (docs/nodes.md)."""
         path = str(repo_path(declare(
             self, f'{what}_calibration_file', default_file, f'{what} calibration written by '
             'flexarm calibrate (relative: to the repository)')))
@@ -321,7 +279,7 @@ class VisionNode(Node):
                                          raw=True)]
 
     def statuses(self) -> list[Status]:
-        """The node's health (module docstring): measurements, camera model, camera_info,
+        """The node's health (docs/nodes.md): measurements, camera model, camera_info,
         tool calibration."""
         name = self.get_name()
         return [measurement_status(name, self._camera_id,

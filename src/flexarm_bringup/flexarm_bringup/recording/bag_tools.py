@@ -22,9 +22,6 @@ has no dry-run flag: a goal that succeeded without a move can only be one), and 
 serve the camera's calibration. Both stay in the CSV but out of the goal figures. Untitled
 goals are named as :func:`flexarm_bringup.results.trials.trial_name` names trials, after the paper
 target at their pose if any.
-
-One module of ~600 lines: reading a bag and the trial rows and batches made from it share the
-same decoded records, and splitting them would pass those between modules for no reader's gain.
 """
 from __future__ import annotations
 

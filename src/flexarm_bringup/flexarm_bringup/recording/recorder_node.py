@@ -1,55 +1,13 @@
 """``flexarm_recorder``: record flexarm topics into an MCAP bag (rosbag2 layout).
 
-Writes ``<bag_directory>/<bag_name>/<bag_name>.mcap`` with :class:`BagWriter`, its chunks
-compressed (``compression``, zstd by default: the demo's bag 50-60 bytes a message instead of 200,
-for no measurable CPU: benchmarks/recorder.py gives 44-48 us a message with zstd, lz4 or none
-alike). Each wanted topic (names or patterns, :mod:`flexarm_bringup.recording.topic_discovery`) is
-subscribed once a publisher of it is discovered (checked every ``discovery_period``), with its type
-from the graph and a QoS that matches all its publishers (latched topics such as /learner/model are
-recorded even if published before), keep last ``queue_depth``.
+Subscribes each wanted topic (names or patterns) once a publisher of it is discovered
+(:mod:`flexarm_bringup.recording.topic_discovery`), takes what arrived in batches, serialized
+and never decoded (:class:`flexarm_core.ros.taken.Taken`), and writes it to
+``<bag_directory>/<bag_name>/<bag_name>.mcap`` (:mod:`flexarm_bringup.recording.bag_writer`).
+By default ``/tip_pose`` is recorded only while another node consumes it: a recording does not
+make the graph measure. One bag per run, closed cleanly on SIGINT or SIGTERM.
 
-Cost: a recording must not slow the arm it records. The messages are serialized CDR taken from
-the wire and written as they are, never decoded, and no message wakes the node: the
-subscriptions are :class:`~flexarm_core.ros.taken.Taken`, and every ``take_period`` (wall clock)
-one timer takes what arrived on every topic and writes it in receive order. At 10x real time
-the simulator publishes ``/joint_states`` and the ground truth 1000 times a wall second each.
-Measured here (benchmarks/recorder.py, 2000 joint states a second): an executor callback per
-message cost 230-270 us of CPU a message, and the recorder fell behind and dropped 7-9 % of
-them on a loaded machine; taken in batches, 30-48 us a message in all and none dropped, of
-which some 8 in Python (3 to take, 4.5 to write) and the rest Fast DDS receiving them. In the
-graph at 10x (benchmarks/footprint.py) the recorder costs 0.08-0.10 of a core, idle or
-collecting, where it cost 0.45-0.56. ``queue_depth`` must hold a ``take_period`` of the
-busiest topic (1000 a second: 100 a period of 0.1 s) with room for a late timer; the camera's
-own, smaller depth bounds the memory of queued images. Log times are the messages' receive
-times (rmw ``received_timestamp``, wall clock: a bag is ordered even before /clock runs);
-publish times are the publishers' source timestamps; message stamps keep the graph's (sim)
-time. A batch is written in receive order, and what was received after the batch began waits
-for the next, so the log times grow monotonically across batches too.
-
-Decision: the recorder records what the graph makes; it does not make the graph measure. The
-vision node measures (and the simulator renders its camera, ~0.5 core at 10x) only while
-``/tip_pose`` has a subscriber (:mod:`flexarm_core.demand`), so with ``passive_measurements``
-(the default) ``/tip_pose`` is subscribed only while another node has been subscribed to it
-for two discovery passes in a row (a viewer's chain: the state publisher for rviz or
-Foxglove), and left at the first pass without one. The learner's and the compensator's own
-measurements are brief (a few frames) and land in the bag as ``/learner/samples`` and
-``/compensator/outcomes``. The state publisher likewise does not ask for the measured tip
-for a recorder's ``/tf`` subscription (its ``recorders`` parameter), only for a viewer's.
-Everything else is subscribed throughout: ``/joint_states`` and the ground truth at the
-simulator's full rate, the joint frames on ``/tf`` at the state publisher's 30 Hz.
-
-Decision: one bag per recorder run. ``flexarm up --record NAME`` records the whole session
-in one bag; a trial that wants a bag of its own starts (and stops) a recorder for itself.
-
-Chunks are flushed every ``flush_period`` (wall clock, also under sim time), so after a
-SIGKILL the bag holds everything older than about that. SIGINT and SIGTERM close the bag
-cleanly: the signal only stops the spin (:func:`flexarm_core.ros.node_main.run`); what already
-arrived is taken and written (:func:`_drain`), then the bag is closed.
-
-Health on ``/diagnostics``: :func:`recorder_status`, stamped with the graph's time
-(:class:`flexarm_core.ros.stamps.GraphTime`: the newest ``/clock`` in a simulated graph, taken
-without waking the node; wall time on a real arm): the recorder skips the node's own
-``/clock`` subscription, which would wake it once more for each ``/clock`` it records.
+Explained in docs/nodes.md#the-recorder-flexarm_recorder.
 """
 from __future__ import annotations
 
@@ -204,7 +162,7 @@ class RecorderNode(Node):
 
     def _active(self, topic: str) -> bool:
         """Whether the topic is to be subscribed now (each discovery pass): all but the
-        measured tip, and that one too unless ``passive_measurements`` (module docstring)."""
+        measured tip, and that one too unless ``passive_measurements`` (docs/nodes.md)."""
         if not self._passive or topic != self._measured:
             return True
         me = (self.get_name(), self.get_namespace())

@@ -1,29 +1,14 @@
 """``flexarm_foxglove``: the live graph in Foxglove, over the Foxglove WebSocket protocol.
 
-A WebSocket server of the ``foxglove`` SDK (``ws://host:port``) advertises one channel per
-discovered topic (:mod:`flexarm_bringup.recording.topic_discovery`, as the recorder finds them):
-``cdr`` messages with the type's full ``ros2msg`` schema
-(:func:`flexarm_bringup.recording.bag_schema.message_definition`, as in the bags), so Foxglove
-decodes them like ``foxglove_bridge``'s or a bag's. A topic is subscribed as the recorder does
-(raw, QoS matching the publishers, latched topics included) while a client subscribes to its
-channel, checked every ``discovery_period``. Each message is sent as it arrives, serialized as on
-the wire, with the wall-clock receive time as its log time (as the recorder's). The server only
-sends: it offers no publishing, services or parameters to its clients, so Foxglove can look at the
-arm but not command it.
+Serves the wanted topics (all but the camera images by default) as it discovers them
+(:mod:`flexarm_bringup.recording.topic_discovery`, as the recorder does), each as a channel of
+raw ``cdr`` messages with its ``ros2msg`` schema (:mod:`flexarm_bringup.recording.bag_schema`),
+subscribed only while a client watches it; it only sends, so Foxglove can look at the arm but
+not command it. The server is the ``foxglove`` SDK's, behind
+:class:`~flexarm_bringup.viz.foxglove_front.SubprotocolFront`; once both listen the node logs
+:func:`announcement`, which ``flexarm up`` waits for.
 
-Decisions: every topic by default (``topics: ['*']``) except /camera/image_raw, which comes
-only with ``images: true`` (~9 MB/s at 30 Hz, and the camera rendering already shares the
-CPU). ROS subscriptions only for watched channels, as ``foxglove_bridge`` does: subscribed to
-every topic, the node took 17 % of a core at 10x real time with no client connected, 0.7 %
-this way. Clients connect to :class:`~flexarm_bringup.viz.foxglove_front.SubprotocolFront`, which
-relays them to the SDK's server on a loopback port: the SDK speaks only ``foxglove.sdk.v1`` (as
-current Foxglove and ``foxglove_bridge`` 3 do) and refuses the same protocol under its former
-name ``foxglove.websocket.v1``, the only one older Lichtblick and roslibjs-foxglove offer.
-
-Readiness: the node is in the ROS graph (discovered, so "ready" for the supervisor) before its
-server listens. Once the SDK's server and the front both listen, and not before, it logs
-:func:`announcement` (the URL and its process id); ``flexarm up`` waits for that line
-(:func:`listening_url`) before it tells where to connect, so what it says is true when said.
+Explained in docs/nodes.md#foxglove-flexarm_foxglove.
 """
 from __future__ import annotations
 

@@ -1,31 +1,13 @@
 """``flexarm_scene``: the working regions, the learning samples and the predicted deflection
 field as ``visualization_msgs/MarkerArray`` on ``/scene/markers`` (latched), in ``base_link``.
 
-Namespaces: ``regions`` and ``region_labels`` (the ``regions`` of config/learner.yaml named in
-``regions_shown``), ``samples`` (the measured tip of every ``/learner/samples`` message since
-start, the last ``max_samples``), ``deflection`` (one arrow per grid pose of each shown region:
-the deflection the model in use predicts there, × ``arrow_scale``, from the rigid tip position;
-:mod:`flexarm_control.learning.deflection_field`). The model is the compensator's
-(``/compensator/active_model``), run at the payload on ``/payload``; without one, no arrows.
-The array is republished at most once a second (wall clock) when something changed.
+Consumes ``/learner/samples``, the compensator's model on ``/compensator/active_model`` and
+``/payload``; builds the array only while ``/scene/markers`` has a subscriber. The field is
+:mod:`flexarm_control.learning.deflection_field` (the model run at the payload:
+:mod:`flexarm_control.learning.at_payload`), the markers' geometry
+:mod:`flexarm_description.scene`.
 
-On demand: the array is built and published only while ``/scene/markers`` has a subscriber
-(a viewer, a recorder; the publisher's matched events say so), and the deflection field is
-computed, and the predictors (scipy: some 45 MB of the process) loaded, only when a watched
-array needs it: an unwatched scene keeps what it is told (samples, model, payload) and
-nothing more. A subscriber that comes gets the current array within a second (latched, so
-later ones get it at once). Measured at 10x real time (benchmarks/footprint.py), the scene
-costs 0.006-0.014 of a core watched or not, idle or collecting: its 1 Hz timer, its
-diagnostics and what DDS brings it; there is little more to cut.
-
-Stamps: the node skips ``/clock`` (the simulator's 25 wake-ups a wall second). Every marker of
-an array, and ``/diagnostics``, carry the graph's time when they are published (the newest
-``/clock``, taken without waking the node, or wall time in a graph without one:
-:class:`flexarm_core.ros.stamps.GraphTime`); an array waits until that time is known.
-
-Health on ``/diagnostics`` (``flexarm_scene: markers``): WARN when the model in use could not
-be loaded for the field (known once the field was needed), else OK, with the samples and
-arrows drawn.
+Explained in docs/nodes.md#the-scene-flexarm_scene.
 """
 from __future__ import annotations
 

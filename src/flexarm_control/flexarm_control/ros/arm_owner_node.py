@@ -1,20 +1,12 @@
 """The arm owner: the one node per arm that grants motions the arm, one at a time.
 
-The policy is :mod:`flexarm_control.execution.arm_ownership`; this node serves it as
-``arm/claim`` and ``arm/release`` (flexarm_msgs/srv/ClaimArm, ReleaseArm) and publishes the
-motion that holds the arm on the latched ``arm/motion`` (flexarm_msgs/ArmMotion) whenever it
-changes, so every holder sees its claim end, and ``flexarm status``, bags and Foxglove show who
-moves the arm. Why a claim and not one node that alone sends every command: the nodes keep
-their own control loops (the compensator's and the learner's waits on joint states and tip
-poses stay in their processes, no extra hop per command), as ros2_control's controllers keep
-theirs while its controller manager decides which one may claim the joints. A node restarted
-by the supervisor starts with a free arm; the holders of claims it granted see their claim
-gone (``arm/motion`` says the arm is free) and stop.
+Offers ``arm/claim`` and ``arm/release`` (flexarm_msgs/srv/ClaimArm, ReleaseArm) and publishes
+the motion that holds the arm on the latched ``arm/motion`` (flexarm_msgs/ArmMotion) whenever
+it changes. The policy is :mod:`flexarm_control.execution.arm_ownership`; this node serves it
+and frees the arm when the running motion's holder has ended. Motions claim through
+:mod:`flexarm_control.ros.arm_claim`.
 
-While a claim is held its holder is looked for every ``CHECK_PERIOD`` s of wall time: on this
-host by its process (id and start time: a reused id is not taken for it), elsewhere by the
-graph (its node gone). A holder that ended frees the arm at once: a crashed collection never
-keeps the arm from the next goal. No timer runs while the arm is free.
+Explained in docs/nodes.md#the-arm-owner-flexarm_arm_owner.
 """
 from __future__ import annotations
 

@@ -29,8 +29,8 @@ KeyboardInterrupt) with the cancelled goal's result, e.g. where the arm stopped.
 :func:`init_client` leaves SIGINT to Python: rclpy's own handler would shut the context down
 before the cancel could be sent.
 
-One module of ~570 lines: :class:`FlexarmClient` is the whole scriptable API, and the goal
-handle and server watch exist only for it.
+One module: :class:`FlexarmClient` is the whole scriptable API, and the goal handle and the
+server watch exist only for it.
 
 Units are SI (m, rad); converting from mm/deg is the caller's (the CLI's) business.
 """

@@ -1,79 +1,17 @@
 """Compensator: the ``/move_to_pose`` action server (paper section 3-2, Fig. 4).
 
-RIGID commands the rigid inverse kinematics of the target; PREDICTIVE commands the fixed point
-of ``x* = x_d - Delta_N(theta)`` (the paper); CLOSED_LOOP then measures the tip and corrects
-the target from the measured error until within tolerance (beyond the paper). Which plan a
-goal runs — PREDICTIVE refused beyond the learned data (``OUTSIDE_LEARNED_DATA``, or run with
-a warning if the goal allows extrapolation), CLOSED_LOOP started from the rigid plan without a
-usable model — is :mod:`flexarm_control.execution.planning`; how it runs (move, measure, correct
-until within tolerance) is :mod:`flexarm_control.execution.goal_execution`, over
-:class:`~flexarm_control.execution.arm_motion.ArmMotion` (config/motion.yaml); every result,
-feedback and ``/compensator/outcomes`` message carries the plan's distance from the learned data,
-the model's std there and the plan's 95 % error bound, stated before anything moves
-(:mod:`flexarm_control.execution.plan_bound`, with the site's ``error_bound`` parameters). A
-PREDICTIVE goal whose tolerance its bound exceeds is refused (BOUND_EXCEEDS_TOLERANCE) unless it
-allows extrapolation; AUTO runs PREDICTIVE within its tolerance and CLOSED_LOOP beyond it, and
-the result's ``mode_run`` says which ran. The algorithm lives in
-:mod:`flexarm_control.execution.compensator`; this node validates goals, maps ROS to those
-calls and their outcomes to error codes,
-reports feedback and results, and hot-reloads the predictor the learner announces on
-``/learner/model`` and republishes the one it uses on the latched
-``/compensator/active_model``. For rviz and Foxglove it publishes each goal's target on
-``/scene/target_pose`` and every commanded x* on ``/scene/commanded_pose`` (PoseStamped in
-``base_link``, latched: :mod:`flexarm_core.plane`). An announcement stamped before the one
-in use is ignored: DDS may hand a late joiner the latched older announcement after a newer live
-one, and a roll back (``/learner/use_model``) is a new announcement with a new stamp.
+RIGID commands the rigid inverse kinematics of the target, PREDICTIVE the fixed point of
+``x* = x_d - Delta_N(theta)`` (the paper), CLOSED_LOOP then corrects from the measured tip, and
+AUTO chooses by the plan's 95 % bound. The logic is pure: which plan a goal runs and its bound
+(:mod:`flexarm_control.execution.planning`), how it runs
+(:mod:`flexarm_control.execution.goal_execution`), the bound after the move and online
+(:mod:`flexarm_control.execution.bound_check`), the model's health
+(:mod:`flexarm_control.learning.model_health`). This node validates goals, claims the arm for
+each, maps outcomes to error codes, hot-reloads the model the learner announces and publishes
+``/compensator/active_model``, ``/compensator/model_health`` and the scene's target and
+commanded poses.
 
-Goal policy: one motion at a time per arm. A goal that is to move claims the arm from its owner
-(:mod:`flexarm_control.ros.arm_claim`) once it is valid and planned, before anything moves;
-while another motion holds the arm (this server's other goal, a collection, a calibration, any
-node's) it is aborted with ARM_BUSY, the running motion named, nothing moved. A goal may run
-within a motion its sender holds (``motion``: a calibration's poses). A claim ended by someone
-else (``flexarm cancel``) ends the goal like a cancel, the arm held. Every accepted goal
-is validated before anything moves, against the bounds of
-:mod:`flexarm_control.execution.goal_bounds` too, and aborted with an error code and reason if
-invalid; an unexpected error aborts the goal with INVALID_GOAL and "internal error: ...", never
-with an empty result. Cancel holds the arm at its current joint positions (the result's
-``joint_positions`` are those).
-
-No goal holds the arm for ever: the server ends a goal itself (aborted with CANCELED, "canceled
-by the server: <why>", the arm held) when it outlasts its time limit (the arm's time,
-:func:`~flexarm_control.execution.goal_bounds.time_limit`) or when every client that may have sent
-it has left the graph (:mod:`flexarm_core.goal_owner`: the candidates are taken at acceptance,
-looked for every ``SENDER_CHECK`` s while it runs). A canceled goal's result names them
-("goal sent by /node"), which is how ``flexarm cancel`` tells who sent the goal it cancelled;
-the ``goals`` diagnostics name them while it runs.
-
-Payload: the payload the arm carries comes on the latched ``/payload`` (std_msgs/Float64 [kg],
-the learner's ``payload`` parameter: ``flexarm payload KG``). A model that takes it as an input
-is run at it (:class:`~flexarm_control.learning.at_payload.AtPayload`), and so is a model that
-carries it physically (the grey-box's gravity moments); either adds a warning beyond its trained
-range (:func:`~flexarm_control.learning.model_store.payload_warning`). A model that does neither
-is refused at a payload it was not trained at unless the goal allows extrapolation (planning).
-Until a payload is known, a payload-carrying model is not used.
-
-Model health (:mod:`flexarm_control.learning.model_health`): every measured tip checks the model
-in use (measured − predicted deflection at the reported joints), per working region; the statistics
-are published latched on ``/compensator/model_health`` after each measurement; a region
-turning stale is logged, and every later result carries the warning until a new model comes.
-Every PREDICTIVE goal's first measurement is also held against the bound its plan stated: the
-online bound (:mod:`flexarm_control.execution.bound_check`) widens the next plans' bounds when
-measured goals leave it, and the model health says so with the figures.
-
-Provenance and tolerances: every result, feedback and outcome names the model version its plan
-used ("" for a rigid plan); a model announced with a warning (e.g. trained at another payload)
-adds it to the result's ``error_string``. RIGID and PREDICTIVE check a tolerance only when the
-goal gives one: the measured error must be within it (TOLERANCE_NOT_MET otherwise, and
-MEASUREMENT_FAILED if the tip could not be measured to check it). A ``dry_run`` goal is planned
-and answered with the plan; nothing moves.
-
-A goal executes in a thread of its own (:class:`~flexarm_core.ros.node_main.Offload`), which
-takes the arm's inputs itself, subscribed only while the goal runs
-(:class:`~flexarm_control.ros.arm_interface.ArmInterface`); the node's single-threaded executor
-serves cancel requests, new goals and ``/clock`` meanwhile.
-
-Health on ``/diagnostics``: :func:`model_status`, :func:`model_health_status` and
-:func:`goals_status`.
+Explained in docs/nodes.md#the-compensator-flexarm_compensator.
 """
 from __future__ import annotations
 
@@ -257,7 +195,7 @@ class CompensatorNode(Node):
         self._diagnostics = DiagnosticsPublisher(self, self.statuses)
 
     def statuses(self) -> list[Status]:
-        """The node's health (module docstring): model, model health, goals."""
+        """The node's health (docs/nodes.md): model, model health, goals."""
         name, model = self.get_name(), self._model
         with self._health_lock:
             health = model_health_status(

@@ -1,71 +1,17 @@
-"""Learner: collects deflection samples (``/collect_samples``) and trains the predictor
-(``/train``), paper section 2-1 steps 2-3.
+"""Learner: collects deflection samples and trains the predictor (paper section 2-1 steps 2-3).
 
-Collection moves the arm through the controller's command topic to space-filling poses of a
-region (:mod:`flexarm_control.learning.sampling`), visited in a short-travel order — or, strategy
-``active``, to poses each chosen from the samples so far
-(:mod:`flexarm_control.learning.active_sampling`; the choice runs in the training worker while the
-arm moves) — waits until the joints arrive and the tip is settled, averages valid ``/tip_pose``
-frames and appends the sample to the dataset — on disk, fsync'ed — before the next move; the
-sample is also published on ``/learner/samples`` for bags. A failed measurement is retried, then
-the pose is skipped and counted, never stored. Cancel holds the arm and keeps every sample
-collected; a controller that falls silent ends the collection (FAILED, with the reason). That loop
-is the pure :mod:`flexarm_control.execution.collection`, over
-:class:`~flexarm_control.execution.arm_motion.ArmMotion` (config/motion.yaml); this node maps ROS
-to it.
+Offers the ``/collect_samples`` and ``/learner/refresh`` actions and the ``/train`` and
+``/learner/use_model`` services; announces the current model on the latched ``/learner/model``
+and the ``payload`` parameter on the latched ``/payload``; publishes every sample on
+``/learner/samples``. While it moves the arm (claimed from the arm owner) it commands the
+controller and takes ``/joint_states`` and ``/tip_pose``; a refresh reads the compensator's
+``/compensator/model_health``. The logic is pure: the collection loop
+:mod:`flexarm_control.execution.collection`, its poses :mod:`flexarm_control.learning.sampling`
+and :mod:`~flexarm_control.learning.active_sampling`, training
+:mod:`flexarm_control.learning.training` (in a worker process), the model record
+:mod:`flexarm_control.learning.model_store` and :mod:`flexarm_control.learning.refresh`.
 
-Collection poses cover the region grown by ``coverage_margin``, where compensated targets of
-the region's edge are commanded. Training (in a worker process,
-:mod:`flexarm_control.learning.training`) chooses the model's settings by cross-validation,
-screens out outlier samples (listed in the response's metrics and logged), checks that the
-compensator can solve with the model, writes it atomically and announces it on the latched
-``/learner/model``; on any failure the previous model stays active. The current model is also
-remembered in ``<model_directory>/current.json`` and re-announced when the learner restarts
-(:mod:`flexarm_control.learning.model_store`: a damaged record is reported, not announced, and
-never makes a new model overwrite an old one). ``/learner/use_model`` makes an earlier model
-current again (roll back), with the same checks. Every announcement carries the model's provenance
-(dataset, payloads, metrics) and a warning when it was trained at another payload or for
-another arm configuration than the learner's now.
-
-Payload: the learner's ``payload`` parameter [kg] is what the arm carries now; it is stored
-with every sample and published latched on ``/payload`` (std_msgs/Float64) at start and on
-every change (``flexarm payload KG``, ``flexarm collect --payload KG``), for the compensator and
-the simulator (which follows it: the tool really was picked up). Each declaration is kept in the
-model directory, and a restarted learner starts from it rather than from its configured value
-(:mod:`flexarm_control.learning.payload_record`). A dataset holding samples at
-more than one payload is trained with the payload as a model input (``payload_input``) unless
-the request's settings say otherwise.
-
-Refresh (``/learner/refresh``, :mod:`flexarm_control.learning.refresh`): when the compensator's
-model health (``/compensator/model_health``) says the model no longer fits in a region, a few
-samples are taken where the largest residuals were and across the region, into the dataset
-``<dataset>-refresh``; a low-dimensional correction fitted to them on top of the current model
-(:mod:`flexarm_control.learning.drift_correction`) becomes the next model version, announced as
-usual. At a payload the model was not trained at, the samples go into the model's own dataset
-instead, which is trained again on both payloads (a correction cannot tell the arm's masses
-from its compliance; :mod:`flexarm_control.learning.payload_bounds`): declaring such a payload
-logs how the model's error bounds grew there (`flexarm payload` says it too). The refresh
-moves the arm: like a collection, only on request (`flexarm refresh`), never on its own — an
-arm in a vessel moves when its operator says so.
-
-Policy: one motion at a time per arm. A collection or refresh claims the arm from its owner
-(:mod:`flexarm_control.ros.arm_claim`) once its goal is valid, before anything moves; while
-another motion holds the arm — this learner's own, or any other node's — the goal is aborted
-with ARM_BUSY and the running motion named, nothing moved. Each sample records the claim it was
-taken in; a claim ended by someone else (``flexarm cancel``) ends the collection, the arm held,
-no later sample stored. A training request
-while a collection runs is refused (it would slow the collection down; train on the finished
-dataset), as is one while a timed-out training job still occupies the worker. Every failure
-gives an error code or message; nothing escapes a callback. A collection or refresh runs in a
-thread of its own, which takes the arm's inputs itself, subscribed only while it runs
-(:class:`~flexarm_control.ros.arm_interface.ArmInterface`), and training and model changes in
-another, one at a time (:class:`~flexarm_core.ros.node_main.Offload`); the node's
-single-threaded executor serves cancel requests, ``/clock`` and parameters meanwhile.
-
-Health on ``/diagnostics``: :func:`learner_statuses` (activity, training, model).
-
-One module of ~570 lines: the node maps three actions, two services and the payload to the
-pure loops and the training worker; each callback is short, and they share the node's state.
+Explained in docs/nodes.md#the-learner-flexarm_learner.
 """
 from __future__ import annotations
 

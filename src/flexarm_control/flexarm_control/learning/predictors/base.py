@@ -1,62 +1,18 @@
 """Deflection predictor interface, normalisation and the atomic single-file model format.
 
-A predictor maps joint positions θ = (θ1 rad, θ2 m, θ3 rad, θ4 rad), plus the payload [kg] as a
-fifth input when its ``payload_input`` setting is true, to the tip deflection (dx m, dy m, dφ rad)
-= measured − rigid pose. The model sees the joints as the link angles gravity acts on
-(:func:`model_inputs`): θ1, θ2, θ1+θ3, θ1+θ3+θ4 — each link sags by its absolute orientation, so
-these make the deflection a simpler function (a Gaussian process on them missed region-A targets
-5-10× less than on the raw joints, 40 samples, 5 seeds). Inputs and outputs are z-scored with the
-training set's mean and standard deviation; an input that is constant in the training set (e.g. θ2
-fixed at 0.6 m, or one payload) is dropped, as nothing can be learned about it. The learned kinds
-(:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) only ever see the normalised space; the ``physical`` ones
-(:mod:`.kinematic`, :mod:`.greybox`, and ``auto`` of :mod:`~flexarm_control.learning.selection`)
-model the arm and take the joints and the payload in SI units instead — the payload whenever it is
-given, as an input or not: a model of how the payload loads the arm
-(:attr:`Predictor.payload_physical`, the grey-box's gravity moments) predicts at a payload from
-samples at another. :attr:`Predictor.carries_payload` says whether a model predicts at the payload
-it is given, either way; one that does not predicts at the payloads it was trained at, whatever it
-is asked.
+A :class:`Predictor` maps joint positions θ = (θ1 rad, θ2 m, θ3 rad, θ4 rad), plus the payload
+[kg] as a fifth input when its ``payload_input`` setting is true, to the tip deflection (dx m,
+dy m, dφ rad) = measured − rigid pose. Its inputs are the link angles gravity acts on
+(:func:`model_inputs`), z-scored with the training set's statistics (:class:`Normalisation`):
+the learned kinds (:mod:`.mlp`, :mod:`.rbf`, :mod:`.gp`) see only that space, the ``physical``
+ones (:mod:`.kinematic`, :mod:`.greybox`, ``auto`` of
+:mod:`~flexarm_control.learning.selection`) take the joints and the payload in SI units.
+:meth:`Predictor.data_distance` says how far a query lies from the training data.
+:meth:`Predictor.save` writes a model file atomically (one ``.npz``, no pickle, format
+``FORMAT_VERSION``) and :func:`read_model` reads it. scipy is imported only in the functions
+that use it.
 
-Learned-data support: the model keeps its normalised training inputs, and
-:meth:`Predictor.data_distance` says how far a query lies from them — the distance to the
-nearest training sample in the normalised input space, in units of the training set's typical
-spacing (the median distance from a sample to its nearest neighbour). For targets inside the
-sampled region it stayed below 2.5 (robustness benchmark); outside it grows with the distance.
-Near a region's edge it says little (a target 100 mm outside region B is 1.3 spacings from
-B's samples): the GP's :meth:`Predictor.position_std` is the finer measure there. An input
-that was constant in training counts in units of ``CONSTANT_INPUT_SCALE`` (1 mm, 1 mrad or
-1 g): any real change of it is far from the data.
-
-Model file: one NumPy ``.npz`` archive, loaded with ``allow_pickle=False`` (no pickle,
-nothing executable in it). Entry ``metadata`` is a JSON string::
-
-    {"kind": "mlp", "settings": {...}, "format": 1, "version": "20250101T120000.000000Z",
-     "created": "2025-01-01T12:00:00.000000+00:00", "samples": 50,
-     "normalisation": {"input_mean": [...], "input_std": [...], "active_inputs": [...],
-                       "output_mean": [3], "output_std": [3]},
-     "dataset_hash": "sha256 hex or empty", "metrics": {...} or null,
-     "support_spacing": 0.42, "error_bound": {...}}
-
-(``error_bound``: the held-out calibration of :meth:`Predictor.error_bound`, set by the
-learner's training, :mod:`flexarm_control.learning.error_bound`; absent for a model fitted
-outside it, whose bound is then unknown)
-
-entry ``support`` holds the normalised training inputs, and the kind's arrays are entries
-``<kind>.<name>`` (MLP: its weights; RBF: the normalised
-training set, the model is rebuilt on load; GP: the normalised training set and the fitted
-kernel hyperparameters per output; kinematic: its parameters; greybox: its kinematic errors and
-compliances, and the residual GP's arrays as ``residual.<name>``; auto: the chosen model's
-arrays; the physical kinds keep the geometry and masses they used in their metadata entry
-``<kind>``). A refreshed model (:meth:`Predictor.corrected`) also has
-``corrections``, a list of :class:`~flexarm_control.learning.drift_correction.Correction` dicts
-added to its prediction in order. ``version`` defaults to the UTC fit time, so it sorts in
-training order; the learner may overwrite it before saving. Saving writes a temporary file in
-the target's directory, fsyncs it, renames it over the target (``os.replace``) and fsyncs the
-directory: a crash or a failed save leaves either the old file or the new one, never a mix.
-
-scipy is imported in the functions that use it, here and in the kinds: importing it costs a
-node ~0.3 s of CPU at start (scipy.spatial alone 0.2 s), which a compensator without a model
-and a learner that has not trained yet never need to pay.
+Explained in docs/learning.md#predictors-and-model-files.
 """
 from __future__ import annotations
 
@@ -158,7 +114,7 @@ def _coerce(name: str, value: Any, default: Any) -> Any:
 
 
 class Predictor(ABC):
-    """Deflection predictor Δ(θ[, payload]) → (dx, dy, dφ); see the module docstring."""
+    """Deflection predictor Δ(θ[, payload]) → (dx, dy, dφ); docs/learning.md explains the kinds."""
 
     kind: ClassVar[str]
     defaults: ClassVar[dict[str, Any]]   # every setting with its default value
@@ -268,7 +224,7 @@ class Predictor(ABC):
     def data_distance(self, joints: np.ndarray, payload: np.ndarray | float | None = None,
                       ) -> np.ndarray | float:
         """Distance of the query (joints (4,) or (M, 4)) from the training data, in typical
-        sample spacings (module docstring): a float, or (M,)."""
+        sample spacings (docs/learning.md): a float, or (M,)."""
         x, single = self._inputs(joints, payload)
         n = self._require_fitted()
         z = (x - n.input_mean) / n.input_std
@@ -354,7 +310,7 @@ class Predictor(ABC):
         return std[0] if single else std
 
     def save(self, path: str | Path) -> None:
-        """Write the fitted model to ``path`` atomically (format: module docstring)."""
+        """Write the fitted model to ``path`` atomically (format: docs/learning.md)."""
         self._require_fitted()
         arrays = {f'{self.kind}.{name}': value for name, value in self._state().items()}
         metadata = np.array(json.dumps(self.metadata))

@@ -1,11 +1,15 @@
 """Which Fast DDS transports a process gets: confined to this machine unless widened."""
+import json
 import os
+import subprocess
+import sys
 import xml.etree.ElementTree as ET
 from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.orchestration.launcher import ros_env
+from flexarm_bringup.orchestration.launcher import load_graph, load_optional, ros_env
+from flexarm_core import liveness
 from flexarm_core.transport import (
     PEERS_ENV,
     PROFILES_ENV,
@@ -20,6 +24,45 @@ from flexarm_core.transport import (
 )
 
 FASTDDS = '{http://www.eprosima.com/XMLSchemas/fastRTPS_Profiles}'
+ARMS = 4            # benchmarks/multi_arm.py's most, in one domain
+RMW_REACH = 32      # rmw_fastrtps's maxInitialPeersRange for LOCALHOST discovery
+# Participants, one node each, in one process; prints, as JSON, the participants each misses.
+MESH = """
+import json, sys, time
+import rclpy
+from rclpy.context import Context
+count, deadline = int(sys.argv[1]), time.monotonic() + float(sys.argv[2])
+nodes = []
+for i in range(count):
+    context = Context()
+    rclpy.init(context=context)
+    nodes.append(rclpy.create_node(f'peer{i}', context=context))
+names = {n.get_name() for n in nodes}
+while True:
+    missed = {n.get_name(): sorted(names - {m for m, _ in n.get_node_names_and_namespaces()})
+              for n in nodes}
+    if not any(missed.values()) or time.monotonic() > deadline:
+        break
+    time.sleep(0.2)
+print(json.dumps({k: v for k, v in missed.items() if v}))
+for node in nodes:
+    node.destroy_node()
+    rclpy.try_shutdown(context=node.context)
+"""
+
+
+def loopback_reach() -> int:
+    """maxInitialPeersRange of the localhost profile's UDPv4 transport (Fast DDS's 4 unset)."""
+    root = ET.parse(localhost_profile()).getroot()
+    return max(int(d.findtext(f'{FASTDDS}maxInitialPeersRange') or 4)
+               for d in root.iterfind(f'.//{FASTDDS}transport_descriptor')
+               if d.findtext(f'{FASTDDS}type') == 'UDPv4')
+
+
+def site_participants() -> int:
+    """Participants of ARMS arms in one domain: each graph's nodes with every optional one,
+    its supervisor's probe and a client, and multi_arm.py's monitor."""
+    return ARMS * (len(load_graph('sim')) + len(load_optional('sim')) + 2) + 1
 
 
 def test_the_localhost_profile_replaces_the_builtin_transports_by_shm_and_loopback():
@@ -36,6 +79,24 @@ def test_the_localhost_profile_replaces_the_builtin_transports_by_shm_and_loopba
         if descriptors[t].findtext(f'{FASTDDS}type') == 'UDPv4':
             allowed = [a.text for a in descriptors[t].iter(f'{FASTDDS}address')]
             assert allowed == ['127.0.0.1']
+
+
+def test_discovery_on_this_machine_reaches_every_participant_of_four_arms():
+    """A participant id beyond the reach is found by no other beyond it, nor by a client
+    without LOCALHOST discovery: rmw_fastrtps's 32 fell one short of multi_arm.py's 4 arms.
+    Fast DDS announces to the widest reach of a participant's UDPv4 transports."""
+    assert max(loopback_reach(), RMW_REACH) >= site_participants()
+
+
+@pytest.mark.node
+def test_participants_beyond_rmws_reach_find_each_other(domain_id: int):
+    """More participants than rmw_fastrtps's own reach, with the nodes' environment: each one
+    finds every other (with rmw's 32, the 33rd and 34th never find each other)."""
+    count = RMW_REACH + 2
+    done = subprocess.run([sys.executable, '-c', MESH, str(count), str(liveness.limit(10.0))],
+                          env=ros_env(domain_id), capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr[-2000:]
+    assert json.loads(done.stdout.splitlines()[-1]) == {}
 
 
 @pytest.mark.parametrize('env, expected', [

@@ -31,7 +31,8 @@ only widen the bound inside it.
 
 What no held-out sample shows is added in quadrature at its own 95 % point:
 :meth:`~flexarm_control.learning.predictors.Predictor.prior_std` (the grey-box's payload term,
-from the masses' prior, when every sample has one payload) here, and the site's terms — joint
+from the masses' prior, when every sample has one payload) here, a refresh's correction
+(:func:`correction_bound`, by the predictor), and the site's terms — joint
 repeatability, camera noise, the tool calibration's residual — by the planner
 (:mod:`flexarm_control.execution.plan_bound`).
 
@@ -43,7 +44,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
-from dataclasses import asdict, dataclass, replace
+from dataclasses import asdict, dataclass
 from typing import Any
 
 import numpy as np
@@ -79,16 +80,6 @@ class BoundCalibration:
 
     def as_dict(self) -> dict[str, Any]:
         return asdict(self)
-
-    def floored(self, residuals: np.ndarray) -> BoundCalibration:
-        """This calibration with its plain bounds raised to the 95 % point of held-out
-        residuals (n, 3) [m, m, rad] of samples taken since (a refresh's): the normal errors'
-        95 % point at the residuals' RMS. A refresh has a handful of samples: the upper
-        confidence limit :func:`scale` puts on the RMS would state 1.4 times it from eight,
-        and the compensator's online bound widens a bound the next goals show too tight."""
-        position, angle = split(residuals)
-        return replace(self, position_plain=max(self.position_plain, Z_2D * _rms(position)),
-                       angle_plain=max(self.angle_plain, Z_1D * _rms(angle)))
 
     def bound(self, std: np.ndarray, prior: np.ndarray | None = None) -> np.ndarray:
         """95 % bounds (..., 2) [m, rad] from raw stds (..., 3) [m, m, rad] and the prior's
@@ -131,10 +122,6 @@ def conformal_rank(n: int) -> int:
 
     return next((k for k in range(math.ceil((n + 1) * LEVEL), n + 1)
                  if beta.ppf(RISK, k, n + 1 - k) >= FLOOR_COVERAGE), n)
-
-
-def _rms(values: np.ndarray) -> float:
-    return float(np.sqrt(np.mean(np.square(values))))
 
 
 def scale(scores: np.ndarray, components: int) -> float:

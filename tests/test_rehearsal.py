@@ -48,7 +48,9 @@ def test_a_rehearsed_site_runs_the_whole_loop_on_wall_time(launch, domain_id, do
     before = clone_files()
     site = tmp_path / 'site'
     env = {k: v for k, v in os.environ.items() if k != 'FLEXARM_STATE_DIR'}   # the site's
-    env.update(FLEXARM_SITE=str(site), PYTHONUNBUFFERED='1')
+    # this test's graph lock apart from other tests' (a second shell finds the one graph)
+    env.update(FLEXARM_SITE=str(site), PYTHONUNBUFFERED='1', TMPDIR=str(tmp_path))
+    second_shell = {k: v for k, v in env.items() if k not in ('FLEXARM_SITE', 'ROS_DOMAIN_ID')}
     made = flexarm('site', 'init', str(site), '--robot', 'bridge', env=env, check=True)
     assert 'config/bridge.yaml' in made.stdout
     port, key = 47000 + 2 * domain_id, make_key(tmp_path / 'site.key')
@@ -72,9 +74,11 @@ def test_a_rehearsed_site_runs_the_whole_loop_on_wall_time(launch, domain_id, do
             assert 'flexarm_fake_controller' not in line           # nothing simulated
             ready = up.stdout.readline()
             assert 'graph ready' in ready, (ready, up.stderr.read() if not ready else '')
-            graph = ['--domain-id', str(domain_id)]
-            calibrated = flexarm('calibrate', *graph, env=env, timeout=liveness.limit(120.0))
+            # a second shell that names neither the site nor the domain: the graph's, found
+            calibrated = flexarm('calibrate', env=second_shell,
+                                 timeout=liveness.limit(120.0))
             assert calibrated.returncode == 0, calibrated.stderr
+            assert f'ROS_DOMAIN_ID={domain_id}' in calibrated.stderr, calibrated.stderr
             assert str(site / 'calibration' / 'tool_camera.json') in calibrated.stdout
             rclpy.init(context=context, domain_id=domain_id)
             client = FlexarmClient('rehearsal_test', context=context)

@@ -28,6 +28,8 @@ from flexarm_core.graph_locks import (
     graph_domain,
     lock_holders,
     lock_name,
+    lock_site,
+    lock_text,
     parse_lock_name,
     running_graphs,
 )
@@ -200,3 +202,17 @@ def test_a_client_finds_the_one_graph_of_this_machine_and_asks_when_there_are_se
         graph_domain('', {}, lock_dir, runs_dir)
     hold(holders, lock_dir, runs_dir, 5, 'arm2')                        # one arm of it
     assert graph_domain('arm2', {}, lock_dir, runs_dir)[0] == 5
+
+
+def test_a_graph_s_lock_says_its_site_where_its_record_lies(dirs, holders, tmp_path):
+    """A graph started in a site folder keeps its run record there: the lock file names the
+    site, so a shell that does not know the site finds the graph's record and its site."""
+    lock_dir, runs_dir = dirs
+    site = tmp_path / 'site'
+    (site / 'runs').mkdir(parents=True)
+    process = hold(holders, lock_dir, site / 'runs', 4)
+    lock = lock_dir / lock_name(4)
+    lock.write_text(lock_text(process.pid, site))
+    [graph] = running_graphs(lock_dir, runs_dir)
+    assert (graph.site, graph.robot) == (str(site), 'bridge')
+    assert lock_site(lock) == str(site) and lock_text(7, None) == '7\n'

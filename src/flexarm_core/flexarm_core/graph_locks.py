@@ -30,6 +30,22 @@ def lock_name(domain_id: int, namespace: str = '') -> str:
     return f'{domain_id}-{ns}.lock' if ns else f'{domain_id}.lock'
 
 
+def lock_text(pid: int, site: Path | None) -> str:
+    """What a graph's lock file holds: its supervisor's pid, then the site folder it runs in
+    ('' for none), so that a client in another shell finds the graph's site as well as its
+    domain (the run record lies in that site)."""
+    return f'{pid}\n{site or ""}'
+
+
+def lock_site(path: Path) -> str:
+    """The site folder written in a lock file ('' for none, or unreadable)."""
+    try:
+        lines = path.read_text(encoding='utf-8', errors='replace').split('\n')
+    except OSError:
+        return ''
+    return lines[1].strip() if len(lines) > 1 else ''
+
+
 def parse_lock_name(name: str) -> tuple[int, str] | None:
     """(domain id, namespace) of a :func:`lock_name`; None for another file name."""
     if not name.endswith('.lock'):
@@ -77,6 +93,7 @@ class RunningGraph:
     robot: str = '?'
     run_dir: str = ''
     nodes: tuple[str, ...] = ()
+    site: str = ''          # the site folder it runs in ('' for none)
 
     def as_dict(self) -> dict[str, object]:
         return asdict(self) | {'nodes': list(self.nodes)}
@@ -100,10 +117,14 @@ def running_graphs(lock_dir: Path, runs_dir: Path, proc_locks: Path = PROC_LOCKS
             started = path.stat().st_mtime
         except OSError:
             continue            # stopped meanwhile
-        record = records.get((pid, *key), {})
+        site = lock_site(path)
+        record = records.get((pid, *key))
+        if record is None and site:          # its record lies in its site's runs/
+            record = _records(Path(site) / 'runs').get((pid, *key))
+        record = record or {}
         graphs.append(RunningGraph(
             key[0], key[1], pid, started, str(record.get('robot', '?')),
-            str(record.get('run_dir', '')), tuple(record.get('nodes', {}))))
+            str(record.get('run_dir', '')), tuple(record.get('nodes', {})), site))
     return sorted(graphs, key=lambda g: (g.domain_id, g.namespace))
 
 
@@ -134,15 +155,13 @@ class SeveralGraphs(LookupError):
     """Several graphs run on this machine and nothing says which one a client means."""
 
 
-def graph_domain(namespace: str, env: Mapping[str, str], lock_dir: Path = LOCK_DIR,
-                 runs_dir: Path | None = None) -> tuple[int | None, str]:
-    """The domain a client of the arm in ``namespace`` joins when it was given none, and
-    what to tell its user: the exported ``ROS_DOMAIN_ID`` (None: rcl reads it), else the one
-    graph of that arm running on this machine (a second shell finds the graph ``flexarm up``
-    started in the first free domain), else rcl's default (None). :class:`SeveralGraphs`
-    when several graphs could be meant."""
+def this_machines_graph(namespace: str, env: Mapping[str, str], lock_dir: Path = LOCK_DIR,
+                        runs_dir: Path | None = None) -> RunningGraph | None:
+    """The graph a client of the arm in ``namespace`` means when it names no domain: None with
+    an exported ``ROS_DOMAIN_ID`` (rcl's) or no graph running here, else the one graph of that
+    arm on this machine; :class:`SeveralGraphs` when several could be meant."""
     if env.get(DOMAIN_ENV, '').strip():
-        return None, ''
+        return None
     if runs_dir is None:
         from flexarm_core.paths import RUNS_DIR
         runs_dir = RUNS_DIR
@@ -150,15 +169,25 @@ def graph_domain(namespace: str, env: Mapping[str, str], lock_dir: Path = LOCK_D
     ns = namespace.strip('/')
     mine = [g for g in graphs if g.namespace == ns] or graphs
     domains = sorted({g.domain_id for g in mine})
-    if not domains:
-        return None, ''
     if len(domains) > 1:
         raise SeveralGraphs(
             f'{len(mine)} flexarm graphs run on this machine, in ROS domains '
             f'{", ".join(map(str, domains))}: pass --domain-id N (or export '
             f'{DOMAIN_ENV}=N) to say which (flexarm ps lists them)')
-    graph = mine[0]
+    return mine[0] if mine else None
+
+
+def graph_domain(namespace: str, env: Mapping[str, str], lock_dir: Path = LOCK_DIR,
+                 runs_dir: Path | None = None) -> tuple[int | None, str]:
+    """The domain a client of the arm in ``namespace`` joins when it was given none, and
+    what to tell its user: the exported ``ROS_DOMAIN_ID`` (None: rcl reads it), else the one
+    graph of that arm running on this machine (a second shell finds the graph ``flexarm up``
+    started in the first free domain), else rcl's default (None). :class:`SeveralGraphs`
+    when several graphs could be meant."""
+    graph = this_machines_graph(namespace, env, lock_dir, runs_dir)
+    if graph is None:
+        return None, ''
     return graph.domain_id, (
         f'using the flexarm graph of this machine in {DOMAIN_ENV}={graph.domain_id}'
         f' (robot {graph.robot}, started by flexarm up, supervisor pid '
-        f'{graph.supervisor_pid})')
+        f'{graph.supervisor_pid}' + (f', site {graph.site}' if graph.site else '') + ')')

@@ -43,6 +43,7 @@ from flexarm_bringup.cli.common import Outcome
 from flexarm_bringup.cli.graph import interrupt_handler
 from flexarm_bringup.results.outcome_text import Exit
 from flexarm_core import transport
+from flexarm_core.graph_locks import SeveralGraphs, this_machines_graph
 from flexarm_core.paths import SITE_ENV
 
 
@@ -83,6 +84,21 @@ def _in_site(site: str, argv: list[str], from_shell: bool) -> str:
     return ''
 
 
+def _graph_site(args: argparse.Namespace, from_shell: bool) -> str:
+    """The site folder of the graph a client command in a shell of its own means (the one
+    graph running on this machine, as it finds its domain), when nothing names one: so that
+    ``flexarm calibrate`` in a second shell stores the site's calibration, not the clone's.
+    '' when a site or a domain is given, or for commands that start a graph."""
+    if (not from_shell or os.environ.get(SITE_ENV) or getattr(args, 'domain_id', None) is not None
+            or SUBCOMMANDS[args.command][2] not in ('running', 'wait')):
+        return ''
+    try:
+        graph = this_machines_graph(getattr(args, 'namespace', ''), os.environ)
+    except SeveralGraphs:
+        return ''                   # the client asks which, with --domain-id
+    return graph.site if graph is not None else ''
+
+
 def main(argv: Sequence[str] | None = None) -> int:
     from_shell = argv is None
     argv = sys.argv[1:] if argv is None else list(argv)
@@ -97,7 +113,8 @@ def main(argv: Sequence[str] | None = None) -> int:
             print(json.dumps({'ok': False, 'error_string': message, 'outcome': message,
                               'exit_code': int(Exit.USAGE)}))
         return int(Exit.USAGE)
-    if args.site is not None and (message := _in_site(args.site, argv, from_shell)):
+    site = args.site if args.site is not None else _graph_site(args, from_shell)
+    if site and (message := _in_site(site, argv, from_shell)):
         print(f'flexarm: {message}', file=sys.stderr, flush=True)
         return int(Exit.USAGE)
     os.environ.setdefault('ROS_AUTOMATIC_DISCOVERY_RANGE', 'LOCALHOST')

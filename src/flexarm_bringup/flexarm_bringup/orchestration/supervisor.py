@@ -60,8 +60,9 @@ from flexarm_bringup.orchestration.launcher import (
 from flexarm_core import liveness, topics
 from flexarm_core.atomic_file import atomic_write
 from flexarm_core.goal_owner import full_name
-from flexarm_core.graph_locks import LOCK_DIR, RECORD, lock_name
+from flexarm_core.graph_locks import LOCK_DIR, RECORD, lock_name, lock_text
 from flexarm_core.params import load_config
+from flexarm_core.paths import SITE
 
 # Wall-clock limits, times the liveness factor (flexarm_core.liveness):
 DISCOVERY_WAIT = 1.0   # [s] to discover the nodes already running in a domain
@@ -329,17 +330,18 @@ def arm_folders(parameters: Mapping[str, Mapping[str, Any]], namespace: str
 def lock_domain(domain_id: int, namespace: str = '') -> int:
     """An exclusive lock on ``domain_id`` (and ``namespace``) for this process (a file
     descriptor, held until closed, released by the kernel if the process dies); RuntimeError
-    naming the holder."""
+    naming the holder. The file says who holds it: the supervisor's pid and the site folder
+    it runs in (:func:`flexarm_core.graph_locks.lock_text`)."""
     LOCK_DIR.mkdir(parents=True, exist_ok=True)
     fd = os.open(LOCK_DIR / lock_name(domain_id, namespace), os.O_RDWR | os.O_CREAT, 0o666)
     try:
         fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
     except BlockingIOError:
-        holder = os.read(fd, 64).decode(errors='replace').strip() or 'unknown'
+        holder = os.read(fd, 64).decode(errors='replace').split('\n')[0].strip() or 'unknown'
         os.close(fd)
         raise RuntimeError(f'ROS domain {domain_id} is in use by another flexarm graph on this '
                            f'machine (supervisor pid {holder}): stop it, or start this one with '
                            'another domain id') from None
     os.ftruncate(fd, 0)
-    os.pwrite(fd, str(os.getpid()).encode(), 0)
+    os.pwrite(fd, lock_text(os.getpid(), SITE).encode(), 0)
     return fd

@@ -133,6 +133,14 @@ def subset(payload: np.ndarray | None, index: np.ndarray) -> np.ndarray | None:
     return None if payload is None else payload[index]
 
 
+def grouped_folds(groups: np.ndarray, folds: int, seed: int) -> list[np.ndarray]:
+    """The held-out indices of each fold: the distinct groups in a seeded random order, split
+    into ``folds`` runs of near-equal count (scikit-learn's ``GroupKFold(shuffle=True)``, the
+    same folds for the same seed, without importing scikit-learn for it)."""
+    order = np.random.RandomState(seed).permutation(np.unique(groups))
+    return [np.flatnonzero(np.isin(groups, part)) for part in np.array_split(order, folds)]
+
+
 def cross_validate(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray,
                    deflections: np.ndarray, payload: np.ndarray | None = None,
                    folds: int = 5, seed: int = 0, make: Make = make_predictor,
@@ -143,16 +151,14 @@ def cross_validate(kind: str, settings: Mapping[str, Any] | None, joints: np.nda
     (:meth:`~flexarm_control.learning.predictors.Predictor.deflection_std`). The data must
     have passed :func:`check_data`. ``make`` builds the models (default: the predictors; a
     model that selects among them is validated through its own maker)."""
-    from sklearn.model_selection import GroupKFold  # here: the learner node never imports it
-
     groups = pose_groups(joints)
     if groups.max() + 1 < folds:
         raise ValueError(f'too few distinct poses: {groups.max() + 1} in {len(joints)} '
                          f'samples, at least {folds} are needed ({folds}-fold '
                          'cross-validation)')
     residuals, std = np.empty_like(deflections), np.empty_like(deflections)
-    for train_index, test in GroupKFold(folds, shuffle=True, random_state=seed).split(
-            joints, groups=groups):
+    for test in grouped_folds(groups, folds, seed):
+        train_index = np.setdiff1d(np.arange(len(joints)), test)
         predictor = make(kind, settings).fit(
             joints[train_index], deflections[train_index], subset(payload, train_index))
         residuals[test] = (predictor.predict(joints[test], subset(payload, test))

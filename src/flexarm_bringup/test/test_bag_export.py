@@ -13,17 +13,14 @@ from builtin_interfaces.msg import Time
 from rclpy.serialization import serialize_message
 
 from flexarm_bringup.cli import main
-from flexarm_bringup.recording import bag_tools
 from flexarm_bringup.recording.bag_tools import (
-    CALIBRATION,
-    DRY_RUN,
-    GOAL,
     calibration_moves,
     export_figures,
     export_trials,
 )
 from flexarm_bringup.recording.bag_writer import BagWriter
-from flexarm_bringup.results import plots
+from flexarm_bringup.results import plots, trial_plots
+from flexarm_bringup.results.trials import CALIBRATION, DRY_RUN, GOAL
 from flexarm_control.learning.predictors import make_predictor
 from flexarm_control.learning.sampling import sample_poses
 from flexarm_core import topics
@@ -139,8 +136,8 @@ def test_export_keeps_dry_runs_and_calibration_moves_apart_and_names_every_trial
 def test_trials_figure_marks_dry_runs_apart_and_leaves_calibration_out(
         tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     figures = []
-    draw = bag_tools.trials_figure
-    monkeypatch.setattr(bag_tools, 'trials_figure',
+    draw = trial_plots.trials_figure
+    monkeypatch.setattr(trial_plots, 'trials_figure',
                         lambda *args: figures.append(draw(*args)) or figures[-1])
     export_trials(_session_bag(tmp_path), tmp_path / 'out')
     for ax in figures[0].axes:

@@ -25,16 +25,16 @@ from mcap_ros2.decoder import DecoderFactory
 from rclpy.serialization import serialize_message
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup.recording import bag_tools
 from flexarm_bringup.recording.bag_tools import (
     CSV_FIELDS,
     ERROR_NAMES,
     bag_info,
     export_trials,
     read_messages,
-    trials_figure,
 )
 from flexarm_bringup.recording.bag_writer import BagWriter
+from flexarm_bringup.results import trial_plots
+from flexarm_bringup.results.trial_plots import trials_figure
 from flexarm_core import topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, PlanarPose, TipPose
@@ -302,7 +302,7 @@ def test_export_never_plots_failed_goals_as_errors(tmp_path: Path,
         figures.append(trials_figure(*args, **kwargs))
         return figures[-1]
 
-    monkeypatch.setattr(bag_tools, 'trials_figure', keep)
+    monkeypatch.setattr(trial_plots, 'trials_figure', keep)
     _mixed_bag(tmp_path / 'mixed')
     csv_path, png_path = export_trials(tmp_path / 'mixed', tmp_path / 'out')
     rows = list(csv.DictReader(csv_path.open()))

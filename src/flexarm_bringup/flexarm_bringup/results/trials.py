@@ -26,6 +26,10 @@ from flexarm_core.kinematics import pose_error, wrap_angle
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import PlanarPose, TipPose
 
+# What a recorded outcome is (flexarm_bringup.recording.bag_tools): only GOAL rows are goals of
+# the statistics and figures.
+GOAL, DRY_RUN, CALIBRATION = 'goal', 'dry_run', 'calibration'
+
 if TYPE_CHECKING:       # the client pulls in rclpy; bag_tools names trials without it
     from flexarm_control.ros.client import FlexarmClient
 

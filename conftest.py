@@ -37,7 +37,7 @@ import pytest
 _STATE = Path(tempfile.mkdtemp(prefix='flexarm-test-state-'))
 os.environ['FLEXARM_STATE_DIR'] = str(_STATE)   # before flexarm_core.paths is imported
 
-from flexarm_core import liveness  # noqa: E402
+from flexarm_core import liveness, processes  # noqa: E402
 
 os.environ.setdefault(liveness.ENV, str(liveness.UNDER_TEST))
 # The test processes and every command they start (CLI, benchmarks) use one BLAS thread, as the
@@ -162,21 +162,9 @@ INDEPENDENT_MODULES = {'tests/test_benchmarks.py'}   # each test runs its own sc
 def _processes_with(variable: str, value: str) -> dict[int, str]:
     """Live processes of this machine whose environment holds ``variable=value``: their
     command lines (zombies are dead already and left out)."""
-    wanted, found = f'{variable}={value}'.encode(), {}
-    for entry in Path('/proc').glob('[0-9]*'):
-        pid = int(entry.name)
-        if pid == os.getpid():
-            continue
-        try:
-            if wanted not in (entry / 'environ').read_bytes().split(b'\0'):
-                continue
-            if (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z':
-                continue
-            found[pid] = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode(
-                errors='replace').strip()
-        except (OSError, IndexError):
-            continue                     # ended meanwhile, or not ours to read
-    return found
+    return {pid: ' '.join(processes.command_line(pid))
+            for pid, env in processes.environments().items()
+            if pid != os.getpid() and env.get(variable) == value}
 
 
 def _kill_and_reap(pids: list[int]) -> list[int]:
@@ -194,13 +182,9 @@ def _kill_and_reap(pids: list[int]) -> list[int]:
                 if os.waitpid(pid, os.WNOHANG)[0] == pid:
                     remaining.remove(pid)
                     continue
-            except ChildProcessError:    # not our child: gone once /proc says dead
+            except ChildProcessError:    # not our child: gone once it ended
                 pass
-            try:
-                state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-            except (OSError, IndexError):
-                state = 'Z'
-            if state == 'Z':
+            if not processes.alive(pid):
                 remaining.remove(pid)
         time.sleep(0.02)
     return remaining

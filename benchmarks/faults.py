@@ -72,6 +72,8 @@ from pathlib import Path
 from types import FrameType
 from typing import IO
 
+import psutil
+
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_bringup.orchestration.domains import reserved
@@ -85,10 +87,11 @@ from flexarm_bringup.orchestration.launcher import (
     stop_all,
 )
 from flexarm_control.learning.dataset import load_dataset
+from flexarm_core.graph_locks import file_key, held_locks
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import RUNS_DIR, repo_path
-from flexarm_core.processes import descendants, pids
+from flexarm_core.processes import command_line, descendants, environments, mapped_files
 from flexarm_test_support.link_attacks import replay_accepted
 from flexarm_test_support.remote_peer import remote_attack, unavailable
 
@@ -134,31 +137,9 @@ class Row:
 
 
 # --- processes ------------------------------------------------------------------------------
-def _read(path: Path) -> bytes:
-    try:
-        return path.read_bytes()
-    except OSError:
-        return b''
-
-
-def _stat(pid: int) -> tuple[int, str] | None:
-    """(parent pid, state) of a process, or None once it is gone."""
-    fields = _read(Path(f'/proc/{pid}/stat')).rsplit(b')', 1)[-1].split()
-    return (int(fields[1]), fields[0].decode()) if len(fields) > 1 else None
-
-
 def markers() -> dict[int, str]:
     """Live (not zombie) processes whose environment carries a :data:`MARKER`: its value."""
-    needle, found = f'{MARKER}='.encode(), {}
-    for pid in pids():
-        environ = _read(Path(f'/proc/{pid}/environ'))
-        if needle not in environ:
-            continue
-        stat = _stat(pid)
-        value = next((v for v in environ.split(b'\0') if v.startswith(needle)), b'')
-        if stat and stat[1] != 'Z' and value:
-            found[pid] = value[len(needle):].decode(errors='replace')
-    return found
+    return {pid: env[MARKER] for pid, env in environments().items() if env.get(MARKER)}
 
 
 def marked(marker: str, family: bool = False) -> set[int]:
@@ -170,9 +151,8 @@ def marked(marker: str, family: bool = False) -> set[int]:
 
 def node_pid(marker: str, name: str) -> int:
     """PID of the running node ``name`` of the marked graph."""
-    arg = f'__node:={name}'.encode()
     for pid in marked(marker):
-        if arg in _read(Path(f'/proc/{pid}/cmdline')).split(b'\0'):
+        if f'__node:={name}' in command_line(pid):
             return pid
     raise ScenarioError(f'no running {name} process')
 
@@ -201,37 +181,26 @@ def shm_inodes() -> dict[str, int]:
 
 
 def _flocked(pid: int) -> set[int]:
-    """Inodes of the /dev/shm files ``pid`` holds an flock on (/proc/locks)."""
-    device, inodes = SHM.stat().st_dev, set()
-    for line in _read(Path('/proc/locks')).decode(errors='replace').splitlines():
-        fields = line.split()
-        if len(fields) > 5 and fields[1] == 'FLOCK' and '->' not in fields \
-                and fields[4] == str(pid):
-            major, minor, inode = fields[5].split(':')
-            if os.makedev(int(major, 16), int(minor, 16)) == device:
-                inodes.add(int(inode))
-    return inodes
+    """Inodes of the /dev/shm files ``pid`` holds an flock on."""
+    device = file_key(SHM.stat())[:2]
+    return {key[2] for key, holder in held_locks() if holder == pid and key[:2] == device}
+
+
+def _opened(pid: int) -> set[str]:
+    """Names of the /dev/shm files ``pid`` holds open (none once it is gone)."""
+    try:
+        files = psutil.Process(pid).open_files()
+    except psutil.Error:
+        return set()
+    return {Path(f.path).name for f in files if f.path.startswith(f'{SHM}/')}
 
 
 def used_shm(pid: int, files: dict[str, int]) -> dict[str, int]:
     """The /dev/shm files (of ``files``: name -> inode) that ``pid`` maps, holds open or
     locks, with the mutex of every Fast DDS port it maps (nobody keeps that one open)."""
     inodes = _flocked(pid)
-    for line in _read(Path(f'/proc/{pid}/maps')).decode(errors='replace').splitlines():
-        parts = line.split(maxsplit=5)
-        if len(parts) == 6 and parts[5].startswith(f'{SHM}/'):
-            inodes.add(int(parts[4]))
-    try:
-        fds = list(Path(f'/proc/{pid}/fd').iterdir())
-    except OSError:
-        fds = []
-    for fd in fds:
-        try:
-            if os.readlink(fd).startswith(f'{SHM}/'):
-                inodes.add(fd.stat().st_ino)
-        except OSError:
-            continue
-    used = {name: inode for name, inode in files.items() if inode in inodes}
+    names = {Path(path).name for path in mapped_files(SHM, pid)} | _opened(pid)
+    used = {name: inode for name, inode in files.items() if name in names or inode in inodes}
     for name in list(used):
         mutex = f'sem.{name}_mutex'
         if name.startswith('fastrtps_port') and mutex in files:
@@ -486,7 +455,7 @@ class Graph:
             if line.startswith('stopped: '):
                 row.add(line)
         for pid in left:
-            row.add(f'left: {pid} {_read(Path(f"/proc/{pid}/cmdline"))[:80]!r}')
+            row.add(f'left: {pid} {" ".join(command_line(pid))[:80]!r}')
 
     def close(self, teardown: Row) -> None:
         """Stop everything left of this graph and its commands (after it was measured): its

@@ -12,14 +12,13 @@ x10 it then collects ``--samples`` deflection samples through the learner's
 ``/collect_samples`` (:class:`~flexarm_control.ros.client.FlexarmClient`, into a temporary data
 folder) and measures that stretch too (``collect_x10``, ``collect_x10_recorded``).
 
-CPU: user + system time of each node's process and its child processes from
-``/proc/<pid>/stat`` at the start and end of a stretch, per wall second (1.0 = one core busy:
-the stretch's own figure, not the lifetime average ``ps`` shows). RSS: the resident set of the
-same processes (``/proc/<pid>/stat``) at the end of the stretch. Achieved real-time factor:
-sim time advanced (``/clock``, sampled at the start and end) per wall second. With each
-stretch: ``machine_busy``, the busy share of all cores (``/proc/stat``), ``load_1min`` at its
-end and ``benchmark_cores``, this process (the client during the collection): other work on
-the machine disturbs the figures, read them with it.
+CPU: user + system time of each node's process and its child processes (psutil) at the
+start and end of a stretch, per wall second (1.0 = one core busy: the stretch's own figure,
+not the lifetime average ``ps`` shows). RSS: the resident set of the same processes (psutil)
+at the end of the stretch. Achieved real-time factor: sim time advanced (``/clock``, sampled
+at the start and end) per wall second. With each stretch: ``machine_busy``, the busy share of
+all cores (psutil), ``load_1min`` at its end and ``benchmark_cores``, this process (the client
+during the collection): other work on the machine disturbs the figures, read them with it.
 
     python benchmarks/footprint.py [--settle 10] [--seconds 30] [--samples 20]
         [--domain-id N] [--json]
@@ -45,6 +44,7 @@ from collections.abc import Callable
 from pathlib import Path
 from typing import Any
 
+import psutil
 import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
@@ -56,10 +56,8 @@ from flexarm_bringup.orchestration.supervisor import Graph
 from flexarm_bringup.recording.bag_tools import bag_info
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
-from flexarm_core.processes import descendants, stat_fields
+from flexarm_core.processes import busy_share, cpu_seconds, descendants, machine_times
 
-TICK = os.sysconf('SC_CLK_TCK')
-PAGE = os.sysconf('SC_PAGE_SIZE')
 READY_S = 120.0        # [s] bound of the graph's bring-up
 SMOKE = {'settle': 1.0, 'seconds': 3.0, 'samples': 2}
 GRAPHS = {'x1': (1.0, False), 'x10': (10.0, False), 'x10_recorded': (10.0, True)}  # rtf, bag
@@ -68,19 +66,16 @@ RECORDER = 'flexarm_recorder'
 
 def usage(pid: int) -> tuple[float, float]:
     """(CPU seconds, RSS MB) of ``pid`` and its children; (0, 0) for a process that is gone."""
-    cpu = rss = 0.0
-    for member in descendants([pid]):
-        fields = stat_fields(member)
-        if fields is not None:
-            cpu += (int(fields[11]) + int(fields[12])) / TICK
-            rss += int(fields[21]) * PAGE / 2**20
-    return cpu, rss
+    members = descendants([pid])
+    return sum(map(cpu_seconds, members)), sum(map(rss_mb, members))
 
 
-def machine_times() -> tuple[int, int]:
-    """(busy, total) jiffies of all cores since boot."""
-    values = [int(v) for v in Path('/proc/stat').read_text().split('\n', 1)[0].split()[1:]]
-    return sum(values) - values[3] - values[4], sum(values)
+def rss_mb(pid: int) -> float:
+    """The resident set of the process ``pid`` [MB] (0 once it is gone)."""
+    try:
+        return psutil.Process(pid).memory_info().rss / 2**20
+    except psutil.Error:
+        return 0.0
 
 
 class SimClock:
@@ -134,8 +129,7 @@ def measure(graph: Graph, clock: SimClock, work: Callable[[], dict[str, Any]]
     return {'total_cores': sum(n['cores'] for n in nodes.values()),
             'achieved_rtf': (sim_end - sim_start) / wall, 'wall_s': wall,
             'rss_mb': sum(n['rss_mb'] for n in nodes.values()),
-            'machine_busy': (machine[0] - machine_before[0])
-            / max(1, machine[1] - machine_before[1]),
+            'machine_busy': busy_share(machine_before, machine),
             'load_1min': os.getloadavg()[0], 'benchmark_cores': (own - own_before) / wall,
             **extra}, nodes
 

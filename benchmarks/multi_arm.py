@@ -30,12 +30,12 @@ makes camera images, tip poses and ``/tf`` only while someone subscribes to them
 render and measure all the time.
 
 CPU: user + system time of each arm's node processes and their child processes (the learner's
-training worker), from ``/proc/<pid>/stat`` over the goal phase, per wall second (1.0 = one
-core busy; a child that ends meanwhile is not counted); ``benchmark``: this process (the
-monitor and the clients); ``machine``: the busy share of all cores (``/proc/stat``) over the
-goal phase and the 1-minute load average before and at its end (other work on the machine
-counts in the figures: read them with it); ``seconds_per_goal``: the arms' CPU seconds per
-succeeded goal. ``real_time_factor`` per arm: sim seconds per wall second between its first
+training worker), read by psutil over the goal phase, per wall second (1.0 = one core busy; a
+child that ends meanwhile is not counted); ``benchmark``: this process (the monitor and the
+clients); ``machine``: the busy share of all cores (psutil) over the goal phase and the
+1-minute load average before and at its end (other work on the machine counts in the figures:
+read them with it); ``seconds_per_goal``: the arms' CPU seconds per succeeded goal.
+``real_time_factor`` per arm: sim seconds per wall second between its first
 and last goal outcome. A machine that cannot keep up slows the shared clock down: every arm
 then runs below ``--real-time-factor`` and the CPU per arm is the machine shared out; run
 ``--real-time-factor 1`` (a real arm's pace) to see what an arm costs when the host keeps up.
@@ -89,7 +89,7 @@ from flexarm_control.learning.selection import fit_robust
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.params import load_config
-from flexarm_core.processes import descendants, stat_fields
+from flexarm_core.processes import busy_share, cpu_seconds, descendants, machine_times
 from flexarm_msgs.msg import GoalOutcome
 
 TRAINING_SAMPLES = 40
@@ -104,7 +104,6 @@ GOAL_S = 300.0            # [s] bound of one goal
 FOLLOWER = {'clock_source': 'follow'}
 OWNER = {'clock_source': 'own'}
 UNKNOWN = '_NODE_NAMESPACE_UNKNOWN_'   # discovery's placeholder until a node's name arrives
-TICK = os.sysconf('SC_CLK_TCK')
 
 
 def message_type(type_name: str) -> type:
@@ -158,28 +157,10 @@ class Targets:
         raise RuntimeError(f'fewer than {count} targets of region {self.region} can be planned')
 
 
-def cpu_seconds(pid: int) -> float:
-    """User + system CPU seconds of a live process (0 if it is gone)."""
-    fields = stat_fields(pid)
-    return 0.0 if fields is None else (int(fields[11]) + int(fields[12])) / TICK
-
-
 def arm_cpu(graph: Graph) -> dict[int, float]:
     """CPU seconds of each process of the graph's nodes and their children, by pid."""
     pids = [n.process.pid for n in graph.nodes.values() if n.process is not None]
     return {pid: cpu_seconds(pid) for pid in descendants(pids)}
-
-
-def machine_times() -> tuple[float, float]:
-    """(busy, total) jiffies of all cores since boot."""
-    values = [int(v) for v in Path('/proc/stat').read_text().split('\n', 1)[0].split()[1:]]
-    idle = values[3] + values[4]            # idle + iowait
-    return sum(values) - idle, sum(values)
-
-
-def load_average() -> float:
-    """The machine's 1-minute load average."""
-    return float(Path('/proc/loadavg').read_text().split()[0])
 
 
 class Monitor:
@@ -342,7 +323,7 @@ def run_arms(count: int, models: dict[str, Any], targets: Targets,
             threads = [threading.Thread(target=runs[n].run, args=(clients[n],)) for n in names]
             cpu_before = {n: arm_cpu(g) for n, g in graphs.items()}
             own_before, machine_before = cpu_seconds(os.getpid()), machine_times()
-            load_before = load_average()
+            load_before = os.getloadavg()[0]
             phase_start = time.monotonic()
             for thread in threads:
                 thread.start()
@@ -351,7 +332,7 @@ def run_arms(count: int, models: dict[str, Any], targets: Targets,
             phase_s = time.monotonic() - phase_start
             cpu_after = {n: arm_cpu(g) for n, g in graphs.items()}
             own_after, machine_after = cpu_seconds(os.getpid()), machine_times()
-            load = load_average()
+            load = os.getloadavg()[0]
             time.sleep(2 * DISCOVERY_PERIOD)                 # the last outcomes
             for graph in graphs.values():
                 dead += graph.check()
@@ -367,8 +348,7 @@ def run_arms(count: int, models: dict[str, Any], targets: Targets,
                    / phase_s for n in names}
     return summarise(runs, monitor, per_arm_cpu, {
         'benchmark': (own_after - own_before) / phase_s,
-        'machine_busy': (machine_after[0] - machine_before[0])
-        / max(1, machine_after[1] - machine_before[1]),
+        'machine_busy': busy_share(machine_before, machine_after),
         'load_1min_before': load_before, 'load_1min': load}, ready_s, phase_s, dead)
 
 

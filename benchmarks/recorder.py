@@ -33,6 +33,7 @@ from sensor_msgs.msg import Image, JointState
 from flexarm_bringup.orchestration.launcher import NodeProcess, load_optional, ros_env, stop_all
 from flexarm_bringup.recording.bag_tools import bag_info, read_messages
 from flexarm_core import topics
+from flexarm_core.processes import cpu_seconds
 
 WIDTH, HEIGHT = 640, 480
 # Full names (the root namespace): the bag names its topics so, not as topics.py's relative ones
@@ -46,12 +47,6 @@ def _flushed_count(bag_dir: Path) -> int:
         return meta['rosbag2_bagfile_information']['message_count']
     except (OSError, yaml.YAMLError, TypeError, KeyError):
         return 0
-
-
-def _cpu_seconds(pid: int) -> float:
-    """User + system CPU time of a process so far [s] (Linux /proc)."""
-    fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    return (int(fields[11]) + int(fields[12])) / os.sysconf('SC_CLK_TCK')
 
 
 def publish(node: Any, seconds: float, joint_rate: float, image_rate: float,
@@ -101,7 +96,7 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
     marks: dict[str, float] = {}
 
     def started() -> None:
-        marks['cpu'], marks['wall'] = _cpu_seconds(recorder.process.pid), time.monotonic()
+        marks['cpu'], marks['wall'] = cpu_seconds(recorder.process.pid), time.monotonic()
 
     try:
         sent = publish(node, seconds, joint_rate, image_rate, started)
@@ -113,7 +108,7 @@ def measure(seconds: float, joint_rate: float, image_rate: float, domain_id: int
             elif time.monotonic() - stalled_since > 3.0:
                 break                                # nothing more is coming
             time.sleep(0.1)
-        cpu = _cpu_seconds(recorder.process.pid) - marks['cpu']
+        cpu = cpu_seconds(recorder.process.pid) - marks['cpu']
         busy = time.monotonic() - marks['wall']
         recorder.signal(signal.SIGINT)
         recorder.process.wait(timeout=15.0)

@@ -59,7 +59,7 @@ JSON (last line):
   very process, or with a non-zero code (also when the graph is stopped at the end: SIGINT,
   SIGTERM or SIGKILL exits there are the stop's). ``crash_logs``: their last log lines. Must
   be 0.
-- ``rss_growth_mb``: per node, RSS (/proc, with child processes) sampled every
+- ``rss_growth_mb``: per node, RSS (psutil, with child processes) sampled every
   ``--sample-every`` s of wall (10): the mean over the last hour of arm time minus the mean
   over the first hour after the warm-up (each half the run when it is shorter than two hours).
   Like with like: each sample counts as its growth over its own process's base, its first
@@ -67,7 +67,7 @@ JSON (last line):
   node's fresh process is neither a leak nor a saving; for a node never restarted this is
   simply last minus first. Must be <= 20. ``rss_mb_series``: per node, [arm hour, MB] over
   the run (40 points), to tell a leak (climbing) from a warm-up (levelling off).
-- ``fd_growth``: per node never restarted, open descriptors (/proc/PID/fd) at the end (after the
+- ``fd_growth``: per node never restarted, open descriptors (psutil) at the end (after the
   clients stopped and 5 s) minus after the warm-up. Must be 0.
 - ``lost_samples``: samples collections reported (result.collected, else the last feedback's
   k - skipped) that are not in the dataset file on disk (counted per collection by the samples'
@@ -90,7 +90,6 @@ import argparse
 import contextlib
 import json
 import math
-import os
 import queue
 import random
 import signal
@@ -106,6 +105,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+import psutil
 import rclpy
 from footprint import usage
 from rclpy.context import Context
@@ -668,7 +668,7 @@ class Operator:
 # --- the graph's side ------------------------------------------------------------------------
 @dataclass
 class Proc:
-    """One node process's /proc samples: (sim s, wall s, RSS MB)."""
+    """One node process's samples: (sim s, wall s, RSS MB)."""
 
     name: str
     pid: int
@@ -679,14 +679,15 @@ class Proc:
 
 
 def fds(pid: int) -> int | None:
+    """How many descriptors the process ``pid`` has open (None once it is gone)."""
     try:
-        return len(os.listdir(f'/proc/{pid}/fd'))
-    except OSError:
+        return psutil.Process(pid).num_fds()
+    except psutil.Error:
         return None
 
 
 class Watch:
-    """The graph's nodes: exits told apart from the kills sent, restarts, /proc samples."""
+    """The graph's nodes: exits told apart from the kills sent, restarts, process samples."""
 
     def __init__(self, graph: Graph, say: Callable[[str], None], every: float) -> None:
         self.graph, self.say, self.every = graph, say, every
@@ -1147,7 +1148,7 @@ def main() -> None:
     parser.add_argument('--blind-s', type=float, default=45.0,
                         help='[s, arm time] longest blind spell (from 5 s)')
     parser.add_argument('--sample-every', type=float, default=10.0,
-                        help='[s, wall] between two /proc samples of the nodes')
+                        help='[s, wall] between two process samples of the nodes')
     parser.add_argument('--rtf', type=float, default=10.0, help='simulator real-time factor')
     parser.add_argument('--max-minutes', type=float, default=0.0,
                         help='wall-clock budget, then the run ends early (0: none)')

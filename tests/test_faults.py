@@ -13,6 +13,7 @@ import time
 import uuid
 from pathlib import Path
 
+import psutil
 import pytest
 import rclpy
 from rclpy.context import Context
@@ -28,20 +29,7 @@ pytestmark = [pytest.mark.node, pytest.mark.duration(100)]
 
 def children(pid: int) -> set[int]:
     """PIDs whose parent is ``pid`` (zombies excluded)."""
-    found = set()
-    for child in processes.pids():
-        fields = processes.stat_fields(child)
-        if fields is not None and int(fields[1]) == pid and fields[0] != 'Z':
-            found.add(child)
-    return found
-
-
-def alive(pid: int) -> bool:
-    try:
-        state = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0]
-    except OSError:
-        return False
-    return state != 'Z'
+    return {child.pid for child in psutil.Process(pid).children() if processes.alive(child.pid)}
 
 
 class LearnerGraph:
@@ -117,7 +105,7 @@ def test_a_learner_killed_after_training_leaves_no_worker(learner, wait_for):
     assert workers, 'the training worker process was not found'
     node.killed_shm += owned_shm(pid)             # removed when the graph stops
     os.kill(pid, signal.SIGKILL)                  # the learner only, not its process group
-    wait_for(lambda: not any(alive(w) for w in workers), 5.0,
+    wait_for(lambda: not any(processes.alive(w) for w in workers), 5.0,
              f'the learner\'s children {sorted(workers)} to die with it')
 
 

@@ -25,7 +25,7 @@ import pytest
 
 from flexarm_bringup.orchestration.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
 from flexarm_bringup.results.outcome_text import Exit
-from flexarm_core import liveness
+from flexarm_core import liveness, processes
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import CALIBRATION_DIR, MODELS_DIR, RUNS_DIR, repo_path
@@ -124,17 +124,10 @@ def status(domain_id: int) -> tuple[int, dict]:
 
 def processes_of(token: str) -> dict[int, str]:
     """Live processes whose environment carries the harness ``token``: their command lines."""
-    wanted, found = f'{HARNESS_ENV}={token}'.encode(), {}
-    for entry in Path('/proc').glob('[0-9]*'):
-        try:
-            if (int(entry.name) == os.getpid()
-                    or wanted not in (entry / 'environ').read_bytes().split(b'\0')
-                    or (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z'):
-                continue
-            command = (entry / 'cmdline').read_bytes().replace(b'\0', b' ').decode()
-        except (OSError, IndexError):
-            continue
-        found[int(entry.name)] = command
+    found = {}
+    for pid, env in processes.environments().items():
+        if pid != os.getpid() and env.get(HARNESS_ENV) == token:
+            found[pid] = ' '.join(processes.command_line(pid))
     return found
 
 

@@ -25,8 +25,8 @@ RUN_DEPENDS = ('depend', 'exec_depend')
 # Import names that differ from their rosdep key; a ROS package imports as its own name.
 KEYS = {'cv2': 'python3-opencv', 'foxglove': 'python3-foxglove-sdk-pip',
         'matplotlib': 'python3-matplotlib', 'mcap': 'python3-mcap-pip',
-        'mcap_ros2': 'mcap-ros2-support', 'numpy': 'python3-numpy', 'pytest': 'python3-pytest',
-        'scipy': 'python3-scipy', 'sklearn': 'python3-sklearn',
+        'mcap_ros2': 'mcap-ros2-support', 'numpy': 'python3-numpy', 'psutil': 'python3-psutil',
+        'pytest': 'python3-pytest', 'scipy': 'python3-scipy', 'sklearn': 'python3-sklearn',
         'threadpoolctl': 'python3-threadpoolctl', 'torch': 'python3-torch',
         'tqdm': 'python3-tqdm', 'yaml': 'python3-yaml', 'rosbags': 'python3-rosbags-pip',
         'urdf_parser_py': 'urdfdom_py'}

@@ -91,12 +91,15 @@ def test_lock_names_carry_domain_and_namespace():
     assert parse_lock_name('notes.txt') is None and parse_lock_name('x-1.lock') is None
 
 
-def test_proc_locks_give_the_holder_of_each_flock_only():
+def test_proc_locks_give_the_holders_of_each_flock_only():
     text = ('1: FLOCK  ADVISORY  WRITE 27728 00:1b:4984466 0 EOF\n'
             '1: -> FLOCK  ADVISORY  WRITE 31000 00:1b:4984466 0 EOF\n'
             '2: POSIX  ADVISORY  WRITE 512 fd:01:77 0 EOF\n'
-            '3: FLOCK  ADVISORY  WRITE 4242 fd:01:99 0 EOF\n')
-    assert lock_holders(text) == {(0, 0x1b, 4984466): 27728, (0xfd, 1, 99): 4242}
+            '3: FLOCK  ADVISORY  WRITE 4242 fd:01:99 0 EOF\n'
+            '4: FLOCK  ADVISORY  READ 5151 fd:01:98 0 EOF\n'       # a shared lock, two holders
+            '4: FLOCK  ADVISORY  READ 5252 fd:01:98 0 EOF\n')
+    assert lock_holders(text) == [((0, 0x1b, 4984466), 27728), ((0xfd, 1, 99), 4242),
+                                  ((0xfd, 1, 98), 5151), ((0xfd, 1, 98), 5252)]
 
 
 def test_ps_lists_the_graphs_whose_lock_is_held_with_their_record(dirs, holders):

@@ -94,16 +94,11 @@ def test_a_free_domain_is_one_no_process_runs_in() -> None:
     assert did not in domains.in_use()
 
 
-def test_the_domains_in_use_are_read_from_live_processes(tmp_path) -> None:
-    for pid, environ, state in [(11, b'A=1\0ROS_DOMAIN_ID=7\0', 'S'),
-                                (12, b'ROS_DOMAIN_ID=8', 'Z'),          # a zombie: dead
-                                (13, b'ROS_DOMAIN_ID=\0', 'R'),         # empty: none
-                                (14, b'ROS_DOMAIN_ID= 9\0', 'R')]:      # as rcl reads it
-        (tmp_path / str(pid)).mkdir()
-        (tmp_path / str(pid) / 'environ').write_bytes(environ)
-        (tmp_path / str(pid) / 'stat').write_text(f'{pid} (python) {state} 1 2 3')
-    (tmp_path / '15').mkdir()                                              # not ours to read
-    assert domains.in_use(tmp_path) == {7, 9}
+def test_the_domains_in_use_are_read_from_the_environments() -> None:
+    assert domains.domain_ids([{'A': '1', 'ROS_DOMAIN_ID': '7'},
+                               {'ROS_DOMAIN_ID': ''},                # empty: none
+                               {'ROS_DOMAIN_ID': ' 9'},              # as rcl reads it
+                               {'ROS_DOMAIN_ID': 'x'}, {}]) == {7, 9}
 
 
 def test_an_exported_domain_that_runs_the_arm_already_is_refused_naming_its_graph(

@@ -23,7 +23,7 @@ localhost profile: :mod:`flexarm_core.dds_profile`), else when its GUID has the 
 id. That id is a hash of the host name and of the IPv4 addresses the process saw when it
 started, so a process started while a network interface was up (a VPN, a container's bridge, a
 test's veth) has another: the server cannot tell it from a remote client by it. A client on
-another host, or in a process this machine's ``/proc`` does not show (another PID namespace),
+another host, or in a process this machine's process list does not show (another PID namespace),
 is judged by discovery alone.
 """
 from __future__ import annotations
@@ -31,11 +31,14 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, replace
-from pathlib import Path
 from typing import Any, Protocol
 
+import psutil
+
+from flexarm_core.processes import start_time
+
 Endpoint = tuple[bytes, str]      # (endpoint gid, full node name)
-Process = tuple[int, int]         # (process id, start time in clock ticks since boot)
+Process = tuple[int, int]         # (process id, start in clock ticks: processes.start_time)
 FASTDDS = b'\x01\x0f'             # RTPS vendor id of eProsima Fast DDS
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'   # what discovery reports before it knows the name
 _SENDER = re.compile(r'goal sent by ((?:one of )?[^;()]+)')
@@ -87,28 +90,14 @@ class Processes(Protocol):
 
 
 class ProcTable:
-    """:class:`Processes` of Linux's ``/proc`` (a zombie counts as ended)."""
+    """:class:`Processes` of this machine, by psutil (a zombie counts as ended)."""
 
     def with_bits(self, bits: int) -> frozenset[Process]:
-        try:
-            pid_max = int(Path('/proc/sys/kernel/pid_max').read_text())
-        except (OSError, ValueError):
-            pid_max = 1 << 22      # the kernel's largest
-        found = {(pid, start) for pid in range(bits, pid_max + 1, 1 << 16)
-                 if (start := start_time(pid)) is not None}
-        return frozenset(found)
+        return frozenset((pid, start) for pid in psutil.pids()
+                         if pid & 0xFFFF == bits and (start := start_time(pid)) is not None)
 
     def alive(self, process: Process) -> bool:
         return start_time(process[0]) == process[1]
-
-
-def start_time(pid: int) -> int | None:
-    """Start time of a live process, None if there is none (or only a zombie)."""
-    try:
-        fields = Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()
-    except (OSError, IndexError):
-        return None
-    return None if fields[0] == 'Z' else int(fields[19])   # fields 3 (state) and 22
 
 
 @dataclass(frozen=True)

@@ -55,30 +55,45 @@ def parse_lock_name(name: str) -> tuple[int, str] | None:
 
 
 PROC_LOCKS = Path('/proc/locks')
+FileKey = tuple[int, int, int]      # (device major, minor, inode): a file as /proc/locks names it
 
 
-def lock_holders(proc_locks: str) -> dict[tuple[int, int, int], int]:
-    """(device major, minor, inode): pid of every FLOCK in ``/proc/locks``' text."""
-    holders = {}
+def lock_holders(proc_locks: str) -> list[tuple[FileKey, int]]:
+    """(file, holder pid) of every FLOCK in ``/proc/locks``' text: a pair per holder (a shared
+    lock has several), none for a process waiting for a lock."""
+    holders = []
     for line in proc_locks.splitlines():
         fields = line.split()
         if len(fields) < 6 or fields[1] != 'FLOCK':
             continue            # another kind, or '->': a process waiting for the lock
         try:
             major, minor, inode = fields[5].split(':')
-            holders[int(major, 16), int(minor, 16), int(inode)] = int(fields[4])
+            holders.append(((int(major, 16), int(minor, 16), int(inode)), int(fields[4])))
         except ValueError:
             continue
     return holders
 
 
-def lock_holder(path: Path, holders: dict[tuple[int, int, int], int]) -> int | None:
-    """The pid holding an flock on ``path`` (per :func:`lock_holders`), None if none does."""
+def held_locks(proc_locks: Path = PROC_LOCKS) -> list[tuple[FileKey, int]]:
+    """:func:`lock_holders` of this machine now (none if ``proc_locks`` cannot be read):
+    psutil has no view of flocks."""
     try:
-        st = path.stat()
+        return lock_holders(proc_locks.read_text())
+    except OSError:
+        return []
+
+
+def file_key(info: os.stat_result) -> FileKey:
+    """The :data:`FileKey` of a file's ``stat``."""
+    return os.major(info.st_dev), os.minor(info.st_dev), info.st_ino
+
+
+def lock_holder(path: Path, holders: Mapping[FileKey, int]) -> int | None:
+    """The pid holding an flock on ``path`` (of :func:`lock_holders`), None if none does."""
+    try:
+        return holders.get(file_key(path.stat()))
     except OSError:
         return None
-    return holders.get((os.major(st.st_dev), os.minor(st.st_dev), st.st_ino))
 
 
 @dataclass(frozen=True)
@@ -103,10 +118,7 @@ def running_graphs(lock_dir: Path, runs_dir: Path, proc_locks: Path = PROC_LOCKS
                    ) -> list[RunningGraph]:
     """Every graph whose supervisor holds its lock in ``lock_dir``, by domain and namespace,
     with what its record under ``runs_dir`` says."""
-    try:
-        holders = lock_holders(proc_locks.read_text())
-    except OSError:
-        holders = {}
+    holders = dict(held_locks(proc_locks))
     records = _records(runs_dir)
     graphs = []
     for path in sorted(Path(lock_dir).glob('*.lock')):

@@ -11,10 +11,11 @@ from __future__ import annotations
 import contextlib
 import os
 import socket
-from collections.abc import Iterator
-from pathlib import Path
+from collections.abc import Iterable, Iterator, Mapping
 
 from domain_coordinator.impl import PORT_BASE
+
+from flexarm_core import processes
 
 FIRST, LAST = 1, 100     # domain_coordinator's range
 MAX_DOMAIN_ID = 232      # the largest ROS_DOMAIN_ID whose DDS ports exist
@@ -31,24 +32,21 @@ def hold(domain_id: int) -> socket.socket | None:
     return sock
 
 
-def in_use(proc: Path = Path('/proc')) -> set[int]:
+def in_use() -> set[int]:
     """The domains live processes of this machine run in, as their environment's
     ROS_DOMAIN_ID says (this process and those not ours to read left out): a process started
     in a domain holds no reservation of it, a ``ros2`` tool or another vendor's node, say."""
+    own = os.getpid()
+    return domain_ids(env for pid, env in processes.environments().items() if pid != own)
+
+
+def domain_ids(environments: Iterable[Mapping[str, str]]) -> set[int]:
+    """The ROS_DOMAIN_ID each of ``environments`` names, read as rcl does (an empty one names
+    none)."""
     found: set[int] = set()
-    for entry in proc.glob('[0-9]*'):
-        if entry.name == str(os.getpid()):
-            continue
-        try:
-            variables = (entry / 'environ').read_bytes().split(b'\0')
-            if (entry / 'stat').read_text().rsplit(')', 1)[1].split()[0] == 'Z':
-                continue                     # a zombie: dead already
-        except (OSError, IndexError):
-            continue                         # ended meanwhile, or not ours to read
-        for variable in variables:
-            if variable.startswith(b'ROS_DOMAIN_ID='):
-                with contextlib.suppress(ValueError):
-                    found.add(int(variable.split(b'=', 1)[1]))
+    for env in environments:
+        with contextlib.suppress(ValueError):
+            found.add(int(env.get('ROS_DOMAIN_ID', '')))
     return found
 
 

@@ -44,7 +44,7 @@ from flexarm_bringup.orchestration.status_text import (
     real_time_factor,
 )
 from flexarm_control.learning.models import model_metadata
-from flexarm_core import liveness, topics
+from flexarm_core import liveness, processes, topics
 from flexarm_core.graph_locks import RECORD
 from flexarm_core.health_report import ERROR, LEVEL_NAMES
 from flexarm_msgs.msg import ModelHealth, ModelInfo
@@ -93,16 +93,8 @@ def reporting_nodes(statuses: Mapping[str, Heard]) -> set[str]:
     return {name.split(': ', 1)[0] for name in statuses}
 
 
-def process_alive(pid: int) -> bool:
-    """Whether ``pid`` is a process of this machine that has not ended (zombies have)."""
-    try:
-        return Path(f'/proc/{pid}/stat').read_text().rsplit(')', 1)[1].split()[0] != 'Z'
-    except (OSError, IndexError):
-        return False
-
-
 def graph_problems(errors: Mapping[str, str], record: Mapping[str, Any] | None,
-                   alive: Callable[[int], bool] = process_alive,
+                   alive: Callable[[int], bool] = processes.alive,
                    silent_controller: str | None = None) -> list[str]:
     """What is wrong with the graph, a line each: the nodes of the supervisor ``record`` whose
     process is gone (the supervisor restarts only some, and a dead one is otherwise merely
@@ -163,7 +155,7 @@ def supervisor_record(runs_dir: Path, domain_id: int, namespace: str = ''
 
 
 def record_nodes(record: Mapping[str, Any] | None,
-                 alive: Callable[[int], bool] = process_alive) -> tuple[set[str], set[str]]:
+                 alive: Callable[[int], bool] = processes.alive) -> tuple[set[str], set[str]]:
     """What a supervisor ``record`` says runs: its nodes on this machine whose process lives,
     and the remote ones (other hosts', only discovery can tell)."""
     if record is None:

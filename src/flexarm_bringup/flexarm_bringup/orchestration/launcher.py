@@ -23,6 +23,7 @@ from typing import IO, Any
 import yaml
 
 from flexarm_core import processes
+from flexarm_core.graph_locks import FileKey, file_key, held_locks
 from flexarm_core.params import SAFE_LOADER, config_layers, load_config
 from flexarm_core.parent_death import signal_on_parent_death
 from flexarm_core.transport import transport_env
@@ -377,12 +378,12 @@ def owned_shm(pid: int, shm_dir: Path = SHM_DIR) -> list[Path]:
     owned = []
     for lock in shm_dir.glob('fastrtps_*_el'):
         try:
-            info = lock.stat()
+            key = file_key(lock.stat())
         except OSError:
             continue
-        if (info.st_dev, info.st_ino) in held:
+        if key in held:
             owned += [lock, lock.with_name(lock.name.removesuffix('_el'))]
-    for path in sorted(_mapped_files(shm_dir, pid)):
+    for path in sorted(processes.mapped_files(shm_dir, pid)):
         name = Path(path).name
         if name.startswith('fastrtps_port'):
             owned += [Path(path), shm_dir / f'sem.{name}_mutex']
@@ -404,40 +405,24 @@ def remove_shm_of_dead(files: list[Path], shm_dir: Path = SHM_DIR) -> int:
 def shm_in_use(shm_dir: Path = SHM_DIR) -> set[str]:
     """Files of ``shm_dir`` a live process maps or holds a lock on, with the lock and mutex
     files of every mapped port."""
-    mapped = _mapped_files(shm_dir)
+    mapped = processes.mapped_files(shm_dir)
     used = set(mapped)
     for path in mapped:
         used |= {f'{path}_el', str(shm_dir / f'sem.{Path(path).name}_mutex')}
     held = _flocks()
     for path in shm_dir.glob('fastrtps_*'):
         try:
-            info = path.stat()
+            key = file_key(path.stat())
         except OSError:
             continue
-        if (info.st_dev, info.st_ino) in held:
+        if key in held:
             used.add(str(path))
     return used
 
 
-def _flocks(pid: int | None = None) -> set[tuple[int, int]]:
-    """(device, inode) of the files flock-ed by ``pid`` (by any process if None), from
-    /proc/locks."""
-    held: set[tuple[int, int]] = set()
-    try:
-        lines = Path('/proc/locks').read_text().splitlines()
-    except OSError:
-        return held
-    for line in lines:
-        fields = line.split()
-        if len(fields) < 6 or fields[1] != 'FLOCK' or '->' in fields:
-            continue
-        try:
-            if pid is None or int(fields[4]) == pid:
-                major, minor, inode = fields[5].split(':')
-                held.add((os.makedev(int(major, 16), int(minor, 16)), int(inode)))
-        except ValueError:
-            continue
-    return held
+def _flocks(pid: int | None = None) -> set[FileKey]:
+    """The files flock-ed by ``pid`` (by any process if None)."""
+    return {key for key, holder in held_locks() if pid is None or holder == pid}
 
 
 def _unlink(*paths: Path) -> int:
@@ -450,16 +435,3 @@ def _unlink(*paths: Path) -> int:
         except OSError:
             pass
     return removed
-
-
-def _mapped_files(directory: Path, pid: int | None = None) -> set[str]:
-    """Paths under ``directory`` that a process maps (``pid``, or any whose map is
-    readable)."""
-    prefix, mapped = f'{directory}/', set()
-    for each in [pid] if pid is not None else processes.pids():
-        text = processes.read_text(each, 'maps')     # None: ended meanwhile, or not ours
-        for line in (text or '').splitlines():
-            path = line.split(maxsplit=5)[-1] if line.count(' ') >= 5 else ''
-            if path.startswith(prefix):
-                mapped.add(path.removesuffix(' (deleted)'))
-    return mapped

@@ -29,7 +29,7 @@ class Holder:
     node: str                 # full node name, /ns/name
     pid: int = 0              # 0: unknown (judged by the graph alone)
     host: str = ''
-    start_time: int | None = None   # the process's start (clock ticks), when on this host
+    start_time: int | None = None   # its start (clock ticks: flexarm_core.processes), on this host
 
 
 @dataclass(frozen=True)

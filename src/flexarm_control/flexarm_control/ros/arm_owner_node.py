@@ -20,8 +20,8 @@ from rclpy.qos import DurabilityPolicy, QoSProfile
 
 from flexarm_control.execution.arm_ownership import ArmOwnership, Holder, Motion, Refused
 from flexarm_core import topics
-from flexarm_core.goal_owner import start_time
 from flexarm_core.health_report import OK, Status, status
+from flexarm_core.processes import start_time
 from flexarm_core.ros.diagnostics import DiagnosticsPublisher
 from flexarm_core.ros.node_main import run
 from flexarm_core.ros.stamps import GraphTime, to_ns

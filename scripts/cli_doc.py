@@ -14,6 +14,8 @@ import sys
 from collections.abc import Iterator
 from pathlib import Path
 
+from generated_file import write_or_check  # scripts/, the path of a script run
+
 from flexarm_bringup.cli.arguments import build_parser
 from flexarm_core.paths import STATE
 
@@ -116,16 +118,7 @@ def main(argv: list[str] | None = None) -> int:
     args = parser.parse_args(argv)
     current = PAGE.read_text(encoding='utf-8')
     text = page(current, render())
-    if args.check:
-        if current != text:
-            print(f'{PAGE.relative_to(ROOT)} is out of date: run python scripts/cli_doc.py',
-                  file=sys.stderr)
-            return 1
-        return 0
-    tmp = PAGE.with_suffix('.md.tmp')
-    tmp.write_text(text, encoding='utf-8')
-    tmp.replace(PAGE)
-    return 0
+    return write_or_check(PAGE, text, args.check)
 
 
 if __name__ == '__main__':

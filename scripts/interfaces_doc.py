@@ -12,6 +12,8 @@ import ast
 import sys
 from pathlib import Path
 
+from generated_file import write_or_check  # scripts/, the path of a script run
+
 ROOT = Path(__file__).resolve().parents[1]
 TOPICS = ROOT / 'src/flexarm_core/flexarm_core/topics.py'
 MSGS = ROOT / 'src/flexarm_msgs'
@@ -101,17 +103,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--check', action='store_true',
                         help='exit 1 when the page differs from what the sources give')
     args = parser.parse_args(argv)
-    text = render()
-    if args.check:
-        if PAGE.read_text(encoding='utf-8') != text:
-            print(f'{PAGE.relative_to(ROOT)} is out of date: run python '
-                  'scripts/interfaces_doc.py', file=sys.stderr)
-            return 1
-        return 0
-    tmp = PAGE.with_suffix('.md.tmp')
-    tmp.write_text(text, encoding='utf-8')
-    tmp.replace(PAGE)
-    return 0
+    return write_or_check(PAGE, render(), args.check)
 
 
 if __name__ == '__main__':

@@ -18,6 +18,7 @@ from collections.abc import Mapping
 from pathlib import Path
 
 import yaml
+from generated_file import write_or_check  # scripts/, the path of a script run
 
 from flexarm_bringup.orchestration.launcher import (
     NodeSpec,
@@ -212,18 +213,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument('--check', action='store_true',
                         help='exit 1 when the launch file differs from what graph.yaml gives')
     args = parser.parse_args(argv)
-    text = render()
-    if args.check:
-        if not LAUNCH_FILE.is_file() or LAUNCH_FILE.read_text(encoding='utf-8') != text:
-            print(f'{LAUNCH_FILE.relative_to(ROOT)} is out of date: run python '
-                  'scripts/launch_file.py', file=sys.stderr)
-            return 1
-        return 0
-    LAUNCH_FILE.parent.mkdir(exist_ok=True)
-    tmp = LAUNCH_FILE.with_suffix('.tmp')
-    tmp.write_text(text, encoding='utf-8')
-    tmp.replace(LAUNCH_FILE)
-    return 0
+    return write_or_check(LAUNCH_FILE, render(), args.check)
 
 
 if __name__ == '__main__':

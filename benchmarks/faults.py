@@ -349,6 +349,11 @@ class Graph:
         self.owned: list[tuple[Row, set[str]]] = []   # files of each killed node
         self.made_by: dict[str, Row] = {}     # marker of processes a scenario started: its row
         self.at: tuple[float, float, float] | None = None   # target of the last goal
+        # a bridge graph drives the rehearsal program (the simulated arm behind the
+        # controller protocol, on the wall clock), started first as a site's controller is
+        self.rehearsal = (Command(['rehearse', '--domain-id', str(domain)],
+                                  {**self.env, MARKER: f'{self.marker}-rehearsal'}, self.ledger)
+                          if robot == 'bridge' else None)
         self.up = self.start_up()
         self._sampler = Sampler(self.ledger)
 
@@ -463,6 +468,8 @@ class Graph:
         the shared memory it left (:meth:`account`)."""
         try:
             self.up.stop()
+            if self.rehearsal is not None:
+                self.rehearsal.stop()
             wait_until(lambda: not marked(self.marker, family=True), SETTLE_S)
             left = marked(self.marker, family=True)
             teardown.orphans += len(left)

@@ -13,8 +13,11 @@ from flexarm_control.execution.bound_check import (
     beyond_bound,
     needed_factor,
 )
+from flexarm_core.params import load_config
 
 CAMERA = np.array([0.02e-3, 1e-4])
+SETTINGS = OnlineSettings.from_dict(load_config(
+    'compensator.yaml', node_name='flexarm_compensator')['online_bound'])
 PARTS = BoundParts(np.array([0.06e-3, 1e-3]), np.array([0.03e-3, 2e-4]))
 
 
@@ -37,7 +40,7 @@ def test_the_score_is_the_factor_that_would_just_have_covered_the_goal():
 
 
 def test_an_undeclared_load_widens_the_next_plans_and_a_new_model_starts_again():
-    online = OnlineBound(OnlineSettings())
+    online = OnlineBound(SETTINGS)
     online.reset('7')
     for _ in range(10):                                  # a healthy model: goals within
         assert online.account((0.03e-3, 1e-4), PARTS, CAMERA)
@@ -60,7 +63,7 @@ def test_an_undeclared_load_widens_the_next_plans_and_a_new_model_starts_again()
 
 
 def test_a_miss_within_the_gross_limit_raises_the_factor_only():
-    online = OnlineBound(OnlineSettings())
+    online = OnlineBound(SETTINGS)
     assert not online.account((0.15e-3, 1e-4), PARTS, CAMERA)   # 2.4 times the model's part
     assert not online.broken and 2.0 < online.inflation.factor[0] < 3.0
     assert online.inflation.factor[1] == 1.0

@@ -89,9 +89,11 @@ def needed_factor(error: tuple[float, float], parts: BoundParts, camera: np.ndar
 
 @dataclass(frozen=True)
 class OnlineSettings:
-    gamma: float = 0.005     # ACI's step of the miss level
-    window: int = 100        # latest goals the quantile is taken over
-    gross: float = 3.0       # a goal beyond this times its stated factor: the arm changed
+    """config/compensator.yaml ``online_bound``."""
+
+    gamma: float             # ACI's step of the miss level
+    window: int              # latest goals the quantile is taken over
+    gross: float             # a goal beyond this times its stated factor: the arm changed
 
     @classmethod
     def from_dict(cls, d: Mapping[str, Any]) -> OnlineSettings:

@@ -193,7 +193,7 @@ def _kill_and_reap(pids: list[int]) -> list[int]:
 class DomainPool:
     """ROS domain ids for the run: each handed out once, held until the run ends.
 
-    A domain is taken by reserving it (:mod:`flexarm_bringup.orchestration.domains`), which
+    A domain is taken by reserving it (:mod:`flexarm_bringup.domains`), which
     ``flexarm up`` and parallel runs respect, and only if no process of this machine is in it.
     """
 
@@ -201,7 +201,7 @@ class DomainPool:
         self._held: dict[int, socket.socket | None] = {}    # None: lent (:meth:`lent`)
 
     def take(self) -> int:
-        from flexarm_bringup.orchestration import domains
+        from flexarm_bringup import domains
 
         for did in range(domains.FIRST, domains.LAST + 1):
             if did in self._held:
@@ -224,7 +224,7 @@ class DomainPool:
         takes the reservation once the block has begun): no other module of the run, and no
         free-domain search (``domains.first_free``), takes a domain a process runs in, and a
         domain nobody runs in and nobody reserves is free for anyone."""
-        from flexarm_bringup.orchestration import domains
+        from flexarm_bringup import domains
 
         sock = self._held[did]
         assert sock is not None, f'domain {did} is lent already'
@@ -308,7 +308,7 @@ class Launcher:
 
     def __call__(self, name: str, robot: str = 'sim', namespace: str = '',
                  arm_owner: bool = True, **parameters: Any) -> Any:
-        from flexarm_bringup.orchestration.launcher import (
+        from flexarm_bringup.launcher import (
             NodeProcess,
             load_graph,
             load_optional,
@@ -331,7 +331,7 @@ class Launcher:
         return node
 
     def stop_all(self) -> None:
-        from flexarm_bringup.orchestration.launcher import stop_all
+        from flexarm_bringup.launcher import stop_all
 
         codes = stop_all(self.started, timeout=5.0)
         running = [name for name, code in codes.items() if code is None]
@@ -428,7 +428,7 @@ def write_dataset() -> Callable[..., None]:
 def _write_dataset(path: Path, count: int = 12, bad: int | None = None) -> None:
     import numpy as np
 
-    from flexarm_control.learning.dataset import DatasetWriter, Sample
+    from flexarm_deflection.dataset import DatasetWriter, Sample
 
     joints = np.random.default_rng(0).uniform([-0.3, 0.5, -1.5, -1.0], [0.3, 0.8, 0.3, 1.0],
                                                (count, 4))

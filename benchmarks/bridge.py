@@ -29,14 +29,14 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
-from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.orchestration.launcher import (
+from flexarm_bringup.launcher import (
     NodeProcess,
     load_graph,
     load_rehearsal,
     ros_env,
     stop_all,
 )
+from flexarm_cli.experiment import reserved_domain
 from flexarm_core import topics
 from flexarm_test_support.link_proxy import TO_CONTROLLER, TO_PC, LinkProxy
 

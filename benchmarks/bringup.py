@@ -23,8 +23,8 @@ import tempfile
 import time
 from pathlib import Path
 
-from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.supervisor import Graph
+from flexarm_cli.experiment import reserved_domain
 from flexarm_core.paths import RUNS_DIR
 
 
@@ -72,7 +72,7 @@ def main() -> None:
 def status_call(domain: int) -> float:
     """[s] from starting ``flexarm status`` to its exit (an error if it found no graph)."""
     start = time.monotonic()
-    done = subprocess.run([sys.executable, '-m', 'flexarm_bringup.cli', 'status', '--quiet',
+    done = subprocess.run([sys.executable, '-m', 'flexarm_cli', 'status', '--quiet',
                            '--domain-id', str(domain)], capture_output=True, text=True)
     took = time.monotonic() - start
     if done.returncode not in (0, 5):      # 5: the graph has a problem, it still answered

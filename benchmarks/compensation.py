@@ -24,12 +24,12 @@ from scipy.optimize import least_squares
 from threadpoolctl import threadpool_limits
 
 from flexarm_control.execution.compensator import Compensator
-from flexarm_control.learning.models import make_model
-from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, inverse
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.models import make_model
+from flexarm_deflection.sampling import sample_poses
 from flexarm_sim.plant import Plant
 
 

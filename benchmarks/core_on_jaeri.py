@@ -23,11 +23,11 @@ import time
 import numpy as np
 from threadpoolctl import threadpool_limits
 
-from flexarm_control.learning.models import make_model
-from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.params import load_config
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.models import make_model
+from flexarm_deflection.sampling import sample_poses
 from flexarm_sim.plant import Plant
 
 PLAN_ROWS = 4      # rows a compensation step predicts at once: the point and three probes

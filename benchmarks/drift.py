@@ -8,15 +8,15 @@ region (A, B) and training seed:
 
 1. learn: ``--samples`` Sobol learning samples, the learner's default training;
 2. ``before``: ``--targets`` PREDICTIVE goals at random targets of the region; their measured
-   tips feed the model health (:mod:`flexarm_control.learning.model_health`) as in the compensator;
+   tips feed the model health (:mod:`flexarm_deflection.model_health`) as in the compensator;
 3. the change: ``payload`` a 2 kg tool nobody declared; ``thermal`` the arm 15 K warmer (0.2 mm
    growth at full reach); ``bent_link`` the No.2 arm bent so its end stands 1 mm off its axis
    (config/sim.yaml ``plant.fabrication.offset`` + 1 mm); ``none`` no change (false alarms);
 4. ``after``: the same targets again, feeding the health; ``detected_after`` the goals it took
    to mark the region stale;
-5. refresh: ``--refresh-samples`` samples at :func:`flexarm_control.learning.refresh.refresh_poses`
+5. refresh: ``--refresh-samples`` samples at :func:`flexarm_deflection.refresh.refresh_poses`
    (the worst residuals seen, then space-filling), the correction fitted
-   (:mod:`flexarm_control.learning.drift_correction`); ``refreshed``: the same targets once more.
+   (:mod:`flexarm_deflection.drift_correction`); ``refreshed``: the same targets once more.
 
 Errors are the true tip against the target (mm), pooled over regions and seeds (p95, max);
 ``worst_run_refreshed_p95_mm`` is the worst single run. Target: refreshed ≤ 0.3 mm with ≤ 10
@@ -46,14 +46,14 @@ from flexarm_control.execution.collection import Collector
 from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execute
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.planning import Refusal, plan_goal
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.model_health import HealthSettings, ModelHealth
-from flexarm_control.learning.predictors import Predictor
-from flexarm_control.learning.refresh import refresh_poses, refreshed
-from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
-from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward, pose_error
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.model_health import HealthSettings, ModelHealth
+from flexarm_deflection.predictors import Predictor
+from flexarm_deflection.refresh import refresh_poses, refreshed
+from flexarm_deflection.sampling import random_targets, sample_poses, travel_order
+from flexarm_deflection.selection import fit_robust
 
 SCENARIOS = ('payload', 'thermal', 'bent_link', 'none')
 TARGET_SEED = 7100

@@ -3,7 +3,7 @@ CLOSED_LOOP, alone and all together, judged against the simulator's truth.
 
 Offline and deterministic: the control core's own policies (the learner's collection loop and
 training, the compensator's planning and goal execution,
-:mod:`flexarm_control.execution.arm_motion` with config/motion.yaml's approach leg and averaging)
+:mod:`flexarm_motion.arm_motion` with config/motion.yaml's approach leg and averaging)
 drive the simulated arm without its dynamics (:class:`flexarm_sim.static_arm.StaticArm`: the error
 sources of config/sim.yaml ``error_sources`` at their configured magnitudes, images of the plate
 rendered by the true camera and measured by the vision estimator with the calibrated one). Per
@@ -54,7 +54,6 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.execution.arm_motion import Abort, ArmMotion, MotionSettings, never
 from flexarm_control.execution.collection import Collector
 from flexarm_control.execution.compensator import CompensationError, Compensator
 from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execute
@@ -66,15 +65,16 @@ from flexarm_control.execution.tool_calibration import (
     joint4_sweep,
     sweep_joints,
 )
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.sampling import random_targets, sample_poses, travel_order
-from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.measurement import Measurement
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config
 from flexarm_core.regions import configured_regions
 from flexarm_core.tool_correction import ToolCorrection
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.sampling import random_targets, sample_poses, travel_order
+from flexarm_deflection.selection import fit_robust
+from flexarm_motion.arm_motion import Abort, ArmMotion, MotionSettings, never
 from flexarm_sim.errors import ArmErrors
 from flexarm_sim.plant import Plant
 from flexarm_sim.static_arm import StaticArm

@@ -76,8 +76,8 @@ import psutil
 
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
-from flexarm_bringup.orchestration.domains import reserved
-from flexarm_bringup.orchestration.launcher import (
+from flexarm_bringup.domains import reserved
+from flexarm_bringup.launcher import (
     NodeProcess,
     load_rehearsal,
     owned_shm,
@@ -86,12 +86,12 @@ from flexarm_bringup.orchestration.launcher import (
     shm_in_use,
     stop_all,
 )
-from flexarm_control.learning.dataset import load_dataset
 from flexarm_core.graph_locks import file_key, held_locks
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import RUNS_DIR, repo_path
 from flexarm_core.processes import command_line, descendants, environments, mapped_files
+from flexarm_deflection.dataset import load_dataset
 from flexarm_test_support.link_attacks import replay_accepted
 from flexarm_test_support.remote_peer import remote_attack, unavailable
 
@@ -212,7 +212,7 @@ def used_shm(pid: int, files: dict[str, int]) -> dict[str, int]:
 class ShmLedger:
     """The /dev/shm files the processes of one graph (a marker family) created: each file one of
     them uses (:func:`used_shm`) that was not there (same name and inode) before; with the marker
-    of the process that owns it (:func:`~flexarm_bringup.orchestration.launcher.owned_shm`: the
+    of the process that owns it (:func:`~flexarm_bringup.launcher.owned_shm`: the
     files nobody removes once it dies), else of the first that used it.
 
     Sampled every :data:`SAMPLE_S` and before every SIGKILL of the harness: a file is missed

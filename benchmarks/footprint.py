@@ -51,12 +51,12 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.serialization import deserialize_message
 from rosgraph_msgs.msg import Clock
 
-from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.orchestration.supervisor import Graph
-from flexarm_bringup.recording.bag_tools import bag_info
+from flexarm_bringup.supervisor import Graph
+from flexarm_cli.experiment import reserved_domain
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.processes import busy_share, cpu_seconds, descendants, machine_times
+from flexarm_recording.bag_tools import bag_info
 
 READY_S = 120.0        # [s] bound of the graph's bring-up
 SMOKE = {'settle': 1.0, 'seconds': 3.0, 'samples': 2}

@@ -49,9 +49,9 @@ from typing import Any
 import rclpy
 from rclpy.context import Context
 
-from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.orchestration.launcher import NodeProcess, node_name
-from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.launcher import NodeProcess, node_name
+from flexarm_bringup.supervisor import Graph
+from flexarm_cli.experiment import reserved_domain
 from flexarm_control.ros.client import FlexarmClient, GoalFailed
 from flexarm_core import liveness
 

@@ -2,7 +2,7 @@
 
 For each N of ``--arms``: N whole graphs in one fresh ROS domain, each under its own namespace
 (``arm1`` … ``armN``, what ``flexarm up --namespace armK`` starts), arm1 first: its simulator
-owns ``/clock``; the others' are told to follow it (``clock_source: follow``: the supervisor's
+publishes ``/clock``; the others' are told to follow it (``clock_source: follow``: the supervisor's
 own choice looks for a ``/clock`` publisher for a bounded time and under heavy load might find
 none yet, which makes two clocks). Each arm runs
 PREDICTIVE goals in a loop from a client of its own (one thread per arm, all starting together)
@@ -10,7 +10,7 @@ until it has run ``--goals`` or ``--seconds`` have passed (wall clock; 0: no lim
 
 Models: each arm's compensator loads, through its ``model_path`` parameter, a model fitted before
 any graph starts (the learner's default training, ``--kind`` to change it) on 40 camera-measured
-samples of ``--region`` at the learner's poses (:class:`flexarm_bringup.experiments.study. World`;
+samples of ``--region`` at the learner's poses (:class:`flexarm_cli.study. World`;
 seed k for armK, so every arm has a model of its own). Collecting them through the graph would take
 minutes per arm on two cores and measure the learner, not several arms (sample_efficiency.py times
 collections). Targets: uniform in the region's box, seed ``TARGET_SEED`` + k for armK, kept when
@@ -50,7 +50,7 @@ succeeded goals per wall minute, the total over the goal phase, each arm's over 
 ``load_1min_before``, ``load_1min``);
 ``runs`` holds every figure of each N: ``crosstalk`` by kind (``messages``, ``outcomes``,
 ``missing_outcomes``, ``foreign_publishers``), ``failures`` (reasons), ``real_time_factor``
-per arm, ``clock_owners`` (the publishers of ``/clock`` seen: one), ``messages`` monitored,
+per arm, ``clock_publishers`` (the publishers of ``/clock`` seen: one), ``messages`` monitored,
 ``ready_s``, ``goal_phase_s``, ``nodes_died``.
 """
 from __future__ import annotations
@@ -76,21 +76,21 @@ from rclpy.executors import SingleThreadedExecutor
 from rclpy.node import Node
 from rclpy.serialization import deserialize_message
 
-from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.experiments.study import World
-from flexarm_bringup.orchestration.supervisor import Graph
-from flexarm_bringup.recording.topic_discovery import request_qos
+from flexarm_bringup.supervisor import Graph
+from flexarm_cli.experiment import reserved_domain
+from flexarm_cli.study import World
 from flexarm_control.execution.compensator import Compensator
 from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.predictors import Predictor
-from flexarm_control.learning.sampling import random_targets
-from flexarm_control.learning.selection import fit_robust
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
 from flexarm_core.params import load_config
 from flexarm_core.processes import busy_share, cpu_seconds, descendants, machine_times
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.predictors import Predictor
+from flexarm_deflection.sampling import random_targets
+from flexarm_deflection.selection import fit_robust
 from flexarm_msgs.msg import GoalOutcome
+from flexarm_recording.topic_discovery import request_qos
 
 TRAINING_SAMPLES = 40
 TARGET_SEED = 8200        # targets of armK: TARGET_SEED + k
@@ -99,7 +99,7 @@ READY_S = 180.0           # [s] bound of each graph's bring-up
 GOAL_S = 300.0            # [s] bound of one goal
 # The arms after the first follow its /clock, said outright: the supervisor's own choice looks
 # for a /clock publisher for 1 s, and under load it often finds none yet (two clocks). The first
-# owns it, said outright too: else the supervisor looks for another arm's /clock first (its
+# publishes it, said outright too: else the supervisor looks for another arm's /clock first (its
 # CLOCK_WAIT, times the liveness factor: 20 s under test) before every run.
 FOLLOWER = {'clock_source': 'follow'}
 OWNER = {'clock_source': 'own'}
@@ -176,7 +176,7 @@ class Monitor:
         self.foreign: dict[str, set[str]] = {}       # topic: publishers outside its namespace
         self.outcomes: dict[str, list[tuple[GoalOutcome, float]]] = {n: [] for n in names}
         self.left_out: dict[str, str] = {}
-        self.clock_owners: set[str] = set()           # publishers of /clock
+        self.clock_publishers: set[str] = set()           # publishers of /clock
         self._subscriptions: dict[str, Any] = {}
         self._lock = threading.Lock()
         self._context = Context()
@@ -201,7 +201,7 @@ class Monitor:
     def discover(self) -> None:
         """Note the publishers outside their namespace and those of ``/clock``; subscribe to
         the outcomes and to every topic with a publisher outside its namespace."""
-        self.clock_owners.update(f'{p.node_namespace}/{p.node_name}' for p in
+        self.clock_publishers.update(f'{p.node_namespace}/{p.node_name}' for p in
                                  self.node.get_publishers_info_by_topic(topics.CLOCK)
                                  if p.node_namespace != UNKNOWN)
         for topic, _ in self.node.get_topic_names_and_types():
@@ -304,7 +304,7 @@ def run_arms(count: int, models: dict[str, Any], targets: Targets,
                         'flexarm_compensator': {'model_path': str(models[name][0])}})
                 graphs[name].start()
                 if name == names[0]:
-                    graphs[name].wait_ready(READY_S)    # its simulator owns /clock
+                    graphs[name].wait_ready(READY_S)    # its simulator publishes /clock
             for name in names[1:]:
                 graphs[name].wait_ready(READY_S)
             for name in names:
@@ -384,7 +384,7 @@ def summarise(runs: dict[str, ArmRun], monitor: Monitor, per_arm_cpu: dict[str, 
                 'per_arm_mean': float(np.mean(list(per_arm_cpu.values()))),
                 'seconds_per_goal': sum(per_arm_cpu.values()) * phase_s / succeeded
                 if succeeded else math.nan, **machine},
-        'real_time_factor': rtf, 'clock_owners': sorted(monitor.clock_owners),
+        'real_time_factor': rtf, 'clock_publishers': sorted(monitor.clock_publishers),
         'messages': {'total': sum(monitor.messages.values()), 'topics': len(monitor.messages),
                      'left_out': monitor.left_out},
         'ready_s': ready_s, 'goal_phase_s': phase_s, 'nodes_died': dead}

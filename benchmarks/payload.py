@@ -9,7 +9,7 @@ the learner's training, with the payload as a model input (``payload_input``) wh
 hold several payloads, as the learner does. The model is judged against the plant's TRUE
 deflection at ``--held-out`` random poses of the region carrying 0, 2.5 and 5 kg, each reached
 as every move is (its approach leg takes up the friction the same way), asked at the payload
-carried as the compensator asks (:class:`~flexarm_control.learning.at_payload.AtPayload`): max and
+carried as the compensator asks (:class:`~flexarm_deflection.at_payload.AtPayload`): max and
 p95 position error (mm) per payload, pooled over seeds. ``ratio`` = the largest max error at a
 payload not trained / the largest at a trained one (target ≤ 1.5), per region and worst over
 seeds.
@@ -27,12 +27,12 @@ from typing import Any
 import numpy as np
 from error_budget import SOURCES, Rig, collect, config, reference_calibration
 
-from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.sampling import sample_poses
-from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.at_payload import AtPayload
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.sampling import sample_poses
+from flexarm_deflection.selection import fit_robust
 
 PAYLOADS = (0.0, 2.5, 5.0)      # [kg] asked
 

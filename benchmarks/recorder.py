@@ -30,10 +30,10 @@ from rclpy.context import Context
 from rclpy.qos import QoSProfile
 from sensor_msgs.msg import Image, JointState
 
-from flexarm_bringup.orchestration.launcher import NodeProcess, load_optional, ros_env, stop_all
-from flexarm_bringup.recording.bag_tools import bag_info, read_messages
+from flexarm_bringup.launcher import NodeProcess, load_optional, ros_env, stop_all
 from flexarm_core import topics
 from flexarm_core.processes import cpu_seconds
+from flexarm_recording.bag_tools import bag_info, read_messages
 
 WIDTH, HEIGHT = 640, 480
 # Full names (the root namespace): the bag names its topics so, not as topics.py's relative ones

@@ -31,14 +31,14 @@ import time
 
 import numpy as np
 
-from flexarm_bringup.experiments.study import World
+from flexarm_cli.study import World
 from flexarm_control.execution.compensator import CompensationError, Compensator
 from flexarm_control.execution.planning import DataLimits, Refusal, plan_goal
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.sampling import random_targets
-from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import pose_error
 from flexarm_core.params import load_config
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.sampling import random_targets
+from flexarm_deflection.selection import fit_robust
 
 OUTLIER = 0.010        # [m] the bad sample's error
 TARGET_SEED = 5000     # targets of region R, seed k: TARGET_SEED + k
@@ -98,7 +98,7 @@ def run(world: World, compensator: Compensator, limits: DataLimits, learner: dic
 
 
 def _defaults(kind: str) -> dict:
-    from flexarm_control.learning.models import make_model
+    from flexarm_deflection.models import make_model
     return make_model(kind).defaults
 
 

@@ -6,10 +6,10 @@ averaging) drives the simulated arm without its dynamics
 (:class:`flexarm_sim.static_arm.StaticArm`, config/sim.yaml's error sources: repeatability,
 friction hysteresis, thermal drift, the true camera; the camera calibrated against the reference
 first, as the realistic world is run; error_budget.py's rig). Per strategy (sobol: the learner's
-poses, visited in travel order; active: :mod:`flexarm_control.learning.active_sampling`), region
+poses, visited in travel order; active: :mod:`flexarm_deflection.active_sampling`), region
 (A, B) and seed (its poses, joint errors and image noise) one campaign of the largest sample count;
 the curve at n samples fits the learner's model selection
-(:func:`~flexarm_control.learning.selection.fit_robust`, each ``--kinds``) on the first n poses of
+(:func:`~flexarm_deflection.selection.fit_robust`, each ``--kinds``) on the first n poses of
 the strategy's sequence (Sobol order for sobol, the order chosen for active) and judges it on
 ``--held-out`` poses uniform in the region's box against the plant's TRUE deflection there
 (approached from below as every move is, at the campaign's end temperature). Errors: position |(dx,
@@ -47,13 +47,13 @@ import numpy as np
 from error_budget import SOURCES, CalibratedMotion, Rig, config, reference_calibration
 
 from flexarm_control.execution.collection import Collector
-from flexarm_control.learning.active_sampling import ActivePoses, ActiveSettings, run_now
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.dataset import Sample
-from flexarm_control.learning.sampling import path_time, sample_poses, travel_order
-from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward, wrap_angle
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.active_sampling import ActivePoses, ActiveSettings, run_now
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.dataset import Sample
+from flexarm_deflection.sampling import path_time, sample_poses, travel_order
+from flexarm_deflection.selection import fit_robust
 
 COUNTS = (8, 10, 12, 15, 20, 25, 30, 40)
 STRATEGIES = ('sobol', 'active')
@@ -204,9 +204,9 @@ def summary(rows: list[dict[str, Any]], kinds: tuple[str, ...]) -> dict[str, Any
 
 def graph_campaigns(count: int, regions: list[str], frames: int | None) -> dict[str, Any]:
     """Real collections on the running graph (module docstring): per strategy and region."""
-    from flexarm_bringup.experiments.experiment import graph_client, reserved_domain
-    from flexarm_bringup.orchestration.supervisor import Graph
-    from flexarm_bringup.site.calibration import calibrate_tool
+    from flexarm_bringup.supervisor import Graph
+    from flexarm_cli.calibration import calibrate_tool
+    from flexarm_cli.experiment import graph_client, reserved_domain
     from flexarm_core import topics
     from flexarm_msgs.msg import DeflectionSample, TipPose
 

@@ -36,13 +36,13 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.execution.shaped_move import MovePlanner
-from flexarm_control.execution.shaping import KINDS
-from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.joint_trajectory import SampledTrajectory
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.sampling import sample_poses
+from flexarm_motion.shaped_move import MovePlanner
+from flexarm_motion.shaping import KINDS
 from flexarm_sim.dynamics import ArmDynamics
 from flexarm_sim.plant import Plant
 
@@ -119,8 +119,8 @@ def campaigns(kinds: list[str], count: int, rtf: float, payload: float
               ) -> dict[str, dict[str, float]]:
     """Sim seconds per sample of a graph collection of ``count`` per shaper and region, the arm
     carrying ``payload`` [kg] (the learner declares it; the simulator follows)."""
-    from flexarm_bringup.experiments.experiment import graph_client, reserved_domain
-    from flexarm_bringup.orchestration.supervisor import Graph
+    from flexarm_bringup.supervisor import Graph
+    from flexarm_cli.experiment import graph_client, reserved_domain
     from flexarm_core import topics
     from flexarm_msgs.msg import DeflectionSample
 

@@ -23,7 +23,7 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup.orchestration.launcher import NodeProcess, load_graph, ros_env, stop_all
+from flexarm_bringup.launcher import NodeProcess, load_graph, ros_env, stop_all
 from flexarm_core import topics
 
 

@@ -113,10 +113,9 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
 from std_msgs.msg import Float64
 
-from flexarm_bringup.experiments.experiment import reserved_domain
-from flexarm_bringup.orchestration.launcher import node_name
-from flexarm_bringup.orchestration.supervisor import Graph
-from flexarm_control.learning.dataset import load_dataset
+from flexarm_bringup.launcher import node_name
+from flexarm_bringup.supervisor import Graph
+from flexarm_cli.experiment import reserved_domain
 from flexarm_control.ros.client import (
     FlexarmClient,
     GoalFailed,
@@ -128,6 +127,7 @@ from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, inverse
 from flexarm_core.params import load_config
 from flexarm_core.ros.taken import Taken, take
+from flexarm_deflection.dataset import load_dataset
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import GoalOutcome, TipPose
 

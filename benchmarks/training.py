@@ -16,8 +16,8 @@ from collections.abc import Callable
 
 import numpy as np
 
-from flexarm_control.learning.models import KINDS, make_model
-from flexarm_control.learning.training import validate
+from flexarm_deflection.models import KINDS, make_model
+from flexarm_deflection.training import validate
 
 LOWER = np.array([-0.5, 0.3, -1.5, -1.0])   # working region [rad, m, rad, rad]
 UPPER = np.array([0.5, 0.8, 0.5, 1.0])

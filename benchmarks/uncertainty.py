@@ -6,7 +6,7 @@ compensator's planning with config/compensator.yaml's ``error_bound``). Per scen
 (A, B) and seed: ``--samples`` learning samples at the payload trained at, the learner's
 training (``--kind``, default its default kind), then ``--targets`` targets uniform in the
 region, each planned PREDICTIVE at the payload the arm carries (as the compensator asks:
-:class:`~flexarm_control.learning.at_payload.AtPayload`; refused as the compensator refuses,
+:class:`~flexarm_deflection.at_payload.AtPayload`; refused as the compensator refuses,
 e.g. beyond the learned data: ``refused``) and moved to; the true tip (the
 simulator's) against the target is the goal's error, the plan's ``bound`` what it stated
 beforehand. Scenarios (the simulated arm's truth; the model knows the nominal description):
@@ -25,7 +25,7 @@ beforehand. Scenarios (the simulated arm's truth; the model knows the nominal de
   execution.bound_check`): ``--drift-goals`` PREDICTIVE goals one after the other, each
   measured by the camera and held against its stated bound, which the online bound widens from
   each one (``under_drift``); then an ``REFRESH_SAMPLES``-sample refresh where the model
-  health saw the worst residuals (:mod:`flexarm_control.learning.refresh`: its bound
+  health saw the worst residuals (:mod:`flexarm_deflection.refresh`: its bound
   recalibrated) and as many goals more on the refreshed model (``after_refresh``).
 - ``auto_drift``: the same change, ``--drift-goals`` AUTO goals at ``AUTO_TOLERANCE`` one after
   the other with the online bound (AUTO corrects when it measures its tolerance missed).
@@ -70,15 +70,15 @@ from flexarm_control.execution.goal_execution import GoalSpec, execute
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import SiteErrors
 from flexarm_control.execution.planning import Planned, plan_goal
-from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.model_health import HealthSettings, ModelHealth
-from flexarm_control.learning.predictors import make_predictor
-from flexarm_control.learning.refresh import refresh_poses, refreshed
-from flexarm_control.learning.sampling import random_targets, travel_order
-from flexarm_control.learning.selection import fit_robust
 from flexarm_core.kinematics import forward, pose_error
 from flexarm_core.regions import configured_regions
+from flexarm_deflection.at_payload import AtPayload
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.model_health import HealthSettings, ModelHealth
+from flexarm_deflection.predictors import make_predictor
+from flexarm_deflection.refresh import refresh_poses, refreshed
+from flexarm_deflection.sampling import random_targets, travel_order
+from flexarm_deflection.selection import fit_robust
 
 TOLERANCE = 5e-4           # [m] the unsafe-move check's tolerance
 TARGET_SEED = 7100

@@ -27,8 +27,8 @@ NODES = {
     'flexarm_bridge': {  # python -m flexarm_bridge.bridge_node
         'package': 'flexarm_bridge', 'executable': 'bridge_node', 'restart': True,
         'params_files': ['arm.yaml', 'bridge.yaml']},
-    'flexarm_arm_owner': {  # python -m flexarm_control.ros.arm_owner_node
-        'package': 'flexarm_control', 'executable': 'arm_owner_node', 'restart': True,
+    'flexarm_arm_owner': {  # python -m flexarm_motion.ros.arm_owner_node
+        'package': 'flexarm_motion', 'executable': 'arm_owner_node', 'restart': True,
         'params_files': []},
     'flexarm_vision': {  # python -m flexarm_vision.vision_node
         'package': 'flexarm_vision', 'executable': 'vision_node', 'restart': True,
@@ -42,14 +42,14 @@ NODES = {
     'flexarm_state_publisher': {  # python -m flexarm_description.state_publisher_node
         'package': 'flexarm_description', 'executable': 'state_publisher_node', 'restart': True,
         'params_files': ['arm.yaml', 'camera.yaml', 'description.yaml']},
-    'flexarm_scene': {  # python -m flexarm_bringup.viz.scene_node
-        'package': 'flexarm_bringup', 'executable': 'scene_node', 'restart': True,
+    'flexarm_scene': {  # python -m flexarm_viz.scene_node
+        'package': 'flexarm_viz', 'executable': 'scene_node', 'restart': True,
         'params_files': ['arm.yaml', 'learner.yaml', 'description.yaml']},
-    'flexarm_recorder': {  # python -m flexarm_bringup.recording.recorder_node
-        'package': 'flexarm_bringup', 'executable': 'recorder_node', 'restart': False,
+    'flexarm_recorder': {  # python -m flexarm_recording.recorder_node
+        'package': 'flexarm_recording', 'executable': 'recorder_node', 'restart': False,
         'params_files': ['recorder.yaml']},
-    'flexarm_foxglove': {  # python -m flexarm_bringup.viz.foxglove_node
-        'package': 'flexarm_bringup', 'executable': 'foxglove_node', 'restart': True,
+    'flexarm_foxglove': {  # python -m flexarm_viz.foxglove_node
+        'package': 'flexarm_viz', 'executable': 'foxglove_node', 'restart': True,
         'params_files': ['foxglove.yaml']},
 }
 # Per robot entry: its nodes, each with the parameters graph.yaml gives it over its params files

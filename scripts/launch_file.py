@@ -1,7 +1,7 @@
 """Write launch/flexarm.launch.py, the graph of config/graph.yaml for ``ros2 launch`` in a colcon
 workspace. Generated, not written by hand, so that it starts what ``flexarm up`` starts: the
 same nodes per robot entry, params files and parameters (graph.yaml's and the robot entry's
-settings, from :mod:`flexarm_bringup.orchestration.launcher`); the suite fails when it is out
+settings, from :mod:`flexarm_bringup.launcher`); the suite fails when it is out
 of date.
 
     python scripts/launch_file.py            # write launch/flexarm.launch.py
@@ -20,13 +20,13 @@ from pathlib import Path
 import yaml
 from generated_file import write_or_check  # scripts/, the path of a script run
 
-from flexarm_bringup.orchestration.launcher import (
+from flexarm_bringup.launcher import (
     NodeSpec,
     all_nodes,
     load_graph,
     load_optional,
 )
-from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.supervisor import Graph
 from flexarm_core.params import SAFE_LOADER
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -4,9 +4,7 @@
 #   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
 #   3. the interfaces: tf2_msgs and control_msgs (vendor/, no wheel exists) and flexarm_msgs
 #      (ament_cmake + rosidl, built into the venv prefix),
-#   4. the Python packages flexarm_core, flexarm_description, flexarm_learning, flexarm_vision,
-#      flexarm_bridge, flexarm_sim, flexarm_control, flexarm_bringup, flexarm_test_support
-#      (editable).
+#   4. the Python packages of src/ (editable), lowest layer first.
 # Each step is skipped when its inputs did not change since it last succeeded, so a re-run
 # takes about a second. Usage: scripts/setup.sh [--force]
 set -euo pipefail
@@ -77,8 +75,9 @@ install_msgs() {
 }
 
 # The Python packages, lowest layer first (each imports only those before it).
-packages=(flexarm_core flexarm_description flexarm_learning flexarm_vision flexarm_bridge flexarm_sim
-  flexarm_control flexarm_bringup flexarm_test_support)
+packages=(flexarm_core flexarm_description flexarm_learning flexarm_deflection flexarm_vision
+  flexarm_bridge flexarm_sim flexarm_motion flexarm_control flexarm_bringup flexarm_recording
+  flexarm_viz flexarm_cli flexarm_test_support)
 
 install_packages() {
   log "installing ${packages[*]} (editable)"

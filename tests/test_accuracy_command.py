@@ -18,7 +18,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 from synthetic_arms import AXIAL, TIP, random_joints, seven_joint_arm, seven_joint_names
 
-from flexarm_bringup.cli import main
+from flexarm_cli import main
 from flexarm_learning.elastostatic import ElastostaticModel
 from flexarm_learning.urdf_arm import UrdfArm
 

@@ -22,11 +22,11 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.site.calibration import calibrate_tool
-from flexarm_control.learning.dataset import load_dataset
-from flexarm_control.ros.arm_claim import ArmBusy
+from flexarm_cli.calibration import calibrate_tool
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import liveness, topics
+from flexarm_deflection.dataset import load_dataset
+from flexarm_motion.ros.arm_claim import ArmBusy
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ArmMotion
 

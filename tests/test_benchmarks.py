@@ -111,7 +111,7 @@ OFFLINE = [
 ]
 
 # Start ROS nodes: in the test module's domain where the benchmark takes one, else in a free
-# one the benchmark reserves itself (flexarm_bringup.experiments.experiment.reserved_domain).
+# one the benchmark reserves itself (flexarm_cli.experiment.reserved_domain).
 NODE = [
     Smoke('bridge', ('--moves', '1', '--robot-only'), ('sim', 'bridge', 'added_median_ms'),
           ('added_median_ms',), domain='--domain', seconds=10),

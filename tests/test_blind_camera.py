@@ -13,7 +13,7 @@ import yaml
 from rclpy.qos import DurabilityPolicy, QoSProfile
 from sensor_msgs.msg import CameraInfo
 
-from flexarm_bringup.cli import Exit, main
+from flexarm_cli import Exit, main
 from flexarm_control.execution.collection import BLIND_POSES
 from flexarm_core import topics
 from flexarm_core.params import load_config

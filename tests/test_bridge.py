@@ -23,7 +23,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import Float64MultiArray
 
 from flexarm_bridge import controller_protocol as proto
-from flexarm_bringup.orchestration.launcher import stop_all
+from flexarm_bringup.launcher import stop_all
 from flexarm_core import liveness, topics
 from flexarm_core.ros.node_main import Spin
 from flexarm_test_support.link_proxy import TO_CONTROLLER, LinkProxy

@@ -7,8 +7,8 @@ import numpy as np
 import pytest
 from diagnostic_msgs.msg import DiagnosticArray
 
-from flexarm_bringup.cli import Exit, main
-from flexarm_bringup.orchestration.graph_status import calibration_status_name
+from flexarm_bringup.graph_status import calibration_status_name
+from flexarm_cli import Exit, main
 from flexarm_core import topics
 from flexarm_msgs.msg import TipPose
 

@@ -14,11 +14,11 @@ import numpy as np
 import pytest
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup.cli import main
-from flexarm_bringup.results.outcome_text import Exit
+from flexarm_cli import main
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
+from flexarm_recording.results.outcome_text import Exit
 from flexarm_test_support.cli_process import Cli, no_cli_left  # noqa: F401  (autouse fixture)
 from flexarm_test_support.joint_watch import JointWatch
 from flexarm_test_support.run_record import record_supervisor

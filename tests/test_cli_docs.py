@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.cli.arguments import UsageError, build_parser
+from flexarm_cli.arguments import UsageError, build_parser
 
 REPO = Path(__file__).resolve().parents[1]
 USING = REPO / 'docs/using.md'

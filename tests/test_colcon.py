@@ -29,7 +29,7 @@ PACKAGES = sorted(p.name for p in SRC.iterdir() if (p / 'package.xml').exists())
 MSGS = 'flexarm_msgs'                     # built by scripts/setup.sh (module docstring)
 PYTHON_PACKAGES = [p for p in PACKAGES if p != MSGS]
 # Executables that are not `<package>/<name>_node.py` modules with a main().
-OTHER_EXECUTABLES = {'flexarm_sim': {'fake_controller'}, 'flexarm_bringup': {'flexarm'},
+OTHER_EXECUTABLES = {'flexarm_sim': {'fake_controller'}, 'flexarm_cli': {'flexarm'},
                      'flexarm_test_support': {'ros2_control_standin'}}
 OUTER_ROS = ('AMENT_PREFIX_PATH', 'CMAKE_PREFIX_PATH', 'COLCON_PREFIX_PATH', 'PYTHONPATH',
              'LD_LIBRARY_PATH', 'VIRTUAL_ENV', '_ROS_WHEELS_BOOTSTRAP_COMPLETE',
@@ -87,7 +87,8 @@ def test_a_package_is_in_the_ament_index_with_its_manifest(workspace, package):
     assert manifest.read_bytes() == (SRC / package / 'package.xml').read_bytes()
 
 
-LIBRARIES = {'flexarm_core', 'flexarm_learning'}     # no executable of their own
+LIBRARIES = {'flexarm_core', 'flexarm_learning', 'flexarm_deflection',    # no executable of
+             'flexarm_bringup'}                                        # their own
 
 
 @pytest.mark.parametrize('package', [p for p in PYTHON_PACKAGES if p not in LIBRARIES])
@@ -103,14 +104,14 @@ def test_the_install_space_imports_and_runs_as_its_setup_script_sets_it_up(works
     install = workspace / 'install'
     site = Path('lib', f'python{sys.version_info.major}.{sys.version_info.minor}',
                 'site-packages')
-    code = ('import flexarm_bringup.cli, flexarm_control.execution.compensator, flexarm_msgs.msg\n'
+    code = ('import flexarm_cli, flexarm_control.execution.compensator, flexarm_msgs.msg\n'
             'from rclpy.serialization import serialize_message\n'
             'assert serialize_message(flexarm_msgs.msg.PlanarPose(x=1.5))\n'
-            'for m in (flexarm_msgs, flexarm_control, flexarm_bringup):\n'
+            'for m in (flexarm_msgs, flexarm_control, flexarm_cli):\n'
             '    print(m.__file__)\n'
             'from flexarm_core.paths import CONFIG_DIR\n'
             'print(CONFIG_DIR)\n')
-    flexarm = install / 'flexarm_bringup/lib/flexarm_bringup/flexarm'
+    flexarm = install / 'flexarm_cli/lib/flexarm_cli/flexarm'
     run = subprocess.run(
         ['sh', '-c', f'. "{install}/setup.sh" && python -c "$0" && "{flexarm}" --help', code],
         cwd=workspace, env=workspace_env(workspace), capture_output=True, text=True, timeout=60)
@@ -118,7 +119,7 @@ def test_the_install_space_imports_and_runs_as_its_setup_script_sets_it_up(works
     lines = run.stdout.splitlines()
     underlay = Path(sys.prefix) / site / MSGS / '__init__.py'      # the venv: scripts/setup.sh
     assert lines[:3] == [str(underlay)] + [str(install / p / site / p / '__init__.py')
-                                           for p in ('flexarm_control', 'flexarm_bringup')]
+                                           for p in ('flexarm_control', 'flexarm_cli')]
     assert lines[3] == str(install / 'flexarm_core/share/flexarm_core/config')
     assert lines[4].startswith('usage: flexarm')
 

@@ -28,8 +28,6 @@ from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from sensor_msgs.msg import JointState
 from std_msgs.msg import Empty
 
-from flexarm_control.learning.sampling import sample_poses
-from flexarm_control.learning.selection import fit_robust
 from flexarm_control.ros import compensator_node
 from flexarm_control.ros.client import FlexarmClient, GoalFailed
 from flexarm_control.ros.compensator_node import CompensatorNode
@@ -39,6 +37,8 @@ from flexarm_core.kinematics import ArmGeometry, forward, inverse
 from flexarm_core.params import config_path, load_config
 from flexarm_core.regions import regions_from_dict
 from flexarm_core.ros.node_main import Offload, Spin
+from flexarm_deflection.sampling import sample_poses
+from flexarm_deflection.selection import fit_robust
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelHealth, ModelInfo
 from flexarm_sim.plant import Plant

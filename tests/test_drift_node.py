@@ -19,11 +19,11 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.cli.learning import payload_bounds_note
-from flexarm_control.learning.dataset import load_dataset
-from flexarm_control.learning.models import load_model
+from flexarm_cli.learning import payload_bounds_note
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
+from flexarm_deflection.dataset import load_dataset
+from flexarm_deflection.models import load_model
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelHealth
 

@@ -19,7 +19,7 @@ import rclpy
 from rclpy.context import Context
 
 from flexarm_bridge import tcp_link
-from flexarm_bringup.orchestration.launcher import owned_shm
+from flexarm_bringup.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness, processes
 from flexarm_test_support import link_attacks
@@ -134,7 +134,7 @@ def test_a_restarted_learner_keeps_the_declared_payload(learner, learner_graph, 
 
 
 def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_path):
-    from flexarm_bringup.orchestration.supervisor import Graph
+    from flexarm_bringup.supervisor import Graph
 
     context = Context()
     rclpy.init(context=context, domain_id=domain_id)
@@ -152,7 +152,7 @@ def test_a_graph_refuses_a_domain_that_runs_a_node_of_its_names(domain_id, tmp_p
 
 def test_a_graph_refuses_at_once_a_domain_another_graph_of_this_machine_holds(domain_id,
                                                                               tmp_path):
-    from flexarm_bringup.orchestration.supervisor import Graph, lock_domain
+    from flexarm_bringup.supervisor import Graph, lock_domain
 
     held = lock_domain(domain_id)                  # as a running `flexarm up` holds it
     graph = Graph(domain_id, tmp_path / 'run')
@@ -222,8 +222,8 @@ def test_a_collection_client_notices_the_learner_die_and_no_sample_is_lost(launc
                                                                           ready_client):
     import threading
 
-    from flexarm_control.learning.dataset import load_dataset
     from flexarm_control.ros.client import ServerLost
+    from flexarm_deflection.dataset import load_dataset
 
     launch('flexarm_sim', real_time_factor=10.0)
     launch('flexarm_vision')
@@ -411,7 +411,7 @@ def test_the_link_leaves_loopback_only_with_a_key(launch, domain_id, wait_for):
 
 
 def test_a_goal_fails_at_once_when_the_controller_dies_mid_move(moving_graph):
-    from flexarm_control.ros.arm_interface import JOINT_SILENCE
+    from flexarm_motion.ros.arm_interface import JOINT_SILENCE
     from flexarm_msgs.action import MoveToPose
 
     sim, _, client = moving_graph

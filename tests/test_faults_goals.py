@@ -27,12 +27,12 @@ from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 from sensor_msgs.msg import JointState
 
-from flexarm_bringup.results.outcome_text import Exit
 from flexarm_control.execution.goal_bounds import SENDER_CHECK
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_msgs.action import MoveToPose
+from flexarm_recording.results.outcome_text import Exit
 from flexarm_test_support.abandoned_goal import B4, GoalSender, abandoned_goal_s
 from flexarm_test_support.cli_process import Cli, no_cli_left  # noqa: F401  (autouse fixture)
 from flexarm_test_support.remote_peer import RemoteHost

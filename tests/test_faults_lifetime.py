@@ -23,12 +23,12 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.orchestration.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
-from flexarm_bringup.results.outcome_text import Exit
+from flexarm_bringup.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
 from flexarm_core import liveness, processes
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import CALIBRATION_DIR, MODELS_DIR, RUNS_DIR, repo_path
+from flexarm_recording.results.outcome_text import Exit
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(90)]
 REPO = Path(__file__).resolve().parents[1]
@@ -93,7 +93,7 @@ class Process:
 
 
 def flexarm(*args: str) -> Process:
-    return Process('-m', 'flexarm_bringup.cli', *args)
+    return Process('-m', 'flexarm_cli', *args)
 
 
 @pytest.fixture
@@ -116,7 +116,7 @@ def up(domain_id: int) -> Iterator[Callable[[], Process]]:
 def status(domain_id: int) -> tuple[int, dict]:
     """``flexarm status --json`` in the module's domain: its exit code and JSON."""
     done = subprocess.run(
-        [sys.executable, '-m', 'flexarm_bringup.cli', 'status', '--json', '--domain-id',
+        [sys.executable, '-m', 'flexarm_cli', 'status', '--json', '--domain-id',
          str(domain_id)], cwd=REPO, capture_output=True, text=True,
         timeout=liveness.limit(60.0), preexec_fn=terminate_with_parent)
     return done.returncode, json.loads(done.stdout.strip().splitlines()[-1])

@@ -42,7 +42,7 @@ def test_up_with_discovery_subnet_warns_and_lets_that_peer_command_the_arm(
     output = tmp_path / 'up.log'
     with open(output, 'wb') as out:
         up = subprocess.Popen(
-            [sys.executable, '-m', 'flexarm_bringup.cli', 'up', '--only', 'sim', '--discovery',
+            [sys.executable, '-m', 'flexarm_cli', 'up', '--only', 'sim', '--discovery',
              'subnet', '--domain-id', str(domain_id), '--name', 'open', '--timeout', '600'],
             stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT)
     try:

@@ -22,16 +22,16 @@ from rclpy.serialization import deserialize_message, serialize_message
 from websockets.exceptions import InvalidStatus
 from websockets.sync.client import ClientConnection, connect
 
-from flexarm_bringup.cli import build_parser, main
-from flexarm_bringup.cli.graph import foxglove_text
-from flexarm_bringup.orchestration.launcher import node_name
-from flexarm_bringup.recording.bag_schema import message_definition
-from flexarm_bringup.results.outcome_text import Exit
+from flexarm_bringup.launcher import node_name
+from flexarm_cli import build_parser, main
+from flexarm_cli.graph import foxglove_text
 from flexarm_core import liveness, topics
 from flexarm_core.frames import PLANE_FRAME
 from flexarm_core.params import config_path, load_config
 from flexarm_core.paths import RUNS_DIR
 from flexarm_msgs.msg import PlanarPose, TipPose
+from flexarm_recording.bag_schema import message_definition
+from flexarm_recording.results.outcome_text import Exit
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(15)]
 
@@ -65,7 +65,7 @@ def served() -> Iterator[tuple[Any, int]]:
     """(SDK context, port of the front) of an SDK server behind a front, as the node has."""
     import foxglove
 
-    from flexarm_bringup.viz.foxglove_front import SubprotocolFront
+    from flexarm_viz.foxglove_front import SubprotocolFront
 
     context = foxglove.Context()
     server = foxglove.start_server(host='127.0.0.1', port=0, context=context)
@@ -123,7 +123,7 @@ def _first_message(ws: ClientConnection, channel: Any, advertised: dict[str, Any
     ([FORMER_NAME, SDK_NAME], SDK_NAME), ([SDK_NAME, FORMER_NAME], SDK_NAME)])
 def test_a_channel_carries_cdr_with_the_full_ros2msg_schema_to_either_name(
         served: tuple[Any, int], offer: list[str], agreed: str) -> None:
-    from flexarm_bringup.viz.foxglove_node import ros2_channel
+    from flexarm_viz.foxglove_node import ros2_channel
 
     context, port = served
     channel = ros2_channel(topics.absolute(topics.TIP_POSE), TIP_POSE_TYPE, context)
@@ -142,7 +142,7 @@ def test_a_channel_carries_cdr_with_the_full_ros2msg_schema_to_either_name(
 
 
 def test_a_camera_sized_message_passes_the_front_whole(served: tuple[Any, int]) -> None:
-    from flexarm_bringup.viz.foxglove_node import ros2_channel
+    from flexarm_viz.foxglove_node import ros2_channel
 
     context, port = served
     channel = ros2_channel(topics.absolute(topics.CAMERA_IMAGE), 'sensor_msgs/msg/Image',
@@ -180,8 +180,8 @@ def test_the_sdk_itself_still_refuses_the_former_name() -> None:
 def test_the_front_listens_once_made_and_the_node_says_so_for_its_own_process() -> None:
     """What up waits for before it says where to connect: the node's line, logged once the
     SDK's server and the front are made (each listens when made), naming its process."""
-    from flexarm_bringup.viz.foxglove_front import SubprotocolFront
-    from flexarm_bringup.viz.foxglove_node import announcement, listening_url
+    from flexarm_viz.foxglove_front import SubprotocolFront
+    from flexarm_viz.foxglove_node import announcement, listening_url
 
     front = SubprotocolFront('127.0.0.1', 0, _free_port())
     try:
@@ -209,8 +209,8 @@ class _NodeLog:
 def test_up_says_where_to_connect_only_once_the_node_said_it_listens(tmp_path: Path) -> None:
     import threading
 
-    from flexarm_bringup.cli.graph import foxglove_served
-    from flexarm_bringup.viz.foxglove_node import announcement
+    from flexarm_cli.graph import foxglove_served
+    from flexarm_viz.foxglove_node import announcement
 
     node = _NodeLog(tmp_path / 'flexarm_foxglove.log', 41)
     node.log_path.write_text(f'{announcement("ws://127.0.0.1:1", 40)}\n')   # its predecessor
@@ -230,7 +230,7 @@ def test_up_says_where_to_connect_only_once_the_node_said_it_listens(tmp_path: P
 def test_unknown_types_have_no_channel() -> None:
     import foxglove
 
-    from flexarm_bringup.viz.foxglove_node import ros2_channel
+    from flexarm_viz.foxglove_node import ros2_channel
 
     with pytest.raises(FileNotFoundError):
         ros2_channel('/x', 'no_such_msgs/msg/Thing', foxglove.Context())
@@ -299,7 +299,7 @@ def test_up_with_foxglove_serves_tip_pose_to_a_websocket_client(
     log_path = tmp_path / 'up.log'
     with open(log_path, 'wb') as log:
         up = subprocess.Popen(
-            [sys.executable, '-m', 'flexarm_bringup.cli', 'up', '--foxglove', str(port),
+            [sys.executable, '-m', 'flexarm_cli', 'up', '--foxglove', str(port),
              '--domain-id', str(domain_id), '--name', name, '--timeout', str(UP_TIMEOUT)],
             stdout=log, stderr=subprocess.STDOUT, env={**os.environ, 'PYTHONUNBUFFERED': '1'})
     try:

@@ -4,8 +4,8 @@ import signal
 
 import pytest
 
-from flexarm_bringup.orchestration.launcher import owned_shm
-from flexarm_bringup.orchestration.supervisor import Graph
+from flexarm_bringup.launcher import owned_shm
+from flexarm_bringup.supervisor import Graph
 from flexarm_core import liveness
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(45)]

@@ -115,7 +115,7 @@ class Up:
         self.log = Path(env['FLEXARM_HOME']) / 'up.log'
         with open(self.log, 'wb') as out:
             self.process = subprocess.Popen(
-                ['ip', 'netns', 'exec', ns, sys.executable, '-m', 'flexarm_bringup.cli', 'up',
+                ['ip', 'netns', 'exec', ns, sys.executable, '-m', 'flexarm_cli', 'up',
                  '--only', only, '--discovery', 'subnet', '--domain-id', str(domain_id),
                  '--rtf', '10', '--name', 'host', '--timeout', '90'],
                 env=env, stdin=subprocess.DEVNULL, stdout=out, stderr=subprocess.STDOUT,
@@ -182,7 +182,7 @@ def test_one_graph_over_two_hosts(domain_id, tmp_path):
         assert sent > 1e6 and received > 1e4, (sent, received)
 
         status = json.loads(run_in(hosts.ns[0], robot_env, [
-            '-m', 'flexarm_bringup.cli', 'status', '--json', '--domain-id', str(domain_id)],
+            '-m', 'flexarm_cli', 'status', '--json', '--domain-id', str(domain_id)],
             60.0).splitlines()[-1])
         assert all(status['nodes'][n] for n in ('flexarm_sim', 'flexarm_arm_owner',
                                                 'flexarm_learner', 'flexarm_compensator',

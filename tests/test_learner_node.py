@@ -16,11 +16,11 @@ import rclpy
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_control.learning.dataset import load_dataset
-from flexarm_control.learning.model_store import read_current, versions_on_disk
-from flexarm_control.learning.models import load_model
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
+from flexarm_deflection.dataset import load_dataset
+from flexarm_deflection.model_store import read_current, versions_on_disk
+from flexarm_deflection.models import load_model
 from flexarm_msgs.action import CollectSamples
 from flexarm_msgs.msg import DeflectionSample, ModelInfo
 

@@ -21,10 +21,10 @@ from diagnostic_msgs.msg import DiagnosticArray
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.orchestration.supervisor import Graph
-from flexarm_control.learning.dataset import load_dataset
+from flexarm_bringup.supervisor import Graph
 from flexarm_control.ros.client import FlexarmClient
 from flexarm_core import topics
+from flexarm_deflection.dataset import load_dataset
 from flexarm_msgs.action import CollectSamples, MoveToPose
 from flexarm_msgs.msg import DeflectionSample, GoalOutcome, ModelInfo
 
@@ -32,7 +32,7 @@ pytestmark = [pytest.mark.node, pytest.mark.timeout(300), pytest.mark.duration(9
 IDEAL = {'error_sources': {'enabled': False}}
 ARMS = {'arm1': ('A', 1), 'arm2': ('B', 2)}    # namespace: region and seed of its samples
 SAMPLES = 8
-# arm1 owns /clock and arm2 follows it, said outright: the supervisor's own choice looks for a
+# arm1 publishes /clock and arm2 follows it, said outright: the supervisor's own choice looks for a
 # /clock publisher for a bounded time (CLOCK_WAIT), which the first arm would wait out, and
 # under heavy load might find none yet.
 FOLLOWER = {'clock_source': 'follow'}
@@ -89,7 +89,7 @@ def in_threads(job: Callable[[str], Any], timeout: float) -> dict[str, Any]:
 
 @pytest.fixture
 def arms(domain_id, tmp_path):
-    """Both graphs (arm1 first: its simulator owns /clock) and a client per arm."""
+    """Both graphs (arm1 first: its simulator publishes /clock) and a client per arm."""
     learner = {'data_directory': str(tmp_path / 'data'),
                'model_directory': str(tmp_path / 'models')}
     graphs: list[Graph] = []

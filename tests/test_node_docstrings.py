@@ -14,9 +14,9 @@ import pytest
 REPO = Path(__file__).resolve().parents[1]
 SRC = REPO / 'src'
 MAX_LINES = 15
-LONGER = {'src/flexarm_control/flexarm_control/learning/predictors/base.py': 20}
+LONGER = {'src/flexarm_deflection/flexarm_deflection/predictors/base.py': 20}
 NOT_NAMED_NODE = ['src/flexarm_sim/flexarm_sim/fake_controller.py',
-                  'src/flexarm_control/flexarm_control/learning/predictors/base.py']
+                  'src/flexarm_deflection/flexarm_deflection/predictors/base.py']
 DOCS_LINK = re.compile(r'\bdocs/([\w./-]+\.md)#([\w-]+)')
 OWN_LENGTH = re.compile(r'~\s*\d+\s+lines')
 
@@ -43,7 +43,7 @@ def documented_modules() -> list[str]:
 def test_the_documented_modules_are_found() -> None:
     modules = documented_modules()
     for module in ('src/flexarm_control/flexarm_control/ros/learner_node.py',
-                   'src/flexarm_control/flexarm_control/ros/arm_owner_node.py',
+                   'src/flexarm_motion/flexarm_motion/ros/arm_owner_node.py',
                    'src/flexarm_sim/flexarm_sim/sim_node.py',
                    'src/flexarm_control/flexarm_control/ros/compensator_node.py',
                    *NOT_NAMED_NODE):

@@ -10,12 +10,12 @@ from typing import Any
 
 import pytest
 
-from flexarm_bringup.cli import main
-from flexarm_bringup.results.outcome_text import Exit
+from flexarm_cli import main
 from flexarm_core import liveness, topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME
 from flexarm_core.params import load_config
 from flexarm_core.tool_correction import ToolCorrection
+from flexarm_recording.results.outcome_text import Exit
 from flexarm_test_support.tf_listening import STATIC_TF_QOS
 from tf2_msgs.msg import TFMessage
 

@@ -39,7 +39,7 @@ def clone_files() -> dict[str, float]:
 
 
 def flexarm(*args: str, env: dict[str, str], **kwargs) -> subprocess.CompletedProcess:
-    return subprocess.run([sys.executable, '-m', 'flexarm_bringup.cli', *args], env=env,
+    return subprocess.run([sys.executable, '-m', 'flexarm_cli', *args], env=env,
                           capture_output=True, text=True, **kwargs)
 
 
@@ -59,7 +59,7 @@ def test_a_rehearsed_site_runs_the_whole_loop_on_wall_time(launch, domain_id, do
         "link_key_file: ''", f'link_key_file: {key}'))
     launch('flexarm_fake_controller', robot='bridge', port=port, link_key_file=str(key))
     up = subprocess.Popen(
-        [sys.executable, '-c', GATED, sys.executable, '-m', 'flexarm_bringup.cli', 'up',
+        [sys.executable, '-c', GATED, sys.executable, '-m', 'flexarm_cli', 'up',
          '--robot', 'bridge', '--domain-id', str(domain_id), '--timeout',
          str(liveness.limit(UP_S))], env=env, stdin=subprocess.PIPE, stdout=subprocess.PIPE,
         stderr=subprocess.PIPE, text=True)

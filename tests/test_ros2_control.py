@@ -18,7 +18,7 @@ import pytest
 from action_msgs.msg import GoalStatus, GoalStatusArray
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 
-from flexarm_bringup.orchestration.launcher import NodeProcess, NodeSpec, ros_env, stop_all
+from flexarm_bringup.launcher import NodeProcess, NodeSpec, ros_env, stop_all
 from flexarm_core import liveness, topics
 from flexarm_msgs.action import MoveToPose
 from flexarm_test_support.learned_goal import learn_and_reach
@@ -55,7 +55,7 @@ def graph(stand_in, domain_id, domain_pool):
     """``flexarm up --robot ros2_control --domain-id N`` (in the run's state folder), once
     ready; stopped as Ctrl-C stops it."""
     up = subprocess.Popen(
-        [sys.executable, '-c', GATED, sys.executable, '-m', 'flexarm_bringup.cli', 'up',
+        [sys.executable, '-c', GATED, sys.executable, '-m', 'flexarm_cli', 'up',
          '--robot', ROBOT, '--domain-id', str(domain_id), '--timeout',
          str(liveness.limit(60.0))], env={**os.environ, 'PYTHONUNBUFFERED': '1'},
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True)

@@ -2,10 +2,10 @@
 import numpy as np
 import pytest
 
-from flexarm_control.learning.deflection_field import deflection_field, region_grid
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_core.regions import Region
+from flexarm_deflection.deflection_field import deflection_field, region_grid
 from flexarm_description.scene import deflection_arrows, region_outline, sample_points
 
 

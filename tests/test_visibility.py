@@ -16,9 +16,7 @@ from sensor_msgs.msg import JointState
 from std_msgs.msg import String
 from visualization_msgs.msg import MarkerArray
 
-from flexarm_bringup.cli import main
-from flexarm_bringup.recording.bag_tools import read_decoded
-from flexarm_bringup.results.outcome_text import Exit
+from flexarm_cli import main
 from flexarm_core import topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME, PLANE_FRAME
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, forward
@@ -27,6 +25,8 @@ from flexarm_core.ros.stamps import to_ns
 from flexarm_core.ros.taken import Taken
 from flexarm_description.chain import TIP_FRAME, Transform, compose, planar_pose
 from flexarm_msgs.msg import DeflectionSample, PlanarPose
+from flexarm_recording.bag_tools import read_decoded
+from flexarm_recording.results.outcome_text import Exit
 from flexarm_test_support.stamp_order import backwards_steps, beyond_sent, header_stamps
 from flexarm_test_support.tf_listening import STATIC_TF_QOS
 from tf2_msgs.msg import TFMessage

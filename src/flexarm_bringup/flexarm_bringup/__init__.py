@@ -1,13 +1,15 @@
-"""What starts and runs the flexarm graph, by job: ``orchestration`` (launcher, supervisor,
-domains, transports, graph status), ``results`` (trials, figures, the words of an outcome),
-``recording`` (the recorder node, bags and their tools), ``viz`` (scene and Foxglove nodes),
-``site`` (calibrations through a running graph), ``experiments`` (demo, benchmark, study), and
-``cli``, the ``flexarm`` command over them all. Each imports only the ones before it in that
-order (tests/test_layering.py)."""
+"""The graph's configuration and what starts it: the launcher (one process per node of
+config/graph.yaml), the supervisor behind ``flexarm up``, ROS domains and their reservations,
+and the status of a running graph."""
 
 # What other packages may import (tests/test_layering.py holds every import to it).
 PUBLIC = (
-    'flexarm_bringup.cli',
-    'flexarm_bringup.orchestration.launcher',
-    'flexarm_bringup.orchestration.supervisor',
+    'flexarm_bringup.domains',
+    'flexarm_bringup.graph_status',
+    'flexarm_bringup.graph_watch',
+    'flexarm_bringup.launcher',
+    'flexarm_bringup.running_graphs',
+    'flexarm_bringup.status_text',
+    'flexarm_bringup.supervisor',
+    'flexarm_bringup.up_domain',
 )

@@ -3,7 +3,7 @@ import json
 import os
 from pathlib import Path
 
-from flexarm_bringup.orchestration.graph_status import (
+from flexarm_bringup.graph_status import (
     ErrorLog,
     arm_status_name,
     file_summary,
@@ -11,8 +11,8 @@ from flexarm_bringup.orchestration.graph_status import (
     graph_problems,
     supervisor_record,
 )
-from flexarm_bringup.orchestration.graph_watch import FirstReports
-from flexarm_bringup.orchestration.status_text import (
+from flexarm_bringup.graph_watch import FirstReports
+from flexarm_bringup.status_text import (
     Heard,
     calibration_text,
     clock_text,
@@ -105,7 +105,7 @@ def test_problems_name_dead_nodes_of_the_record_then_errors():
     assert len(silent) == 1 and silent[0].startswith('controller sim: no joint states for')
 
 
-def test_the_text_says_who_owns_the_clock():
+def test_the_text_says_who_publishes_the_clock():
     follows = Heard(OK, 'arm still', {'clock': 'follows the /clock of /arm1/flexarm_sim',
                                       'sim time [s]': '150.2'})
     said = clock_text(follows)

@@ -11,7 +11,7 @@ from pathlib import Path
 import pytest
 import yaml
 
-from flexarm_bringup.orchestration.launcher import (
+from flexarm_bringup.launcher import (
     NodeSpec,
     all_nodes,
     controllers,
@@ -146,7 +146,7 @@ def _supervisor(tmp_path, body: str) -> subprocess.Popen:
     script = textwrap.dedent(f'''
         import time
         from pathlib import Path
-        from flexarm_bringup.orchestration.launcher import NodeProcess, NodeSpec, ros_env, stop_all
+        from flexarm_bringup.launcher import NodeProcess, NodeSpec, ros_env, stop_all
         env = ros_env(0, base={{'PYTHONPATH': {str(tmp_path)!r}}})
         node = NodeProcess(NodeSpec(name='sleeper', module='sleeper'), env,
                            Path({str(tmp_path)!r}) / 'sleeper.log')
@@ -205,7 +205,7 @@ def test_the_shared_memory_a_killed_process_owned_is_removed_and_shared_ports_ke
     import fcntl
     import mmap
 
-    from flexarm_bringup.orchestration.launcher import owned_shm, remove_shm_of_dead
+    from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead
 
     for name in ('fastrtps_abc', 'fastrtps_abc_el', 'fastrtps_other', 'fastrtps_other_el',
                  'fastrtps_port1', 'sem.fastrtps_port1_mutex', 'fastrtps_port2',

@@ -4,9 +4,9 @@ import contextlib
 
 import pytest
 
-from flexarm_bringup.orchestration.launcher import select_nodes
-from flexarm_bringup.orchestration.status_text import status_text
-from flexarm_bringup.orchestration.supervisor import (
+from flexarm_bringup.launcher import select_nodes
+from flexarm_bringup.status_text import status_text
+from flexarm_bringup.supervisor import (
     ACTION_STATUS,
     READY_ACTIONS,
     READY_SERVICES,

@@ -5,13 +5,13 @@ from __future__ import annotations
 
 import pytest
 
-from flexarm_bringup.orchestration.graph_status import (
+from flexarm_bringup.graph_status import (
     graph_node_names,
     joint_state_rate,
     latched_in,
     record_nodes,
 )
-from flexarm_bringup.orchestration.status_text import Heard, real_time_factor, status_text
+from flexarm_bringup.status_text import Heard, real_time_factor, status_text
 from flexarm_core.health_report import OK
 
 RECORD = {'supervisor_pid': 1, 'robot': 'sim', 'run_dir': 'runs/x', 'remote': ['flexarm_learner'],

@@ -1,4 +1,4 @@
-"""An :class:`~flexarm_control.execution.arm_motion.Arm` for the policy tests: the simulator's
+"""An :class:`~flexarm_motion.arm_motion.Arm` for the policy tests: the simulator's
 plant, no ROS. Joints arrive at once unless told otherwise; the tip is measured without noise."""
 from __future__ import annotations
 

@@ -5,10 +5,10 @@ import numpy as np
 import pytest
 from fake_arm import FakeArm
 
-from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.collection import BLIND_POSES, Collector
 from flexarm_core.kinematics import ArmGeometry, inverse
 from flexarm_core.params import load_config
+from flexarm_motion.arm_motion import ArmMotion, MotionSettings
 from flexarm_sim.plant import Plant
 
 START = np.array([0.0, 0.6, 0.0, 0.0])

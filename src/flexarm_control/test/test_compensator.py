@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 
 from flexarm_control.execution.compensator import CompensationError, Compensator
-from flexarm_control.learning.deflection_slope import deflection_slope
 from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,
@@ -15,6 +14,7 @@ from flexarm_core.kinematics import (
     limit_violation,
 )
 from flexarm_core.params import load_config
+from flexarm_deflection.deflection_slope import deflection_slope
 from flexarm_sim.plant import Plant
 
 TARGETS = [(1.45, -0.15, -45), (1.55, 0.0, -22), (1.0, -0.5, -100), (1.3, -0.2, -61),

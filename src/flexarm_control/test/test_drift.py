@@ -8,21 +8,21 @@ import numpy as np
 import pytest
 from fake_arm import FakeArm
 
-from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.compensator import Compensator
 from flexarm_control.execution.goal_execution import SUCCEEDED, GoalSpec, execute
 from flexarm_control.execution.modes import Mode
-from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.drift_correction import Correction, fit_correction
-from flexarm_control.learning.error_bound import BoundCalibration
-from flexarm_control.learning.model_health import ELSEWHERE, HealthSettings, ModelHealth
-from flexarm_control.learning.models import load_model
-from flexarm_control.learning.predictors import make_predictor
-from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
-from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict
+from flexarm_deflection.at_payload import AtPayload
+from flexarm_deflection.drift_correction import Correction, fit_correction
+from flexarm_deflection.error_bound import BoundCalibration
+from flexarm_deflection.model_health import ELSEWHERE, HealthSettings, ModelHealth
+from flexarm_deflection.models import load_model
+from flexarm_deflection.predictors import make_predictor
+from flexarm_deflection.refresh import refresh_poses, refresh_regions, refreshed
+from flexarm_deflection.sampling import sample_poses
+from flexarm_motion.arm_motion import ArmMotion, MotionSettings
 from flexarm_sim.plant import Plant
 
 

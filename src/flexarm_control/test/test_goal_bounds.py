@@ -3,7 +3,6 @@ import math
 
 import pytest
 
-from flexarm_control.execution.arm_motion import MotionSettings
 from flexarm_control.execution.goal_bounds import (
     MAX_CORRECTIONS,
     TIME_MARGIN,
@@ -16,6 +15,7 @@ from flexarm_control.execution.goal_bounds import (
 from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
+from flexarm_motion.arm_motion import MotionSettings
 
 BOUNDS = GoalBounds.nominal()
 A1 = (1.45, -0.15, math.radians(-45))

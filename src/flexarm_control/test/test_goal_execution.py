@@ -6,7 +6,6 @@ import numpy as np
 import pytest
 from fake_arm import FakeArm
 
-from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.compensator import Compensator
 from flexarm_control.execution.goal_execution import (
     CANCELED,
@@ -23,6 +22,7 @@ from flexarm_control.execution.goal_execution import (
 from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import ArmGeometry, pose_error
 from flexarm_core.params import load_config
+from flexarm_motion.arm_motion import ArmMotion, MotionSettings
 from flexarm_sim.plant import Plant
 
 TARGET = np.array([1.45, -0.15, math.radians(-45)])          # Table 10, A1

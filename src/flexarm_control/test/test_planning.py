@@ -10,13 +10,13 @@ from flexarm_control.execution.compensator import Compensator
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors
 from flexarm_control.execution.planning import DataLimits, Planned, Refusal, plan_goal
-from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.predictors import Predictor, make_predictor
-from flexarm_control.learning.sampling import sample_poses
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.paper import TABLE_10
 from flexarm_core.params import load_config
 from flexarm_core.regions import regions_from_dict
+from flexarm_deflection.at_payload import AtPayload
+from flexarm_deflection.predictors import Predictor, make_predictor
+from flexarm_deflection.sampling import sample_poses
 from flexarm_sim.plant import Plant
 
 TARGET = np.array([1.30, -0.20, math.radians(-61)])          # Table 10, B6

@@ -7,13 +7,13 @@ from flexarm_control.execution.compensator_status import (
     model_health_status,
     model_status,
 )
-from flexarm_control.learning.learner_status import learner_statuses
-from flexarm_control.learning.model_health import RegionHealth
 from flexarm_core.health_report import (
     ERROR,
     OK,
     WARN,
 )
+from flexarm_deflection.learner_status import learner_statuses
+from flexarm_deflection.model_health import RegionHealth
 from flexarm_msgs.msg import ModelInfo
 
 

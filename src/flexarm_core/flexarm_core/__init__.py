@@ -10,7 +10,7 @@ PUBLIC = (
     'flexarm_core.dds_profile',
     'flexarm_core.demand',
     'flexarm_core.frames',
-    'flexarm_core.goal_owner',
+    'flexarm_core.goal_sender',
     'flexarm_core.graph_locks',
     'flexarm_core.health_report',
     'flexarm_core.joint_trajectory',

@@ -50,7 +50,7 @@ TRAIN = 'train'                                             # flexarm_msgs/srv/T
 USE_MODEL = 'learner/use_model'                             # flexarm_msgs/srv/UseModel
 REFRESH_MODEL = 'learner/refresh'                           # flexarm_msgs/action/RefreshModel
 
-# The arm's one owner (flexarm_control.ros.arm_owner_node): every motion claims the arm here.
+# The arm's one owner (flexarm_motion.ros.arm_owner_node): every motion claims the arm here.
 ARM_MOTION = 'arm/motion'                                   # flexarm_msgs/ArmMotion, latched
 CLAIM_ARM = 'arm/claim'                                     # flexarm_msgs/srv/ClaimArm
 RELEASE_ARM = 'arm/release'                                 # flexarm_msgs/srv/ReleaseArm

@@ -1,21 +1,22 @@
 """Which of the simulators of one ROS domain publishes ``/clock`` (pure; the node applies it).
 
-Several arms in one domain run on one clock: one simulator owns ``/clock``, the others follow
+Several arms in one domain run on one clock: one simulator publishes ``/clock``, the others follow
 it (:mod:`flexarm_sim.sim_node`). The domain's time must neither stop nor step back when the
-owner goes or comes back, so:
+publisher goes or comes back, so:
 
 * A follower takes the clock over from the time it has reached when ``/clock`` has been silent
-  for ``silence`` wall seconds (the owner's graph stopped, its process died), or when ``/clock``
-  is behind its own time by more than ``margin`` ticks (the owner was restarted at time 0):
+  for ``silence`` wall seconds (the publisher's graph stopped, its process died), or when
+  ``/clock`` is behind its own time by more than ``margin`` ticks (the publisher was restarted
+  at time 0):
   its time is then the domain's latest.
-* Two owners (two followers took over at once, an owner starved for longer than the silence,
-  a restarted owner) are resolved by each hearing the other: the one behind by more than
+* Two publishers (two followers took over at once, a publisher starved for longer than the silence,
+  a restarted publisher) are resolved by each hearing the other: the one behind by more than
   ``margin`` yields and follows, since following only ever steps time forward; within
   ``margin`` the one whose node name sorts after the other's yields, so both decide alike.
 
-An owner tells another owner's ``/clock`` from its own by the time: it remembers the ticks it
-published, and keeps them when it yields. Two owners publishing the very same ticks are one
-clock, until they drift apart.
+A publisher tells another publisher's ``/clock`` from its own by the time: it remembers the
+ticks it published, and keeps them when it yields. Two publishers of the very same ticks are
+one clock, until they drift apart.
 """
 from __future__ import annotations
 
@@ -24,12 +25,12 @@ from dataclasses import dataclass, field
 
 OWN, FOLLOW = 'own', 'follow'
 ROLES = (OWN, FOLLOW)
-REMEMBERED = 64     # own /clock ticks an owner keeps to tell another owner's from its own
+REMEMBERED = 64     # own /clock ticks a publisher keeps to tell another publisher's from its own
 
 
 def yields(own_tick: int, own_name: str, other_tick: int, other_name: str,
            margin: int) -> bool:
-    """Whether an owner of ``/clock`` at ``own_tick`` gives it up to another owner that
+    """Whether a publisher of ``/clock`` at ``own_tick`` gives it up to another publisher that
     published ``other_tick`` (module docstring)."""
     if abs(other_tick - own_tick) <= margin:
         return other_name < own_name
@@ -46,7 +47,7 @@ class ClockShare:
     silence: float              # [s, wall] of silent /clock before a follower takes over
     margin: int                 # [ticks]
     started: float              # [s, wall] when following began: silent since then
-    owner: str = ''             # following: the owner's node name, once discovered
+    publisher: str = ''             # following: the publisher's node name, once discovered
     took_over: tuple[str, int] | None = None   # (from whom, at which tick)
     _heard: float | None = None                 # [s, wall] the last /clock, following
     _published: deque[int] = field(default_factory=lambda: deque(maxlen=REMEMBERED))
@@ -56,13 +57,13 @@ class ClockShare:
             raise ValueError(f'clock_source must be one of {ROLES}, not {self.role!r}')
 
     def published(self, tick: int) -> None:
-        """An owner published ``/clock`` at ``tick``."""
+        """A publisher published ``/clock`` at ``tick``."""
         self._published.append(tick)
 
     def is_own(self, tick: int) -> bool:
         """Whether a ``/clock`` at ``tick`` is one this simulator published: also after it
-        yielded, when its last ticks may still arrive behind the other owner's (taken for the
-        owner's clock going back, they would take the clock over again)."""
+        yielded, when its last ticks may still arrive behind the other publisher's (taken for the
+        publisher's clock going back, they would take the clock over again)."""
         return tick in self._published
 
     def heard(self, now: float, tick: int, own_tick: int) -> bool:
@@ -76,19 +77,19 @@ class ClockShare:
         return self.role == FOLLOW and now - (self._heard or self.started) > self.silence
 
     def take_over(self, tick: int) -> None:
-        self.role, self.took_over = OWN, (self.owner, tick)
+        self.role, self.took_over = OWN, (self.publisher, tick)
         self._published.clear()
 
-    def follow(self, owner: str, now: float) -> None:
-        """Give the clock up to ``owner`` (an owner that yields)."""
-        self.role, self.owner, self.started, self._heard = FOLLOW, owner, now, None
+    def follow(self, publisher: str, now: float) -> None:
+        """Give the clock up to ``publisher`` (a publisher that yields)."""
+        self.role, self.publisher, self.started, self._heard = FOLLOW, publisher, now, None
 
     def text(self, dt: float) -> str:
         """The role in words, for the simulator's diagnostics (``dt``: s per tick)."""
         if self.role == FOLLOW:
-            return f'follows the /clock of {self.owner or "another arm"}'
+            return f'follows the /clock of {self.publisher or "another arm"}'
         if self.took_over is None:
-            return 'owns /clock'
-        owner, tick = self.took_over
-        return (f'owns /clock, taken over at {tick * dt:.3f} s from '
-                f'{owner or "another arm"}')
+            return 'publishes /clock'
+        publisher, tick = self.took_over
+        return (f'publishes /clock, taken over at {tick * dt:.3f} s from '
+                f'{publisher or "another arm"}')

@@ -34,7 +34,7 @@ from trajectory_msgs.msg import JointTrajectory
 
 from flexarm_core import liveness, topics
 from flexarm_core.frames import BASE_FRAME, PLANE_FRAME
-from flexarm_core.goal_owner import full_name
+from flexarm_core.goal_sender import full_name
 from flexarm_core.health_report import OK, CommandLog, Status, status
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry, command_error
 from flexarm_core.ros.diagnostics import DiagnosticsPublisher
@@ -82,16 +82,16 @@ def tick_time(tick: int, rate: float) -> tuple[int, int]:
 
 def controller_status(node: str, hardware_id: str, moving: bool, sim_time: float,
                       factor: float, achieved: float, payload: float,
-                      clock: str = 'owns /clock') -> Status:
+                      clock: str = 'publishes /clock') -> Status:
     """``<node>: controller``: the arm moving or still, the simulated time, the real-time
     factor achieved over the last 1-2 s and the one set, the payload, the simulator's part
-    in the domain's ``/clock`` (:meth:`ClockShare.text`; in the message unless it simply owns
+    in the domain's ``/clock`` (:meth:`ClockShare.text`; in the message unless it simply publishes
     it). Always OK: the simulator has no failure state, and running slower than its factor is
     how it meets a busy CPU (it never skips steps), not a fault; a follower whose ``/clock``
     stops takes it over within ``CLOCK_SILENCE``."""
     return status(node, 'controller', OK, (
         f'arm {"moving" if moving else "still"}, x{achieved:.2f} real time (set x{factor:g}), '
-        f'payload {payload:g} kg' + ('' if clock == 'owns /clock' else f'; {clock}')), {
+        f'payload {payload:g} kg' + ('' if clock == 'publishes /clock' else f'; {clock}')), {
         'arm': 'moving' if moving else 'still', 'sim time [s]': round(sim_time, 3),
         'real-time factor': round(achieved, 3), 'real-time factor set': factor,
         'payload [kg]': payload, 'clock': clock}, hardware_id)
@@ -316,14 +316,14 @@ class SimNode(Node):
         return sorted(names - {self._share.name})
 
     def _check_clock(self) -> None:
-        """An owner listens while another /clock is published; a follower whose /clock went
+        """A publisher listens while another /clock is published; a follower whose /clock went
         silent takes it over."""
         share, others = self._share, self._other_clocks()
         if share.role == OWN:
             self._listen_to_clock(bool(others))
             return
         if others:
-            share.owner = others[0]
+            share.publisher = others[0]
         if share.silent(time.monotonic()):
             self._take_over(f'no /clock for {share.silence:g} s')
 
@@ -331,12 +331,13 @@ class SimNode(Node):
         self._share.take_over(self._tick)
         self._own_clock()
         self.get_logger().warning(
-            f'{why}: this simulator owns /clock from now on, from {self._tick * self._dt:.3f} s '
+            f'{why}: this simulator publishes /clock from now on, from '
+            f'{self._tick * self._dt:.3f} s '
             f'(it followed {self._share.took_over[0] or "another arm"})')
 
     def _on_clock(self, msg: Clock) -> None:
-        """Following: step up to the owner's time (the first /clock: start there, at rest).
-        Owning: another owner's /clock decides which of the two yields."""
+        """Following: step up to the publisher's time (the first /clock: start there, at rest).
+        Owning: another publisher's /clock decides which of the two yields."""
         tick = ticks_at(msg.clock.sec, msg.clock.nanosec, self._js_rate)
         share = self._share
         if share.is_own(tick):
@@ -353,7 +354,8 @@ class SimNode(Node):
             self.get_logger().warning(f'/clock of {other or "another arm"} at '
                                       f'{tick * self._dt:.3f} s: following it')
         if share.heard(time.monotonic(), tick, self._tick):
-            self._take_over(f'/clock went back to {tick * self._dt:.3f} s (its owner restarted)')
+            self._take_over(
+                f'/clock went back to {tick * self._dt:.3f} s (its publisher restarted)')
             return
         if not self._started_following or (tick - self._tick > FOLLOW_CATCH_UP
                                            and not self._dynamics.state.is_moving):

@@ -1,6 +1,6 @@
 """The simulated arm without its dynamics, for offline studies of the control policies (pure).
 
-An :class:`~flexarm_control.execution.arm_motion.Arm` that arrives at once: a move applies the
+An :class:`~flexarm_motion.arm_motion.Arm` that arrives at once: a move applies the
 error sources as the simulator's dynamics would at its end (:mod:`flexarm_sim.errors`: the servos'
 repeatability error of the move, the friction play taken up along it, the thermal strain at the
 simulated time) and advances the simulated time by the slowest joint's travel time at the

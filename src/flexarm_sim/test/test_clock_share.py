@@ -7,7 +7,7 @@ ARM1, ARM2 = '/arm1/flexarm_sim', '/arm2/flexarm_sim'
 
 
 def follower(silence: float = 1.0, started: float = 100.0) -> ClockShare:
-    return ClockShare(FOLLOW, ARM2, silence, margin=80, started=started, owner=ARM1)
+    return ClockShare(FOLLOW, ARM2, silence, margin=80, started=started, publisher=ARM1)
 
 
 def test_two_owners_decide_alike_which_one_keeps_the_clock() -> None:
@@ -28,7 +28,7 @@ def test_a_follower_takes_over_a_silent_clock_from_the_time_it_reached() -> None
     assert not share.silent(102.9) and share.silent(103.1)
     share.take_over(4000)
     assert share.role == OWN and not share.silent(200.0)
-    assert share.text(0.01) == f'owns /clock, taken over at 40.000 s from {ARM1}'
+    assert share.text(0.01) == f'publishes /clock, taken over at 40.000 s from {ARM1}'
 
 
 def test_a_clock_gone_back_is_a_restarted_owner_and_is_taken_over() -> None:
@@ -44,8 +44,8 @@ def test_an_owner_tells_its_own_clock_from_another_by_the_ticks_it_published() -
     assert share.is_own(40 * (REMEMBERED + 1)) and not share.is_own(40)   # only the latest
     assert not share.is_own(1234)
     share.follow(ARM2, 50.0)
-    assert share.role == FOLLOW and share.owner == ARM2
-    # its own last ticks, arriving after it yielded, are not the new owner's clock gone back
+    assert share.role == FOLLOW and share.publisher == ARM2
+    # its own last ticks, arriving after it yielded, are not the new publisher's clock gone back
     assert share.is_own(40 * REMEMBERED) and not share.is_own(1234)
     assert share.text(0.01) == f'follows the /clock of {ARM2}'
     assert share.silent(51.5)

@@ -10,7 +10,7 @@ def test_the_simulator_reports_arm_time_factor_and_payload() -> None:
     assert s.message == 'arm moving, x3.14 real time (set x10), payload 5 kg'
     assert dict(s.values) == {'arm': 'moving', 'sim time [s]': '12.346',
                               'real-time factor': '3.142', 'real-time factor set': '10',
-                              'payload [kg]': '5', 'clock': 'owns /clock'}
+                              'payload [kg]': '5', 'clock': 'publishes /clock'}
     follower = controller_status('flexarm_sim', '', False, 1.0, 10.0, 10.0, 0.0,
                                  'follows the /clock of /arm1/flexarm_sim')
     assert follower.message.endswith('; follows the /clock of /arm1/flexarm_sim')

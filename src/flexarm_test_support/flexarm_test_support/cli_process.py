@@ -24,7 +24,7 @@ class Cli:
     def __init__(self, *args: str, domain_id: int) -> None:
         Cli.running.append(self)
         self.process = subprocess.Popen(
-            [sys.executable, '-m', 'flexarm_bringup.cli', *args, '--domain-id', str(domain_id)],
+            [sys.executable, '-m', 'flexarm_cli', *args, '--domain-id', str(domain_id)],
             stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
             env={**os.environ, 'PYTHONUNBUFFERED': '1'})
         self.out: list[str] = []

@@ -28,7 +28,7 @@ from typing import IO, Any
 
 import pytest
 
-from flexarm_bringup.orchestration.launcher import ros_env
+from flexarm_bringup.launcher import ros_env
 from flexarm_core import liveness
 
 MOVED = 1e-4          # [rad, m] a joint that changed by more than this moved

@@ -1,2 +1,2 @@
-"""Executing goals and campaigns: compensation and planning, the goal and collection loops over
-one arm-motion helper, goal bounds, the tool calibration against a reference (pure: no rclpy)."""
+"""Executing goals and campaigns: compensation and planning, goal bounds and the check after a
+move, the collection loop, the tool calibration against a reference (pure: no rclpy)."""

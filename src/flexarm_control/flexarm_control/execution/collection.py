@@ -21,10 +21,10 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexarm_control.execution.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
-from flexarm_control.learning.dataset import Sample
 from flexarm_core.kinematics import ArmGeometry, forward, wrap_angle
 from flexarm_core.measurement import Measurement
+from flexarm_deflection.dataset import Sample
+from flexarm_motion.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
 
 BLIND_POSES = 3     # poses in a row skipped for want of a valid measurement: the camera is blind
 

@@ -35,7 +35,6 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
-from flexarm_control.learning.deflection_slope import FREE, JACOBIAN_STEP, Predict
 from flexarm_core.kinematics import (
     ArmGeometry,
     UnreachableError,
@@ -45,6 +44,7 @@ from flexarm_core.kinematics import (
     limit_violation,
     wrap_angle,
 )
+from flexarm_deflection.deflection_slope import FREE, JACOBIAN_STEP, Predict
 
 METHODS = ('newton', 'paper')
 MIN_STEP_FRACTION = 1 / 64  # line search: smallest fraction of a Newton step tried

@@ -2,9 +2,9 @@
 (pure)."""
 from __future__ import annotations
 
-from flexarm_control.learning.model_health import RegionHealth as RegionReport
-from flexarm_control.learning.model_summary import ModelSummary
 from flexarm_core.health_report import ERROR, OK, WARN, Status, status
+from flexarm_deflection.model_health import RegionHealth as RegionReport
+from flexarm_deflection.model_summary import ModelSummary
 
 
 def model_status(node: str, info: ModelSummary | None, load_error: str,

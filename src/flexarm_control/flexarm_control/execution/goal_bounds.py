@@ -40,7 +40,7 @@ for a reason none of them catches (the margin leaves room for planning and corre
 time that a fast simulator turns into many seconds of sim time). A stopped clock stops the
 limit too; the waits' own wall-clock caps and the controller's silence end such a goal.
 :class:`GoalWatch` applies the limit and, every ``SENDER_CHECK`` s, asks whether the goal's
-sender is still there (:mod:`flexarm_core.goal_owner`).
+sender is still there (:mod:`flexarm_core.goal_sender`).
 """
 from __future__ import annotations
 
@@ -52,10 +52,10 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.execution.arm_motion import MotionSettings
 from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import ArmGeometry
 from flexarm_core.params import load_config
+from flexarm_motion.arm_motion import MotionSettings
 
 MAX_CORRECTIONS = 10
 MAX_POSITION_TOLERANCE = 0.1               # [m]

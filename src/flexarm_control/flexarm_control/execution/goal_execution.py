@@ -34,11 +34,11 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from flexarm_control.execution.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
 from flexarm_control.execution.bound_check import beyond_bound
 from flexarm_control.execution.compensator import Compensator, Plan
 from flexarm_control.execution.modes import Mode
 from flexarm_core.kinematics import UnreachableError, pose_error
+from flexarm_motion.arm_motion import Abort, ArmMotion, Canceled, MoveFailed, never
 
 # Execution.status values (the node maps them to MoveToPose result codes).
 SUCCEEDED = 'succeeded'

@@ -1,7 +1,7 @@
 """The 95 % error bound a plan states before anything moves (pure policy of the compensator).
 
 * PREDICTIVE: the model's own bound at the joints to command and the payload carried
-  (:meth:`~flexarm_control.learning.predictors.Predictor.error_bound`: its raw std scaled on
+  (:meth:`~flexarm_deflection.predictors.Predictor.error_bound`: its raw std scaled on
   held-out samples, with the masses' prior where the samples had one payload), and what no
   model sees (:class:`SiteErrors`): the arm's thermal growth since its samples were taken
   (the held-out samples are of one time; the model health mends a growth that shows), what
@@ -31,10 +31,10 @@ from typing import Any
 
 import numpy as np
 
-from flexarm_control.learning.error_bound import Z_1D, Z_2D
-from flexarm_control.learning.predictors.kinematic import KINEMATIC, pose_jacobian
 from flexarm_core.kinematics import ArmGeometry, forward
 from flexarm_core.paper import TABLE_10
+from flexarm_deflection.error_bound import Z_1D, Z_2D
+from flexarm_deflection.predictors.kinematic import KINEMATIC, pose_jacobian
 
 # [m, rad] the rigid model's largest errors over the paper's Table 10 (16 mm, 3.8 deg)
 RIGID_ERROR = tuple(max(t.rigid_errors[i] for t in TABLE_10 if t.rigid_errors) * unit

@@ -5,9 +5,9 @@ goal runs, and when the model is not trusted.
 * PREDICTIVE: the compensated plan (:meth:`Compensator.predictive`), refused with
   ``OUTSIDE_LEARNED_DATA`` when the joints to command lie beyond the learned data — farther
   than ``max_distance`` typical sample spacings from the model's learning samples
-  (:meth:`~flexarm_control.learning.predictors.Predictor.data_distance`, any kind), or where the
+  (:meth:`~flexarm_deflection.predictors.Predictor.data_distance`, any kind), or where the
   model's own standard deviation of the predicted tip position exceeds ``max_std``
-  (:meth:`~flexarm_control.learning.predictors.Predictor.position_std`, the GP) — unless the goal
+  (:meth:`~flexarm_deflection.predictors.Predictor.position_std`, the GP) — unless the goal
   allows extrapolation, which runs it with a warning. Both are needed: a target 100 mm and 10°
   outside region B lies only ~1.3 spacings from the region's samples (targets inside reached 2.4),
   yet the GP misses it by 1 mm there, and its std says so (0.3 mm, against at most 0.25 mm inside).
@@ -49,11 +49,11 @@ from flexarm_control.execution.bound_check import AS_CALIBRATED, BoundParts, Inf
 from flexarm_control.execution.compensator import CompensationError, Compensator, Plan
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import RIGID_ERROR, SiteErrors
-from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.error_bound import Z_1D
-from flexarm_control.learning.predictors import Predictor
-from flexarm_control.learning.predictors.base import PAYLOAD_TOLERANCE
 from flexarm_core.kinematics import inverse
+from flexarm_deflection.at_payload import AtPayload
+from flexarm_deflection.error_bound import Z_1D
+from flexarm_deflection.predictors import Predictor
+from flexarm_deflection.predictors.base import PAYLOAD_TOLERANCE
 
 
 @dataclass(frozen=True)

@@ -1,2 +1,2 @@
-"""The ROS shell: the learner and compensator nodes, the arm interface they share and the
-scriptable client; the only modules of flexarm_control that import rclpy."""
+"""The ROS shell: the learner and compensator nodes and the scriptable client; the only modules
+of flexarm_control that import rclpy."""

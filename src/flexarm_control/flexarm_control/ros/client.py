@@ -61,10 +61,10 @@ from rclpy.task import Future
 from unique_identifier_msgs.msg import UUID
 
 from flexarm_control.execution.modes import Mode
-from flexarm_control.ros.arm_claim import ArmClaim
 from flexarm_core import liveness, topics, transport
-from flexarm_core.goal_owner import own_participant, participant, send_goal_writers, sender_of
+from flexarm_core.goal_sender import own_participant, participant, send_goal_writers, sender_of
 from flexarm_core.graph_locks import graph_domain
+from flexarm_motion.ros.arm_claim import ArmClaim
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
 from flexarm_msgs.msg import ModelInfo, PlanarPose, TipPose
 from flexarm_msgs.srv import Train, UseModel

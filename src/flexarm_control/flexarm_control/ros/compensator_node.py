@@ -6,7 +6,7 @@ AUTO chooses by the plan's 95 % bound. The logic is pure: which plan a goal runs
 (:mod:`flexarm_control.execution.planning`), how it runs
 (:mod:`flexarm_control.execution.goal_execution`), the bound after the move and online
 (:mod:`flexarm_control.execution.bound_check`), the model's health
-(:mod:`flexarm_control.learning.model_health`). This node validates goals, claims the arm for
+(:mod:`flexarm_deflection.model_health`). This node validates goals, claims the arm for
 each, maps outcomes to error codes, hot-reloads the model the learner announces and publishes
 ``/compensator/active_model``, ``/compensator/model_health`` and the scene's target and
 commanded poses.
@@ -34,7 +34,6 @@ from rclpy.node import Node
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
-from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.bound_check import OnlineBound, OnlineSettings
 from flexarm_control.execution.compensator import Compensator, Plan
 from flexarm_control.execution.compensator_status import (
@@ -56,18 +55,10 @@ from flexarm_control.execution.goal_execution import (
 from flexarm_control.execution.modes import Mode
 from flexarm_control.execution.plan_bound import SiteErrors
 from flexarm_control.execution.planning import DataLimits, Planned, Refusal, beyond_data, plan_goal
-from flexarm_control.learning.at_payload import AtPayload
-from flexarm_control.learning.model_health import HealthSettings, ModelHealth
-from flexarm_control.learning.model_store import payload_warning
-from flexarm_control.learning.models import load_model
-from flexarm_control.learning.predictors import Predictor
-from flexarm_control.ros.arm_claim import ArmBusy
-from flexarm_control.ros.arm_interface import ArmInterface
-from flexarm_control.ros.joint_commands import joint_commands
 from flexarm_control.ros.messages import planar
 from flexarm_core import topics
 from flexarm_core.dds_profile import on_this_machine_only
-from flexarm_core.goal_owner import Owner, ProcTable, owner_at_acceptance, send_goal_writers
+from flexarm_core.goal_sender import GoalSender, ProcTable, send_goal_writers, sender_at_acceptance
 from flexarm_core.health_report import Status
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, forward, pose_error
 from flexarm_core.regions import regions_from_dict
@@ -76,6 +67,15 @@ from flexarm_core.ros.node_main import Offload, finish_goal, run
 from flexarm_core.ros.node_params import declare, declare_tree
 from flexarm_core.ros.scene_msgs import pose_stamped
 from flexarm_core.ros.stamps import to_ns
+from flexarm_deflection.at_payload import AtPayload
+from flexarm_deflection.model_health import HealthSettings, ModelHealth
+from flexarm_deflection.model_store import payload_warning
+from flexarm_deflection.models import load_model
+from flexarm_deflection.predictors import Predictor
+from flexarm_motion.arm_motion import ArmMotion, MotionSettings
+from flexarm_motion.ros.arm_claim import ArmBusy
+from flexarm_motion.ros.arm_interface import ArmInterface
+from flexarm_motion.ros.joint_commands import joint_commands
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome, ModelInfo, RegionHealth
 from flexarm_msgs.msg import ModelHealth as HealthMsg
@@ -170,10 +170,10 @@ class CompensatorNode(Node):
         self._goal_counts = {'succeeded': 0, 'failed': 0, 'canceled': 0}
         self._executing = ''           # the goal in progress: trial name, mode and sender
         self._action = topics.absolute(topics.MOVE_TO_POSE, self.get_namespace())
-        self._owners: dict[bytes, Owner] = {}    # of accepted goals, by goal id, until run
+        self._senders: dict[bytes, GoalSender] = {}    # of accepted goals, by goal id, until run
         self._processes = ProcTable()
         self._local = on_this_machine_only(os.environ)    # every client runs on this machine
-        self._host: bytes | None = None          # a gid of this node (its host, for owners)
+        self._host: bytes | None = None          # a gid of this node (its host, for senders)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._active_pub = self.create_publisher(ModelInfo, topics.ACTIVE_MODEL, latched)
         self._health_pub = self.create_publisher(HealthMsg, topics.MODEL_HEALTH, latched)
@@ -294,32 +294,32 @@ class CompensatorNode(Node):
 
     # --- goal policy ------------------------------------------------------------------------
     def _on_accepted(self, handle: ServerGoalHandle) -> None:
-        """Note who may have sent the goal (:mod:`flexarm_core.goal_owner`), then run it."""
+        """Note who may have sent the goal (:mod:`flexarm_core.goal_sender`), then run it."""
         if self._host is None:
             self._host = next((bytes(i.endpoint_gid) for i in self.get_publishers_info_by_topic(
                 f'{self._action}/_action/status') if i.node_name == self.get_name()
                 and i.node_namespace == self.get_namespace()), None)
-        owner = owner_at_acceptance(send_goal_writers(self, self._action), self._host,
+        sender = sender_at_acceptance(send_goal_writers(self, self._action), self._host,
                                     self._processes, self._local)
-        if by_discovery := owner.by_discovery_only():
+        if by_discovery := sender.by_discovery_only():
             self.get_logger().info(
                 f'goal {handle.request.trial or "(no trial name)"}: {", ".join(by_discovery)} '
                 'known by discovery alone (no process of this machine): its leaving is seen '
                 "only once DDS's lease on it ends")
-        self._owners[bytes(handle.goal_id.uuid)] = owner
+        self._senders[bytes(handle.goal_id.uuid)] = sender
         handle.execute()
 
-    def _sender_left(self, owner: Owner) -> bool:
-        return owner.gone(send_goal_writers(self, self._action), self._processes.alive)
+    def _sender_left(self, sender: GoalSender) -> bool:
+        return sender.gone(send_goal_writers(self, self._action), self._processes.alive)
 
     # --- execution --------------------------------------------------------------------------
     def _execute(self, handle: ServerGoalHandle) -> Result:
         goal: Goal = handle.request
-        owner = self._owners.pop(bytes(handle.goal_id.uuid), Owner())
+        sender = self._senders.pop(bytes(handle.goal_id.uuid), GoalSender())
         with self._busy_state:         # the goal that runs is named to the one refused
             won = self._busy.acquire(blocking=False)
             if won:
-                self._executing = f'{describe(goal)}, {owner.text()}'
+                self._executing = f'{describe(goal)}, {sender.text()}'
             running = self._executing
         if not won:                    # this server's other goal runs
             result = unbound(error_code=Result.ARM_BUSY, error_string=(
@@ -328,7 +328,7 @@ class CompensatorNode(Node):
         else:
             try:
                 with self._arm.attached(), ExitStack() as arm:
-                    result = self._run(handle, goal, owner, arm)
+                    result = self._run(handle, goal, sender, arm)
             except ArmBusy as exc:
                 result = unbound(error_code=Result.ARM_BUSY, error_string=str(exc))
             except Exception as exc:   # last resort: a reason for the client, never empty
@@ -351,7 +351,7 @@ class CompensatorNode(Node):
             self.get_logger().warn(f'goal aborted ({result.error_code}): {result.error_string}')
         return result
 
-    def _run(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack
+    def _run(self, handle: ServerGoalHandle, goal: Goal, sender: GoalSender, arm: ExitStack
              ) -> Result:
         """Plan; unless refused or a dry run, claim the arm in ``arm`` and move."""
         result = unbound()
@@ -362,7 +362,7 @@ class CompensatorNode(Node):
             result.error_string = '; '.join(filter(None, ['dry run: nothing moved',
                                                           *plan.notes]))
             return result
-        return self._move(handle, goal, owner, arm, plan, result)
+        return self._move(handle, goal, sender, arm, plan, result)
 
     def _plan(self, handle: ServerGoalHandle, goal: Goal, result: Result) -> GoalPlan | None:
         """Validate and plan ``goal``, the plan's figures in ``result``; None when refused
@@ -427,7 +427,7 @@ class CompensatorNode(Node):
         result.commanded_pose = planar(plan.commanded_pose)
         return GoalPlan(target, planned, spec, predictor, notes)
 
-    def _move(self, handle: ServerGoalHandle, goal: Goal, owner: Owner, arm: ExitStack,
+    def _move(self, handle: ServerGoalHandle, goal: Goal, sender: GoalSender, arm: ExitStack,
               plan: GoalPlan, result: Result) -> Result:
         """Claim the arm in ``arm``, run the plan, and put its outcome in ``result``."""
         target, notes = plan.target, plan.notes
@@ -436,19 +436,19 @@ class CompensatorNode(Node):
                                    f'{"; ".join(filter(None, notes))}')
         result.motion = arm.enter_context(self._arm.claim.claimed(
             'move', f'MoveToPose {describe(goal)} to x {target[0] * 1e3:.1f} mm, '
-            f'y {target[1] * 1e3:.1f} mm, phi {math.degrees(target[2]):.2f} deg', owner.text(),
+            f'y {target[1] * 1e3:.1f} mm, phi {math.degrees(target[2]):.2f} deg', sender.text(),
             within=goal.motion))
         started = self._arm.arm_time()
         watch = GoalWatch(
             time_limit(plan.spec.max_moves, self._geometry, self._motion.settings),
             lambda: (self._arm.arm_time() - started).nanoseconds * 1e-9,
-            lambda: self._sender_left(owner))
+            lambda: self._sender_left(sender))
 
         def stop() -> bool:
             return handle.is_cancel_requested or watch() or not self._arm.claim.holds()
 
         def ended_by(reason: str) -> str:
-            named = owner.named(send_goal_writers(self, self._action))
+            named = sender.named(send_goal_writers(self, self._action))
             lost = self._arm.claim.lost
             return (f'canceled by the server: {watch.reason}' if watch.reason else
                     f'canceled: {lost}' if lost else 'canceled') + f'; {reason}; {named.text()}'

@@ -6,10 +6,10 @@ and the ``payload`` parameter on the latched ``/payload``; publishes every sampl
 ``/learner/samples``. While it moves the arm (claimed from the arm owner) it commands the
 controller and takes ``/joint_states`` and ``/tip_pose``; a refresh reads the compensator's
 ``/compensator/model_health``. The logic is pure: the collection loop
-:mod:`flexarm_control.execution.collection`, its poses :mod:`flexarm_control.learning.sampling`
-and :mod:`~flexarm_control.learning.active_sampling`, training
-:mod:`flexarm_control.learning.training` (in a worker process), the model record
-:mod:`flexarm_control.learning.model_store` and :mod:`flexarm_control.learning.refresh`.
+:mod:`flexarm_control.execution.collection`, its poses :mod:`flexarm_deflection.sampling`
+and :mod:`~flexarm_deflection.active_sampling`, training
+:mod:`flexarm_deflection.training` (in a worker process), the model record
+:mod:`flexarm_deflection.model_store` and :mod:`flexarm_deflection.refresh`.
 
 Explained in docs/nodes.md#the-learner-flexarm_learner.
 """
@@ -34,18 +34,26 @@ from rclpy.parameter import Parameter
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from std_msgs.msg import Float64
 
-from flexarm_control.execution.arm_motion import ArmMotion, MotionSettings
 from flexarm_control.execution.collection import Collected, Collector
-from flexarm_control.learning.active_sampling import ActivePoses
-from flexarm_control.learning.cross_validation import Screening
-from flexarm_control.learning.dataset import (
+from flexarm_control.ros.messages import planar
+from flexarm_core import topics
+from flexarm_core.goal_sender import ProcTable, send_goal_writers, sender_at_acceptance
+from flexarm_core.kinematics import ArmGeometry
+from flexarm_core.paths import repo_path
+from flexarm_core.regions import Region, regions_from_dict
+from flexarm_core.ros.diagnostics import DiagnosticsPublisher
+from flexarm_core.ros.node_main import Offload, finish_goal, run
+from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_deflection.active_sampling import ActivePoses
+from flexarm_deflection.cross_validation import Screening
+from flexarm_deflection.dataset import (
     DatasetWriter,
     Sample,
     dataset_name_error,
     load_dataset,
 )
-from flexarm_control.learning.learner_status import learner_statuses
-from flexarm_control.learning.model_store import (
+from flexarm_deflection.learner_status import learner_statuses
+from flexarm_deflection.model_store import (
     DamagedRecord,
     arm_fingerprint,
     find_model,
@@ -55,26 +63,18 @@ from flexarm_control.learning.model_store import (
     unloadable_text,
     write_current,
 )
-from flexarm_control.learning.models import KINDS, load_model, make_model
-from flexarm_control.learning.payload_bounds import bound_report, needs_retraining
-from flexarm_control.learning.payload_record import payload_path, read_payload, write_payload
-from flexarm_control.learning.predictors import Predictor
-from flexarm_control.learning.refresh import refresh_poses, refresh_regions, refreshed
-from flexarm_control.learning.sampling import STRATEGIES, sample_poses, travel_order
-from flexarm_control.learning.training import TrainingWorker
-from flexarm_control.learning.training_job import train_and_save, warm_up
-from flexarm_control.ros.arm_claim import ArmBusy
-from flexarm_control.ros.arm_interface import ArmInterface
-from flexarm_control.ros.joint_commands import joint_commands
-from flexarm_control.ros.messages import planar
-from flexarm_core import topics
-from flexarm_core.goal_owner import ProcTable, owner_at_acceptance, send_goal_writers
-from flexarm_core.kinematics import ArmGeometry
-from flexarm_core.paths import repo_path
-from flexarm_core.regions import Region, regions_from_dict
-from flexarm_core.ros.diagnostics import DiagnosticsPublisher
-from flexarm_core.ros.node_main import Offload, finish_goal, run
-from flexarm_core.ros.node_params import declare, declare_tree
+from flexarm_deflection.models import KINDS, load_model, make_model
+from flexarm_deflection.payload_bounds import bound_report, needs_retraining
+from flexarm_deflection.payload_record import payload_path, read_payload, write_payload
+from flexarm_deflection.predictors import Predictor
+from flexarm_deflection.refresh import refresh_poses, refresh_regions, refreshed
+from flexarm_deflection.sampling import STRATEGIES, sample_poses, travel_order
+from flexarm_deflection.training import TrainingWorker
+from flexarm_deflection.training_job import train_and_save, warm_up
+from flexarm_motion.arm_motion import ArmMotion, MotionSettings
+from flexarm_motion.ros.arm_claim import ArmBusy
+from flexarm_motion.ros.arm_interface import ArmInterface
+from flexarm_motion.ros.joint_commands import joint_commands
 from flexarm_msgs.action import CollectSamples, RefreshModel
 from flexarm_msgs.msg import (
     DeflectionSample,
@@ -216,7 +216,7 @@ class LearnerNode(Node):
 
     def _restore_payload(self) -> None:
         """Take the last declared payload over the configured one: the arm still carries it
-        (:mod:`flexarm_control.learning.payload_record`)."""
+        (:mod:`flexarm_deflection.payload_record`)."""
         try:
             stored = read_payload(self._model_dir)
         except ValueError as exc:
@@ -236,7 +236,7 @@ class LearnerNode(Node):
     # --- collection -------------------------------------------------------------------------
     def _sender(self, action: str) -> str:
         """Who may have sent a goal of ``action`` ("goal sent by /node"; several: one of)."""
-        return owner_at_acceptance(send_goal_writers(self, topics.absolute(
+        return sender_at_acceptance(send_goal_writers(self, topics.absolute(
             action, self.get_namespace())), None, ProcTable()).text()
 
     def _busy(self) -> str:
@@ -470,7 +470,7 @@ class LearnerNode(Node):
         model's own dataset, which is trained again (the learner's default training of the
         model's kind, with the payload as an input: :func:`train_and_save`) — a correction
         at one payload cannot tell the arm's masses from its compliance, samples at two
-        can (:mod:`flexarm_control.learning.payload_bounds`)."""
+        can (:mod:`flexarm_deflection.payload_bounds`)."""
         joints = np.array([s.joints for s in samples])
         deflections = np.array([s.deflection for s in samples])
         before = predictor.predict(joints, self._payload if predictor.carries_payload else None)

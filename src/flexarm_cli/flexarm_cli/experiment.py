@@ -27,7 +27,7 @@ import time
 from collections.abc import Callable, Iterator
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -53,6 +53,9 @@ from flexarm_recording.results.trials import (
     run_trials,
     summarise,
 )
+
+if TYPE_CHECKING:
+    from flexarm_control.ros.client import FlexarmClient
 
 
 @dataclass
@@ -94,29 +97,17 @@ def _targets(settings: ExperimentSettings, region: str, geometry: ArmGeometry,
 def run_experiment(settings: ExperimentSettings, domain_id: int,
                    say: Callable[[str], None] = print, progress: bool = True) -> dict:
     """Run it; returns the summary and writes results/<name>/ (JSON, CSV, PNG)."""
-    from tqdm import tqdm
-
     run_dir = RUNS_DIR / settings.name
     out_dir = RESULTS_DIR / settings.name
-    config = load_config('arm.yaml')
-    geometry = ArmGeometry.from_dict(config['arm'])
+    geometry = ArmGeometry.from_dict(load_config('arm.yaml')['arm'])
     regions = configured_regions(node_name('learner'))
-    parameters = {
-        node_name('simulator'): {'real_time_factor': settings.real_time_factor,
-                                 **settings.world},
-        node_name('learner'): {'data_directory': str(run_dir / 'data'),
-                               'model_directory': str(run_dir / 'models')},
-        node_name('recorder'): {'bag_name': settings.name},
-        # the run's own tool calibration (below), never the site's calibration/ file
-        node_name('vision'): {'tool_calibration_file': str(run_dir / 'tool_camera.json'),
-                              'camera_calibration_file': str(run_dir / 'camera.json')},
-        **settings.extra_parameters}
     optional = (node_name('recorder'),) if settings.record else ()
     region_names = ['A', 'B'] + (['paper'] if settings.table9 else [])
     trials: list[Trial] = []
     learning: dict[str, dict] = {}
     started = time.monotonic()
-    graph = Graph(domain_id, run_dir, parameters=parameters, optional=optional, report=say)
+    graph = Graph(domain_id, run_dir, parameters=_run_parameters(settings, run_dir),
+                  optional=optional, report=say)
     say(f'starting the graph in ROS domain {domain_id}; logs in {run_dir}')
     watchdog = _Watchdog(graph)
     with graph, graph_client(domain_id) as client, contextlib.closing(watchdog):
@@ -128,54 +119,12 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
         truth = TruthMonitor(client)
         calibration = None
         if not settings.world:          # the realistic world: calibrate the camera first
-            correction, found, _ = calibrate_tool(client, topics.TIP_POSE_TRUTH,
-                                                  run_dir / 'tool_camera.json', say=say)
-            calibration = {'axial_mm': correction.axial * 1e3,
-                           'lateral_mm': correction.lateral * 1e3,
-                           'angle_deg': math.degrees(correction.angle), 'poses': found.poses,
-                           'spread_mm': found.spread[0] * 1e3}
-            say(f'tool calibration against the reference (the ground truth): camera error '
-                f'axial {calibration["axial_mm"]:.4f} mm, lateral '
-                f'{calibration["lateral_mm"]:.4f} mm, {calibration["angle_deg"]:.5f} deg')
+            calibration = _calibrate(client, run_dir, say)
             phases.mark('calibration')
         for region in region_names:
-            bar = tqdm(total=settings.samples, desc=f'collect {region}', unit='sample',
-                       disable=not progress)
-            collected = client.collect(
-                settings.samples, region=region, dataset=region, seed=settings.seed,
-                feedback=lambda fb, bar=bar: (bar.update(fb.k - bar.n), bar.set_postfix(
-                    skipped=fb.skipped)))
-            bar.close()
-            if collected.error_code != 0:
-                raise RuntimeError(f'collection in {region} failed: {collected.error_string}')
-            phases.mark(f'collect {region}', samples=collected.collected)
-            trained = client.train(settings.kind, dataset=region)
-            if not trained.success:
-                raise RuntimeError(f'training on {region} failed: {trained.message}')
-            phases.mark(f'train {region}')
-            model = client.wait_for_model(trained.model_version)
-            phases.mark(f'load model {region}')
-            m = trained.metrics
-            learning[region] = {
-                'samples': collected.total, 'skipped': collected.skipped,
-                'model_version': trained.model_version, 'model_path': model.path,
-                'dataset_path': str(run_dir / 'data' / f'{region}.jsonl'),
-                'validation': m.validation,
-                'max_error_x_mm': m.max_error_x * 1e3, 'max_error_y_mm': m.max_error_y * 1e3,
-                'max_error_phi_deg': math.degrees(m.max_error_phi),
-                'selected_settings': m.selected_settings,
-                'excluded_samples': list(m.excluded_samples)}
-            say(f'region {region}: {collected.total} samples, model v{trained.model_version} '
-                f'{m.selected_settings}: {m.validation} max |error| {m.max_error_x * 1e3:.3f} '
-                f'mm (x), {m.max_error_y * 1e3:.3f} mm (y), '
-                f'{math.degrees(m.max_error_phi):.4f} deg; '
-                f'{len(m.excluded_samples)} sample(s) excluded as outliers')
+            learning[region] = _learn(client, settings, region, run_dir, phases, say, progress)
             targets = _targets(settings, region, geometry, regions)
-            bar = tqdm(total=len(targets) * len(settings.modes), desc=f'targets {region}',
-                       unit='goal', disable=not progress)
-            trials += run_trials(client, truth, targets, settings.modes, settings.name,
-                                 on_trial=lambda t, bar=bar: bar.update(1))
-            bar.close()
+            trials += _goals(client, truth, targets, settings, region, progress)
             phases.mark(f'goals {region}', goals=len(targets) * len(settings.modes))
         achieved_rtf = phases.achieved_rtf()
     phases.mark('shutdown', graph=False)
@@ -193,6 +142,83 @@ def run_experiment(settings: ExperimentSettings, domain_id: int,
     write_summary(summary, out_dir)             # with the whole run's time
     summary['results'] = str(out_dir)
     return summary
+
+
+def _run_parameters(settings: ExperimentSettings, run_dir: Path) -> dict[str, dict]:
+    """The run's parameters over graph.yaml's: its simulator settings, and its own data,
+    models, bag and calibrations in the run folder (never the site's calibration/ files)."""
+    return {
+        node_name('simulator'): {'real_time_factor': settings.real_time_factor,
+                                 **settings.world},
+        node_name('learner'): {'data_directory': str(run_dir / 'data'),
+                               'model_directory': str(run_dir / 'models')},
+        node_name('recorder'): {'bag_name': settings.name},
+        node_name('vision'): {'tool_calibration_file': str(run_dir / 'tool_camera.json'),
+                              'camera_calibration_file': str(run_dir / 'camera.json')},
+        **settings.extra_parameters}
+
+
+def _calibrate(client: FlexarmClient, run_dir: Path, say: Callable[[str], None]) -> dict:
+    """The tool calibration against the reference (the ground truth), as the summary has it."""
+    correction, found, _ = calibrate_tool(client, topics.TIP_POSE_TRUTH,
+                                          run_dir / 'tool_camera.json', say=say)
+    calibration = {'axial_mm': correction.axial * 1e3,
+                   'lateral_mm': correction.lateral * 1e3,
+                   'angle_deg': math.degrees(correction.angle), 'poses': found.poses,
+                   'spread_mm': found.spread[0] * 1e3}
+    say(f'tool calibration against the reference (the ground truth): camera error '
+        f'axial {calibration["axial_mm"]:.4f} mm, lateral '
+        f'{calibration["lateral_mm"]:.4f} mm, {calibration["angle_deg"]:.5f} deg')
+    return calibration
+
+
+def _learn(client: FlexarmClient, settings: ExperimentSettings, region: str, run_dir: Path,
+           phases: Phases, say: Callable[[str], None], progress: bool) -> dict:
+    """Collect the region's samples, train on them and wait for the model: what it learned."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=settings.samples, desc=f'collect {region}', unit='sample',
+               disable=not progress)
+    collected = client.collect(
+        settings.samples, region=region, dataset=region, seed=settings.seed,
+        feedback=lambda fb: (bar.update(fb.k - bar.n), bar.set_postfix(skipped=fb.skipped)))
+    bar.close()
+    if collected.error_code != 0:
+        raise RuntimeError(f'collection in {region} failed: {collected.error_string}')
+    phases.mark(f'collect {region}', samples=collected.collected)
+    trained = client.train(settings.kind, dataset=region)
+    if not trained.success:
+        raise RuntimeError(f'training on {region} failed: {trained.message}')
+    phases.mark(f'train {region}')
+    model = client.wait_for_model(trained.model_version)
+    phases.mark(f'load model {region}')
+    m = trained.metrics
+    say(f'region {region}: {collected.total} samples, model v{trained.model_version} '
+        f'{m.selected_settings}: {m.validation} max |error| {m.max_error_x * 1e3:.3f} '
+        f'mm (x), {m.max_error_y * 1e3:.3f} mm (y), '
+        f'{math.degrees(m.max_error_phi):.4f} deg; '
+        f'{len(m.excluded_samples)} sample(s) excluded as outliers')
+    return {'samples': collected.total, 'skipped': collected.skipped,
+            'model_version': trained.model_version, 'model_path': model.path,
+            'dataset_path': str(run_dir / 'data' / f'{region}.jsonl'),
+            'validation': m.validation,
+            'max_error_x_mm': m.max_error_x * 1e3, 'max_error_y_mm': m.max_error_y * 1e3,
+            'max_error_phi_deg': math.degrees(m.max_error_phi),
+            'selected_settings': m.selected_settings,
+            'excluded_samples': list(m.excluded_samples)}
+
+
+def _goals(client: FlexarmClient, truth: TruthMonitor, targets: list,
+           settings: ExperimentSettings, region: str, progress: bool) -> list[Trial]:
+    """Every target of the region in every mode of the run, with a progress bar."""
+    from tqdm import tqdm
+
+    bar = tqdm(total=len(targets) * len(settings.modes), desc=f'targets {region}',
+               unit='goal', disable=not progress)
+    trials = run_trials(client, truth, targets, settings.modes, settings.name,
+                        on_trial=lambda t: bar.update(1))
+    bar.close()
+    return trials
 
 
 class SimTime:

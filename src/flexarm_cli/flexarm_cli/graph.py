@@ -9,7 +9,7 @@ import re
 import signal
 import threading
 from types import FrameType
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from flexarm_bringup.launcher import node_name
 from flexarm_cli.common import Outcome, graph_client, timed_step, usage, world_settings
@@ -18,6 +18,10 @@ from flexarm_core.paths import RUNS_DIR
 from flexarm_recording.results.outcome_text import (
     Exit,
 )
+
+if TYPE_CHECKING:     # imported where used: the other commands start without them
+    from flexarm_bringup.graph_watch import FirstReports
+    from flexarm_bringup.supervisor import Graph
 
 _GENERATED_MESSAGE = re.compile(r'[/\\](?:msg|srv|action)[/\\]_\w+\.py$')   # rosidl's Python
 
@@ -33,35 +37,14 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
     from flexarm_bringup.graph_watch import FirstReports, GraphWatch
     from flexarm_bringup.supervisor import Graph
     from flexarm_bringup.up_domain import DomainRefused, claim_domain
-    from flexarm_core import liveness
     from flexarm_core.graph_locks import LOCK_DIR, running_graphs
 
     if args.link_key and not os.path.isfile(args.link_key):
         raise usage(f'no key file {args.link_key} (make one with flexarm keygen FILE)')
     name = args.name or time.strftime('up-%Y%m%d-%H%M%S') + (
         f'-{args.namespace.replace("/", "-")}' if args.namespace else '')
-    simulated = {'real_time_factor': args.rtf, **world_settings(args)}
-    link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
-    params: dict[str, dict[str, Any]] = {node_name('simulator'): simulated,
-                                         node_name('fake_controller'): simulated | link,
-                                         node_name('bridge'): link}
-    if args.record:
-        params[node_name('recorder')] = {'bag_name': args.record,
-                                         'record_images': args.record_images}
-    if args.foxglove:
-        params[node_name('foxglove')] = {'port': args.foxglove}
-    optional = ((node_name('recorder'),) if args.record else ()) + (
-        (node_name('foxglove'),) if args.foxglove is not None else ())
-    discovery = args.discovery.upper()
-    # up's own participants (the readiness checks) share its nodes' range and transports
-    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
-    transport.apply(os.environ)
-    unusable = transport.profile_problem(os.environ)
-    if unusable:
-        raise usage(unusable)
-    exposure = transport.warning(os.environ)
-    if exposure:
-        print(exposure, flush=True)
+    params, optional = _up_parameters(args)
+    discovery = _up_transport(args)
     try:
         supervisor.graph_specs(args.robot, optional, args.only)     # arguments first
         claim = claim_domain(args.domain_id, os.environ, args.namespace,
@@ -88,23 +71,7 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             graph.start()
             graph.wait_ready(args.timeout)
             ready = time.monotonic() - started
-            arm = f' --namespace {args.namespace}' if args.namespace else ''
-            print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
-                  f'flexarm move 1450 -150 -45{arm}. Ctrl-C stops '
-                  f'{"the nodes of this host" if graph.remote else "everything"}'
-                  f'{"" if args.outlive_parent else LIFETIME_TEXT}.', flush=True)
-            watch = reports.expect(graph.nodes, liveness.limit(REPORT_WAIT))
-            print(_starting_model(watch), flush=True)
-            if node_name('vision') in graph.nodes:
-                print(_calibration(watch), flush=True)
-            if args.foxglove is not None:
-                print(foxglove_served(graph.nodes[node_name('foxglove')],
-                                      liveness.limit(FOXGLOVE_WAIT)), flush=True)
-            while True:     # what goes wrong: a death, an ERROR in a (re)started node's reports
-                reports.step(0.5)
-                restarted = [n for n in graph.check() if not graph.nodes[n].reported]
-                if restarted:
-                    reports.expect(restarted, liveness.limit(RESTART_REPORT_WAIT))
+            _supervise(graph, reports, args, domain, ready)
         except KeyboardInterrupt:
             pass
         finally:
@@ -115,6 +82,64 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
             print('stopped: ' + ', '.join(f'{n} ({c})' for n, c in codes.items()), flush=True)
     return {'ok': True, 'domain_id': domain, 'domain_chosen': claim.how, 'exit_codes': codes,
             'run_dir': str(graph.run_dir)}
+
+
+def _up_parameters(args: argparse.Namespace) -> tuple[dict[str, dict[str, Any]], tuple[str, ...]]:
+    """The run's parameters over graph.yaml's (simulated world, link key, recording, Foxglove)
+    and the optional nodes it starts."""
+    simulated = {'real_time_factor': args.rtf, **world_settings(args)}
+    link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
+    params: dict[str, dict[str, Any]] = {node_name('simulator'): simulated,
+                                         node_name('fake_controller'): simulated | link,
+                                         node_name('bridge'): link}
+    if args.record:
+        params[node_name('recorder')] = {'bag_name': args.record,
+                                         'record_images': args.record_images}
+    if args.foxglove:
+        params[node_name('foxglove')] = {'port': args.foxglove}
+    optional = ((node_name('recorder'),) if args.record else ()) + (
+        (node_name('foxglove'),) if args.foxglove is not None else ())
+    return params, optional
+
+
+def _up_transport(args: argparse.Namespace) -> str:
+    """Apply the discovery range and transports every participant of up shares (its own
+    readiness checks too); the range, in the environment's spelling."""
+    discovery = args.discovery.upper()
+    os.environ['ROS_AUTOMATIC_DISCOVERY_RANGE'] = discovery
+    transport.apply(os.environ)
+    unusable = transport.profile_problem(os.environ)
+    if unusable:
+        raise usage(unusable)
+    exposure = transport.warning(os.environ)
+    if exposure:
+        print(exposure, flush=True)
+    return discovery
+
+
+def _supervise(graph: Graph, reports: FirstReports, args: argparse.Namespace, domain: int,
+               ready: float) -> None:
+    """Say the graph is ready and what it started with, then watch it until interrupted: a
+    death, an ERROR in a (re)started node's reports."""
+    from flexarm_core import liveness
+
+    arm = f' --namespace {args.namespace}' if args.namespace else ''
+    print(f'graph ready in {ready:.1f} s. In another shell: ROS_DOMAIN_ID={domain} '
+          f'flexarm move 1450 -150 -45{arm}. Ctrl-C stops '
+          f'{"the nodes of this host" if graph.remote else "everything"}'
+          f'{"" if args.outlive_parent else LIFETIME_TEXT}.', flush=True)
+    watch = reports.expect(graph.nodes, liveness.limit(REPORT_WAIT))
+    print(_starting_model(watch), flush=True)
+    if node_name('vision') in graph.nodes:
+        print(_calibration(watch), flush=True)
+    if args.foxglove is not None:
+        print(foxglove_served(graph.nodes[node_name('foxglove')],
+                              liveness.limit(FOXGLOVE_WAIT)), flush=True)
+    while True:
+        reports.step(0.5)
+        restarted = [n for n in graph.check() if not graph.nodes[n].reported]
+        if restarted:
+            reports.expect(restarted, liveness.limit(RESTART_REPORT_WAIT))
 
 
 LIFETIME_TEXT = ', and so does the end of the process that started this one (--outlive-parent)'

@@ -196,62 +196,26 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
     joints, deflections, payload = check_data(joints, deflections, payload, folds)
     output_std = deflections.std(axis=0)
     output_std = np.where(output_std > 0, output_std, 1.0)
-    kept, excluded = np.arange(len(joints)), np.array([], dtype=int)
-    most = int(screening.max_outlier_fraction * len(joints))
-
-    def validate_option(i: int) -> tuple[np.ndarray, np.ndarray]:
-        """Held-out residuals and raw stds of option ``i`` on the kept samples."""
-        option_kind, option, given = choices[i]
-        cheaper = {name: value for name, value in make_predictor(option_kind).cv_overrides.items()
-                   if name not in given}
-        return cross_validate(option_kind, {**option, **cheaper}, joints[kept],
-                              deflections[kept], subset(payload, kept), folds, seed)
-
-    def fit(i: int) -> Predictor:
-        option_kind, option, _ = choices[i]
-        return make_predictor(option_kind, option).fit(joints[kept], deflections[kept],
-                                                       subset(payload, kept))
-
-    def label(i: int) -> dict[str, Any]:
-        """The settings option ``i`` chose (and its kind, for ``auto``)."""
-        option_kind, option, given = choices[i]
-        chosen = {name: option[name] for name in option if name not in given}
-        return chosen if kind != 'auto' else {'kind': option_kind, **chosen}
-
-    first = [validate_option(i) for i in range(len(choices))]
+    fits = _Fits(kind, choices, joints, deflections, payload, folds, seed)
+    first = [fits.validate(i) for i in range(len(choices))]
     cv_scores = [trimmed_rms(residuals, output_std) for residuals, _ in first]
     ranked = sorted(range(len(choices)), key=lambda i: cv_scores[i])
     best, (residuals, std) = ranked[0], first[ranked[0]]
-    for _ in range(2):          # screen; take back what the screened model does not contradict
-        while True:
-            scale = ROBUST_SCALE * np.median(np.abs(residuals), axis=0)
-            scores = outlier_scores(residuals, scale, screening)
-            if not scores.max() > 0 or len(excluded) >= most:
-                break
-            worst = int(np.argmax(scores))
-            excluded, kept = np.append(excluded, kept[worst]), np.delete(kept, worst)
-            residuals, std = validate_option(best)
-        if not len(excluded):
-            break
-        predicted = fit(best).predict(joints[excluded], subset(payload, excluded))
-        back = outlier_scores(predicted - deflections[excluded], scale, screening) == 0
-        if not back.any():
-            break
-        kept, excluded = np.sort(np.append(kept, excluded[back])), excluded[~back]
-        residuals, std = validate_option(best)
+    residuals, std = fits.screen(best, residuals, std, screening,
+                                 int(screening.max_outlier_fraction * len(joints)))
     slopes = []
     for i in ranked:            # the best choice, unless the compensator could not solve with it
         if i != best:
-            residuals, std = validate_option(i)
-        predictor = fit(i)
+            residuals, std = fits.validate(i)
+        predictor = fits.fit(i)
         slope = (0.0 if geometry is None else
-                 _slope(geometry, predictor, joints[kept], subset(payload, kept)))
+                 _slope(geometry, predictor, joints[fits.kept], subset(payload, fits.kept)))
         if slope <= screening.max_slope:
-            calibration = calibrate(residuals, std, pose_groups(joints[kept]))
+            calibration = calibrate(residuals, std, pose_groups(joints[fits.kept]))
             metrics = Metrics.from_errors(
-                f'{folds}-fold cross-validation', len(kept), np.abs(residuals),
-                excluded_samples=tuple(int(e) for e in sorted(excluded)),
-                selected_settings=json.dumps(label(i)), max_slope=slope,
+                f'{folds}-fold cross-validation', len(fits.kept), np.abs(residuals),
+                excluded_samples=tuple(int(e) for e in sorted(fits.excluded)),
+                selected_settings=json.dumps(fits.label(i)), max_slope=slope,
                 bound_coverage=calibration.coverage,
                 angle_bound_coverage=calibration.angle_coverage)
             if kind == 'auto':
@@ -261,8 +225,68 @@ def fit_robust(kind: str, settings: Mapping[str, Any] | None, joints: np.ndarray
                 predictor = AutoPredictor(settings).adopt(predictor, by_kind)
             predictor.metadata['error_bound'] = calibration.as_dict()
             return predictor, metrics
-        slopes.append(f'{json.dumps({**label(i), **choices[i][1]})}: {slope:.2f}')
+        slopes.append(f'{json.dumps({**fits.label(i), **choices[i][1]})}: {slope:.2f}')
     raise ValueError(
         'every model changes its deflection too fast for the compensator to solve '
         f'(slope > {screening.max_slope} at a training pose; {"; ".join(slopes)}): the data '
         'are too sparse or too noisy — collect more samples')
+
+
+class _Fits:
+    """The options of one :func:`fit_robust` on the samples it keeps: each validated, fitted
+    and labelled on ``kept``, which screening narrows (``excluded``: the rest)."""
+
+    def __init__(self, kind: str, choices: list[tuple[str, dict[str, Any], dict[str, Any]]],
+                 joints: np.ndarray, deflections: np.ndarray, payload: np.ndarray | None,
+                 folds: int, seed: int) -> None:
+        self.kind, self.choices = kind, choices
+        self.joints, self.deflections, self.payload = joints, deflections, payload
+        self.folds, self.seed = folds, seed
+        self.kept, self.excluded = np.arange(len(joints)), np.array([], dtype=int)
+
+    def validate(self, i: int) -> tuple[np.ndarray, np.ndarray]:
+        """Held-out residuals and raw stds of option ``i`` on the kept samples."""
+        option_kind, option, given = self.choices[i]
+        cheaper = {name: value for name, value in make_predictor(option_kind).cv_overrides.items()
+                   if name not in given}
+        return cross_validate(option_kind, {**option, **cheaper}, self.joints[self.kept],
+                              self.deflections[self.kept], subset(self.payload, self.kept),
+                              self.folds, self.seed)
+
+    def fit(self, i: int) -> Predictor:
+        option_kind, option, _ = self.choices[i]
+        return make_predictor(option_kind, option).fit(
+            self.joints[self.kept], self.deflections[self.kept], subset(self.payload, self.kept))
+
+    def label(self, i: int) -> dict[str, Any]:
+        """The settings option ``i`` chose (and its kind, for ``auto``)."""
+        option_kind, option, given = self.choices[i]
+        chosen = {name: option[name] for name in option if name not in given}
+        return chosen if self.kind != 'auto' else {'kind': option_kind, **chosen}
+
+    def screen(self, best: int, residuals: np.ndarray, std: np.ndarray, screening: Screening,
+               most: int) -> tuple[np.ndarray, np.ndarray]:
+        """Exclude outliers of option ``best`` (at most ``most``), take back what the screened
+        model does not contradict, screen once more; its residuals and stds after."""
+        for _ in range(2):
+            while True:
+                scale = ROBUST_SCALE * np.median(np.abs(residuals), axis=0)
+                scores = outlier_scores(residuals, scale, screening)
+                if not scores.max() > 0 or len(self.excluded) >= most:
+                    break
+                worst = int(np.argmax(scores))
+                self.excluded = np.append(self.excluded, self.kept[worst])
+                self.kept = np.delete(self.kept, worst)
+                residuals, std = self.validate(best)
+            if not len(self.excluded):
+                break
+            predicted = self.fit(best).predict(self.joints[self.excluded],
+                                               subset(self.payload, self.excluded))
+            back = outlier_scores(predicted - self.deflections[self.excluded], scale,
+                                  screening) == 0
+            if not back.any():
+                break
+            self.kept = np.sort(np.append(self.kept, self.excluded[back]))
+            self.excluded = self.excluded[~back]
+            residuals, std = self.validate(best)
+        return residuals, std

@@ -109,28 +109,31 @@ def _asked_to_stop(signum: int, frame: Any) -> None:
 class Spin:
     """The executor spinning in a thread of its own until :meth:`stop` (or the context's
     shutdown, or a callback's exception, which it keeps in :attr:`error`); ``ended()`` is
-    called when it ends."""
+    called when it ends. The executor must have its node(s) already; it may be shut down only
+    once the spin has ended (:meth:`stop`)."""
 
     def __init__(self, executor: Executor, ended: Callable[[], object]) -> None:
         self._executor = executor
-        self._stopped: Future = Future()
+        self._stopped = threading.Event()
+        # stop()'s wake-up: a callback of its own, so the spin-once running returns
+        self._stop_guard = executor.get_nodes()[0].create_guard_condition(lambda: None)
         self._ended = ended
         self.error: BaseException | None = None
         self._thread = threading.Thread(target=self._spin, name='spin', daemon=True)
         self._thread.start()
 
     def _spin(self) -> None:
-        """Run ready callbacks until stopped, as ``spin_until_future_complete`` would without
-        its leak: Jazzy's adds a done callback to the future at every wake-up
-        (ros2/rclpy#1374), and a future pending for the node's life grew by ~140 bytes a
-        wake-up: 50 MB an hour of arm time for a measuring vision node at x10. The loop is the
-        fix of #1374 (rclpy's own ``_spin_once_impl`` with the stop as its wait condition:
-        each executor kind runs the callback its own way); its wait ends once :meth:`stop`
-        wakes the executor (``spin_once`` would wait on for a callback)."""
-        executor, stopped = self._executor, self._stopped.done
+        """Run ready callbacks one at a time until stopped: rclpy's public ``spin_once``,
+        whose wait ends at :meth:`stop` because the stop triggers a guard condition with a
+        callback. Not ``spin_until_future_complete``: Jazzy's adds a done callback to the
+        future at every wake-up (ros2/rclpy#1374), and a future pending for the node's life
+        grew by ~140 bytes a wake-up: 50 MB an hour of arm time for a measuring vision node at
+        x10. Not a future per wait either: rclpy restarts its callback generator whenever the
+        wait condition changes, and the first ready task ran again and again."""
+        executor = self._executor
         try:
-            while executor.context.ok() and not stopped() and not executor._is_shutdown:
-                executor._spin_once_impl(None, stopped)
+            while executor.context.ok() and not self._stopped.is_set():
+                executor.spin_once()
         except ExternalShutdownException:
             pass
         except BaseException as exc:   # noqa: BLE001 - re-raised by the main thread
@@ -141,9 +144,8 @@ class Spin:
     def stop(self, timeout: float) -> bool:
         """End the spin after the callback it runs; wait up to ``timeout`` s for it. Whether
         it ended (then, and only then, the executor may be shut down)."""
-        if not self._stopped.done():
-            self._stopped.set_result(None)
-        self._executor.wake()
+        self._stopped.set()
+        self._stop_guard.trigger()
         self._thread.join(timeout)
         return not self._thread.is_alive()
 

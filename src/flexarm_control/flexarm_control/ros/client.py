@@ -80,6 +80,15 @@ CANCEL_WAIT = 5.0     # [s] after Ctrl-C: acceptance, cancel and the cancelled g
 PARAMETER_RESEND = 1.0
 
 
+class NamedActionClient(ActionClient):
+    """rclpy's action client that says which action it is a client of (Jazzy's keeps the
+    name private): the client's messages, probes and discovery checks name it."""
+
+    def __init__(self, node: Node, action_type: Any, action_name: str) -> None:
+        super().__init__(node, action_type, action_name)
+        self.action_name = action_name
+
+
 class GoalRejected(RuntimeError):
     """The server rejected the goal before anything moved."""
 
@@ -135,9 +144,9 @@ class ServerWatch:
     was not there at acceptance is a restarted server.
     """
 
-    def __init__(self, node: Node, client: ActionClient) -> None:
+    def __init__(self, node: Node, client: NamedActionClient) -> None:
         self._node, self._client = node, client
-        self._status_topic = f'{client._action_name}/_action/status'
+        self._status_topic = f'{client.action_name}/_action/status'
         self._probe = ClientGoalHandle(client, UUID(uuid=list(uuid.uuid4().bytes)), None)
         self._servers = self._status_publishers()
         self._names = _known(self._servers.values())
@@ -160,7 +169,7 @@ class ServerWatch:
             self._servers = current
         if self._names == [_UNKNOWN] and set(current) <= set(self._servers):
             self._names = _known(current.values())    # names arrive after the endpoints
-        server = f'{self._client._action_name} ({", ".join(self._names)})'
+        server = f'{self._client.action_name} ({", ".join(self._names)})'
         if now - self._answered > liveness.limit(SERVER_SILENCE):
             return (f'{server} stopped answering {now - self._answered:.1f} s ago while the '
                     'goal ran: the node died; the goal is lost')
@@ -179,14 +188,14 @@ class GoalRun:
     TimeoutError (the goal is then cancelled), :class:`GoalInterrupted` on Ctrl-C in
     :meth:`result` (cancelled too)."""
 
-    def __init__(self, client: FlexarmClient, action: ActionClient, goal: Any, timeout: float,
+    def __init__(self, client: FlexarmClient, action: NamedActionClient, goal: Any, timeout: float,
                  feedback: Callable[[Any], None] | None = None) -> None:
         self._client, self._action, self._timeout = client, action, timeout
         self._deadline = time.monotonic() + timeout
         self._feedback: Any = None
         self._on_feedback = feedback
         if not action.wait_for_server(timeout_sec=min(timeout, 10.0)):
-            raise TimeoutError(f'action server {action._action_name} not available')
+            raise TimeoutError(f'action server {action.action_name} not available')
         client._wait_responsive(action, self._deadline)
         self._sent = action.send_goal_async(goal, feedback_callback=self._feedback_received)
         self._handle: ClientGoalHandle | None = None
@@ -220,7 +229,7 @@ class GoalRun:
 
     def result(self) -> Any:
         """Wait for the goal's result (module docstring of the errors)."""
-        client, name = self._client, self._action._action_name
+        client, name = self._client, self._action.action_name
         try:
             if self._handle is None:
                 self._accepted(client._spin_until(self._sent, self._remaining(),
@@ -261,7 +270,7 @@ class GoalRun:
         if not handle.accepted:
             if self._client._running is self:
                 self._client._running = None
-            raise GoalRejected(f'{self._action._action_name} rejected the goal: the server '
+            raise GoalRejected(f'{self._action.action_name} rejected the goal: the server '
                                'runs one goal at a time and is busy')
         self._handle, self._result = handle, handle.get_result_async()
         self._watch = ServerWatch(self._client, self._action)
@@ -287,9 +296,9 @@ class FlexarmClient(Node):
         # The Train client first: see _wait_responsive for why the order matters.
         self._train = self.create_client(Train, topics.TRAIN)
         self._use_model = self.create_client(UseModel, topics.USE_MODEL)
-        self._move = ActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
-        self._collect = ActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
-        self._refresh = ActionClient(self, RefreshModel, topics.REFRESH_MODEL)
+        self._move = NamedActionClient(self, MoveToPose, topics.MOVE_TO_POSE)
+        self._collect = NamedActionClient(self, CollectSamples, topics.COLLECT_SAMPLES)
+        self._refresh = NamedActionClient(self, RefreshModel, topics.REFRESH_MODEL)
         self._arm = ArmClaim(self, self._waited)
         self._executor = SingleThreadedExecutor(context=self.context)
         self._serving = threading.Lock()     # one thread at a time in the executor (serve)
@@ -554,8 +563,8 @@ class FlexarmClient(Node):
             self._wait_responsive(client, deadline)
             response = self._spin_until(
                 ClientGoalHandle(client, ALL_GOALS, None).cancel_goal_async(),
-                deadline - time.monotonic(), f'the cancel of {client._action_name}')
-            action = topics.absolute(client._action_name, self.get_namespace())
+                deadline - time.monotonic(), f'the cancel of {client.action_name}')
+            action = topics.absolute(client.action_name, self.get_namespace())
             writers = send_goal_writers(self, action)
             me = own_participant(writers, topics.absolute(self.get_name(),
                                                           self.get_namespace()), os.getpid())
@@ -578,7 +587,7 @@ class FlexarmClient(Node):
         self._executor.shutdown(timeout_sec=1.0)
         super().destroy_node()
 
-    def _wait_responsive(self, client: ActionClient, deadline: float) -> None:
+    def _wait_responsive(self, client: NamedActionClient, deadline: float) -> None:
         """Wait until the action server has answered a request of this client.
 
         ``wait_for_server`` only means that this client sees the server's request readers.
@@ -602,7 +611,7 @@ class FlexarmClient(Node):
         while not answered.done():
             remaining = deadline - time.monotonic()
             if remaining <= 0:
-                raise TimeoutError(f'action server {client._action_name} does not answer')
+                raise TimeoutError(f'action server {client.action_name} does not answer')
             probe.cancel_goal_async().add_done_callback(count)
             self.serve(answered, min(1.0, remaining))
 

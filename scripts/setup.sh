@@ -1,12 +1,16 @@
 #!/usr/bin/env bash
 # Set up (or bring up to date) the flexarm environment in .venv:
 #   1. a Python 3.11 venv,
-#   2. every pinned dependency of requirements.txt (ROS 2 Jazzy wheels, torch CPU, ...),
+#   2. every pinned dependency of requirements.txt: the runtime (ROS 2 Jazzy wheels, torch CPU,
+#      ...), the tests' and the documentation site's (requirements/),
 #   3. the interfaces: tf2_msgs and control_msgs (vendor/, no wheel exists) and flexarm_msgs
 #      (ament_cmake + rosidl, built into the venv prefix),
 #   4. the Python packages of src/ (editable), lowest layer first.
 # Each step is skipped when its inputs did not change since it last succeeded, so a re-run
-# takes about a second. Usage: scripts/setup.sh [--force]
+# takes about a second. Usage: scripts/setup.sh [--runtime] [--force]
+#   --runtime  only requirements/runtime.txt and the packages a robot machine runs (no tests,
+#              no docs site, no flexarm_test_support)
+#   --force    redo every step
 set -euo pipefail
 
 root=$(cd "$(dirname "${BASH_SOURCE[0]}")/.." && pwd)
@@ -14,9 +18,17 @@ venv="$root/.venv"
 stamps="$venv/.flexarm-stamps"
 # A parent environment's ROS bootstrap guard would stop the venv's rclpy from loading.
 unset _ROS_WHEELS_BOOTSTRAP_COMPLETE VIRTUAL_ENV PYTHONHOME PYTHONPATH
-[ "${1:-}" = "--force" ] && rm -rf "$stamps"
 
 log() { printf '[setup] %s\n' "$*" >&2; }
+
+requirements=requirements.txt
+for arg in "$@"; do
+  case $arg in
+    --force) rm -rf "$stamps" ;;
+    --runtime) requirements=requirements/runtime.txt ;;
+    *) log "usage: scripts/setup.sh [--runtime] [--force]"; exit 2 ;;
+  esac
+done
 
 # Content hash of files (paths relative to the repository root).
 digest() { (cd "$root" && cat "$@" | sha256sum | cut -c1-16); }
@@ -55,8 +67,8 @@ create_venv() {
 }
 
 install_requirements() {
-  log "installing requirements.txt (first time: about a minute)"
-  pip install -r "$root/requirements.txt"
+  log "installing $requirements (first time: about a minute)"
+  pip install -r "$root/$requirements"
 }
 
 install_tf2_msgs() {
@@ -77,7 +89,9 @@ install_msgs() {
 # The Python packages, lowest layer first (each imports only those before it).
 packages=(flexarm_core flexarm_description flexarm_learning flexarm_deflection flexarm_vision
   flexarm_bridge flexarm_sim flexarm_motion flexarm_control flexarm_bringup flexarm_recording
-  flexarm_viz flexarm_cli flexarm_test_support)
+  flexarm_viz flexarm_cli)
+# The graph's test tooling, above all others, imports pytest: not on a robot machine.
+[ "$requirements" = requirements/runtime.txt ] || packages+=(flexarm_test_support)
 
 install_packages() {
   log "installing ${packages[*]} (editable)"
@@ -93,16 +107,22 @@ install_packages() {
 }
 
 [ -x "$venv/bin/python" ] || { rm -rf "$stamps"; create_venv; }
-step requirements "$(digest requirements.txt)" install_requirements
+if [ "$requirements" = requirements/runtime.txt ] && [ -e "$venv/bin/pytest" ]; then
+  log "$venv already holds the test and docs sets: remove it first for a runtime-only one"
+fi
+requirement_files=$(cd "$root" && ls requirements.txt requirements/*.txt)
+# shellcheck disable=SC2086
+step requirements "$requirements $(digest $requirement_files)" install_requirements
+# The interfaces are built against the runtime set (its ROS wheels and numpy) only.
 tf2_files=$(cd "$root" && find vendor/tf2_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
-step tf2_msgs "$(digest requirements.txt $tf2_files)" install_tf2_msgs
+step tf2_msgs "$(digest requirements/runtime.txt $tf2_files)" install_tf2_msgs
 control_files=$(cd "$root" && find vendor/control_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
-step control_msgs "$(digest requirements.txt $control_files)" install_control_msgs
+step control_msgs "$(digest requirements/runtime.txt $control_files)" install_control_msgs
 msgs_files=$(cd "$root" && find src/flexarm_msgs -type f -not -path "*/build/*" | sort)
 # shellcheck disable=SC2086
-step msgs "$(digest requirements.txt $msgs_files)" install_msgs
+step msgs "$(digest requirements/runtime.txt $msgs_files)" install_msgs
 package_files=()
 for pkg in "${packages[@]}"; do
   package_files+=("src/$pkg/pyproject.toml" "src/$pkg/package.xml")

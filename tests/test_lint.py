@@ -1,4 +1,4 @@
-"""The repository is lint-clean under its own ruff.toml (ruff pinned in requirements.txt)."""
+"""The repository is lint-clean under its own ruff.toml (ruff pinned in requirements/test.txt)."""
 from __future__ import annotations
 
 import subprocess

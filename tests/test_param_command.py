@@ -1,7 +1,8 @@
-"""Node-level: `flexarm param get|set|list` over a node's parameter services, as ros2 param does
-(rclpy from PyPI has no ros2 CLI); a refused set says the node's reason. The vision node's
-tool correction, set so, moves the calibrated camera frame it publishes on /tf_static. One
-vision node serves the module's tests; each leaves its parameters as it found them."""
+"""Node-level: `flexarm param get|set|list|describe` over a node's parameter services, as ros2
+param does (rclpy from PyPI has no ros2 CLI); a refused set says the node's reason, a described
+parameter its shipped file's description and range. The vision node's tool correction, set
+so, moves the calibrated camera frame it publishes on /tf_static. One vision node serves the
+module's tests; each leaves its parameters as it found them."""
 from __future__ import annotations
 
 import json
@@ -13,7 +14,8 @@ import pytest
 from flexarm_cli import main
 from flexarm_core import liveness, topics
 from flexarm_core.frames import CALIBRATED_CAMERA_FRAME
-from flexarm_core.params import load_config
+from flexarm_core.parameter_schema import node_schema
+from flexarm_core.params import config_path, load_config
 from flexarm_core.tool_correction import ToolCorrection
 from flexarm_recording.results.outcome_text import Exit
 from flexarm_test_support.tf_listening import STATIC_TF_QOS
@@ -93,7 +95,26 @@ def test_a_refused_set_says_the_nodes_reason(capsys, name, value, reason) -> Non
     assert param(capsys, 'get', NODE, name)[3]['value'] == before
 
 
-def test_a_parameter_the_node_lacks_is_named(capsys) -> None:
-    code, _, err, _ = param(capsys, 'get', NODE, 'no_such_parameter')
+def test_describe_says_the_shipped_description_range_and_value(capsys) -> None:
+    shipped = node_schema(config_path('vision.yaml'), NODE)['vision.threshold']
+    code, words, _, result = param(capsys, 'describe', NODE, 'vision.threshold')
+    assert code == Exit.OK
+    assert result == {
+        'ok': True, 'exit_code': 0, 'node': NODE, 'name': 'vision.threshold', 'type': 'double',
+        'description': shipped.description, 'range': [0.0, 1.0], 'read_only': True,
+        'value': shipped.default}
+    assert 'segment pixels darker than 50 % of the plate level' in shipped.description
+    assert words.splitlines() == [
+        'vision.threshold', '  type: double', f'  description: {shipped.description}',
+        '  range: [0.0, 1.0]', '  read-only: true', f'  value: {shipped.default}']
+    code, _, _, result = param(capsys, 'describe', NODE, 'tool_correction')
+    assert (code, result['type'], result['range'], result['read_only']) == (
+        Exit.OK, 'double_array', None, False)
+    assert result['description'].startswith("[m, m, rad] the camera's error in the tool frame")
+
+
+@pytest.mark.parametrize('action', ['get', 'describe'])
+def test_a_parameter_the_node_lacks_is_named(capsys, action) -> None:
+    code, _, err, _ = param(capsys, action, NODE, 'no_such_parameter')
     assert code == Exit.FAILED
     assert f'{NODE} has no parameter no_such_parameter' in err

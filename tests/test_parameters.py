@@ -1,86 +1,118 @@
-"""A node's parameters are defined once: where a node declares a parameter with a default in
-code and the config files config/graph.yaml gives it set the same parameter, the two agree, so
-that a node started without its files behaves as the shipped graph does (a default that had
-drifted from its file, e.g. the learner's default kind, went unseen)."""
+"""A parameter is written once: in the shipped params file that is its schema (its value the
+default, its comment the description, unit and range: flexarm_core.parameter_schema). No code
+passes a default, so nothing can disagree with the file (a default that had drifted from its
+file, e.g. the learner's default kind, went unseen); every parameter of the shipped files says
+what it is, and every range holds its default."""
 from __future__ import annotations
 
 import ast
-import importlib.util
-import math
+import re
 from pathlib import Path
-from typing import Any
 
 import pytest
 import yaml
 
-from flexarm_core.params import config_path, flatten, load_node_params
+from flexarm_core.parameter_schema import file_schema
+from flexarm_core.params import config_path
 
-GRAPH = yaml.safe_load(config_path('graph.yaml').read_text(encoding='utf-8'))
-NODES = [n for group in (*GRAPH['robots'].values(), GRAPH['nodes'], GRAPH['optional'])
-         for n in group]
+SRC = Path(__file__).resolve().parents[1] / 'src'
+DECLARER = Path('flexarm_core/flexarm_core/ros/node_params.py')    # under src/
+SOURCE = re.compile(r'config/[\w.-]+\.yaml')
+# flexarm's declarations: their positional arguments (node, name, source and what may follow
+# it) and the keywords they take; none takes a value
+OURS = {'declare': (4, {'read_only'}), 'declare_tree': (4, {'dynamic'})}
+RCLPY = {'declare_parameter', 'declare_parameters', 'get_parameter_or'}
 
 
-def declarations(module: str) -> dict[str, tuple[Any, Any]]:
-    """``declare(self, 'name', <default>, ..., bounds=...)`` calls of a node module: name:
-    (default, bounds), each None where the code computes it at run time."""
-    path = Path(importlib.util.find_spec(module).origin)
-    found: dict[str, tuple[Any, Any]] = {}
-    for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-        if (isinstance(node, ast.Call) and getattr(node.func, 'id', '') == 'declare'
-                and len(node.args) >= 3 and isinstance(node.args[1], ast.Constant)):
-            bounds = next((k.value for k in node.keywords if k.arg == 'bounds'), None)
-            found[node.args[1].value] = (_literal(node.args[2]), _literal(bounds))
+def called(call: ast.Call) -> str:
+    """The name of the function or method a call calls ('' for another callee)."""
+    func = call.func
+    return func.id if isinstance(func, ast.Name) else func.attr if isinstance(
+        func, ast.Attribute) else ''
+
+
+def offences(text: str, module: Path) -> list[str]:
+    """``line: why`` of every call of ``text`` that writes a parameter's default in code: a
+    declaration given a value (its source not a ``config/<file>.yaml``, more arguments than a
+    source and the writable names, a keyword of its own), or rclpy's declaring calls outside
+    :mod:`flexarm_core.ros.node_params`."""
+    found = []
+    for node in ast.walk(ast.parse(text)):
+        if not isinstance(node, ast.Call):
+            continue
+        name = called(node)
+        if name in RCLPY and module != DECLARER:
+            found.append(f'{node.lineno}: {name}, only {DECLARER} declares with rclpy')
+        elif name in OURS:
+            most, keywords = OURS[name]
+            source = node.args[2] if len(node.args) > 2 else None
+            if not (isinstance(source, ast.Constant) and isinstance(source.value, str)
+                    and SOURCE.fullmatch(source.value)):
+                found.append(f'{node.lineno}: {name} without a config/<file>.yaml source')
+            elif len(node.args) > most or {k.arg for k in node.keywords} - keywords:
+                found.append(f'{node.lineno}: {name} given more than its source')
     return found
 
 
-def _literal(node: ast.AST | None) -> Any:
-    try:
-        return None if node is None else ast.literal_eval(node)
-    except ValueError:
-        return None
+def modules() -> list[Path]:
+    return sorted(path.relative_to(SRC) for path in SRC.rglob('*.py')
+                  if '.egg-info' not in str(path))
 
 
-def declared_defaults(module: str) -> dict[str, Any]:
-    return {name: default for name, (default, _) in declarations(module).items()
-            if default is not None}
+def declared_sources() -> set[str]:
+    """The files the declarations under src/ name (``config/<file>.yaml``)."""
+    return {node.args[2].value for path in modules()
+            for node in ast.walk(ast.parse((SRC / path).read_text(encoding='utf-8')))
+            if isinstance(node, ast.Call) and called(node) in OURS and len(node.args) > 2
+            and isinstance(node.args[2], ast.Constant)}
 
 
-def shipped(node: dict[str, Any]) -> dict[str, Any]:
-    values: dict[str, Any] = {}
-    for name in node.get('params_files', []):
-        values.update(flatten(load_node_params(config_path(name), node['name'])))
-    return values
+def shipped_files() -> list[str]:
+    """Every params file config/graph.yaml gives a node, and every one a declaration reads."""
+    graph = yaml.safe_load(config_path('graph.yaml').read_text(encoding='utf-8'))
+    nodes = [node for group in (*graph['robots'].values(), graph['nodes'], graph['optional'],
+                                graph['rehearsal']) for node in group]
+    return sorted({name for node in nodes for name in node['params_files']}
+                  | {Path(source).name for source in declared_sources()})
 
 
-def same(a: Any, b: Any) -> bool:
-    if isinstance(a, (list, tuple)) and isinstance(b, (list, tuple)):
-        return len(a) == len(b) and all(same(x, y) for x, y in zip(a, b))
-    if isinstance(a, (int, float)) and isinstance(b, (int, float)) and not isinstance(a, bool):
-        return math.isclose(a, b, rel_tol=1e-12, abs_tol=0.0)
-    return a == b
+def test_no_code_writes_a_parameters_default() -> None:
+    found = {str(path): why for path in modules()
+             if (why := offences((SRC / path).read_text(encoding='utf-8'), path))}
+    assert not found, found
 
 
-@pytest.mark.parametrize('node', NODES, ids=lambda n: n['name'])
-def test_a_code_default_agrees_with_the_shipped_file(node: dict[str, Any]) -> None:
-    code, files = declared_defaults(node['module']), shipped(node)
-    differ = {name: (value, files[name]) for name, value in code.items()
-              if name in files and not same(value, files[name])}
-    assert not differ, f"{node['name']}: code default vs its config files: {differ}"
+def test_the_scan_finds_a_default_written_in_code() -> None:
+    offender = '''
+declare(self, 'rate', 25.0, '[Hz] wake-ups', bounds=(0.1, 100.0))
+declare(self, 'rate', 'config/sim.yaml', default=25.0)
+declare_tree(self, 'arm', 'config/arm.yaml', (), 'more')
+self.declare_parameter('lower', [0.0, 1.0])
+node.get_parameter_or('rate', 25.0)
+declare(self, 'rate', 'config/sim.yaml', read_only=True)
+declare_tree(self, 'plant', 'config/sim.yaml', {'payload'})
+'''
+    assert offences(offender, Path('flexarm_x/flexarm_x/x_node.py')) == [
+        '2: declare without a config/<file>.yaml source',
+        '3: declare given more than its source',
+        '4: declare_tree given more than its source',
+        f'5: declare_parameter, only {DECLARER} declares with rclpy',
+        f'6: get_parameter_or, only {DECLARER} declares with rclpy']
+    assert offences("node.declare_parameter(name, spec.default, described)", DECLARER) == []
 
 
-def test_the_check_sees_the_nodes_declarations() -> None:
-    learner = next(n for n in NODES if n['name'] == 'flexarm_learner')
-    assert declared_defaults(learner['module'])['default_kind'] == shipped(learner)[
-        'default_kind'] == 'auto'
+def test_the_shipped_files_are_found() -> None:
+    assert {'arm.yaml', 'sim.yaml', 'vision.yaml', 'recorder.yaml', 'foxglove.yaml',
+            'clock.yaml'} <= set(shipped_files())
 
 
-@pytest.mark.parametrize('node', NODES, ids=lambda n: n['name'])
-def test_defaults_and_shipped_values_lie_within_the_declared_bounds(node: dict[str, Any]
-                                                                    ) -> None:
-    files = shipped(node)
-    for name, (default, bounds) in declarations(node['module']).items():
-        if bounds is None:
-            continue
-        low, high = bounds
-        for value in (default, files.get(name, default)):
-            assert value is None or low <= value <= high, (node['name'], name, value, bounds)
+@pytest.mark.parametrize('name', shipped_files())
+def test_every_parameter_of_a_shipped_file_is_described_within_its_range(name: str) -> None:
+    schema = file_schema(config_path(name).read_text(encoding='utf-8'), f'config/{name}')
+    specs = [spec for section in schema.values() for spec in section.values()]
+    assert specs, f'{name} holds no parameter'
+    assert not [spec.name for spec in specs if not spec.description], (
+        f'{name}: undescribed parameters (a comment on the line, or directly above)')
+    outside = [(spec.name, spec.default, spec.range) for spec in specs if spec.range
+               and not spec.range[0] <= spec.default <= spec.range[1]]
+    assert not outside, f'{name}: defaults outside their range: {outside}'

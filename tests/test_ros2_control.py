@@ -44,7 +44,7 @@ def stand_in(domain_id, tmp_path_factory):
     upper = [JOINT1_LIMIT, 0.80, 1.0471975511965976, 2.0943951023931953]
     spec = NodeSpec(name='ros2_control_standin',
                     module='flexarm_test_support.ros2_control_standin')
-    node = NodeProcess(spec, env, folder / 'ros2_control_standin.log', {'upper': upper})
+    node = NodeProcess(spec, env, folder / 'ros2_control_standin.log', {'arm.upper': upper})
     node.start()
     yield node
     assert stop_all([node])[node.spec.name] is not None, 'the stand-in could not be stopped'

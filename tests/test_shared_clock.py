@@ -31,7 +31,7 @@ ARM1, ARM2 = '/arm1/flexarm_sim', '/arm2/flexarm_sim'
 B6 = (1.30, -0.20, math.radians(-61))     # Table 10
 
 
-def test_the_clock_outlives_its_owner_and_a_restarted_owner_continues_from_it(
+def test_the_clock_outlives_its_publisher_and_a_restarted_one_continues_from_it(
         launch, domain_id, ros_node, wait_for, capsys):
     controllers: dict[str, dict[str, str]] = {}     # namespace: the sim's controller values
 

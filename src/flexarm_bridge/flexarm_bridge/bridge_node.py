@@ -77,22 +77,14 @@ class BridgeNode(Node):
     def __init__(self) -> None:
         super().__init__('flexarm_bridge')
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
-        self._host = declare(self, 'host', '127.0.0.1', 'robot controller address')
-        self._port = declare(self, 'port', 47800, 'robot controller TCP port', bounds=(1, 65535))
-        self._retry_min = declare(self, 'retry_min', 0.2, '[s] first reconnection delay',
-                                  bounds=(0.01, 60.0))
-        self._retry_max = declare(self, 'retry_max', 5.0, '[s] longest reconnection delay',
-                                  bounds=(0.01, 600.0))
-        self._heartbeat = declare(self, 'heartbeat_period', 0.2, '[s] HEARTBEAT to controller',
-                                  bounds=(0.01, 10.0))
-        self._timeout = declare(self, 'heartbeat_timeout', 1.0,
-                                '[s] silence from the controller that counts as link loss',
-                                bounds=(0.05, 60.0))
-        self._max_errors = declare(self, 'max_errors', 20,
-                                   'consecutive malformed frames before the link is reset',
-                                   bounds=(1, 100000))
-        key_file = declare(self, 'link_key_file', '',
-                           'site key file; required for a controller off this machine')
+        self._host = declare(self, 'host', 'config/bridge.yaml')
+        self._port = declare(self, 'port', 'config/bridge.yaml')
+        self._retry_min = declare(self, 'retry_min', 'config/bridge.yaml')
+        self._retry_max = declare(self, 'retry_max', 'config/bridge.yaml')
+        self._heartbeat = declare(self, 'heartbeat_period', 'config/bridge.yaml')
+        self._timeout = declare(self, 'heartbeat_timeout', 'config/bridge.yaml')
+        self._max_errors = declare(self, 'max_errors', 'config/bridge.yaml')
+        key_file = declare(self, 'link_key_file', 'config/bridge.yaml')
         try:
             self._site_key = site_key_for(self._host, key_file)
         except ValueError as exc:

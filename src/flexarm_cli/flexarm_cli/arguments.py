@@ -12,7 +12,7 @@ from typing import Any
 
 from flexarm_bringup.domains import MAX_DOMAIN_ID
 from flexarm_cli.accuracy import cmd_accuracy
-from flexarm_cli.common import IDEAL_HELP, learner_default
+from flexarm_cli.common import IDEAL_HELP, learner_default, node_default
 from flexarm_cli.experiments import cmd_benchmark, cmd_demo, cmd_study
 from flexarm_cli.graph import cmd_down, cmd_ps, cmd_rehearse, cmd_status, cmd_up
 from flexarm_cli.integration import cmd_param, cmd_urdf
@@ -209,7 +209,8 @@ def _collect_arguments(p: argparse.ArgumentParser) -> None:
 
 def _refresh_arguments(p: argparse.ArgumentParser) -> None:
     p.add_argument('--count', type=_natural, default=0, metavar='N',
-                   help='samples to take (default: the learner\'s refresh_samples, 8)')
+                   help='samples to take (default: the learner\'s refresh_samples, '
+                        f'{learner_default("refresh_samples")})')
     p.add_argument('--region', default='',
                    help='region preset to refresh (default: the ones the model health '
                         'reports stale)')
@@ -253,8 +254,11 @@ def _up_arguments(p: argparse.ArgumentParser) -> None:
                    help='with --record: also record /camera/image_raw (~9 MB/s)')
     p.add_argument('--foxglove', nargs='?', type=_port, const=0, default=None, metavar='PORT',
                    help='serve the live graph to Foxglove at ws://HOST:PORT (config/'
-                        'foxglove.yaml: HOST 127.0.0.1, default PORT 8765)')
-    p.add_argument('--rtf', type=_positive, default=1.0, help='simulator real-time factor')
+                        f'foxglove.yaml: HOST {node_default("foxglove", "host")}, default '
+                        f'PORT {node_default("foxglove", "port")})')
+    p.add_argument('--rtf', type=_positive, default=None,
+                   help="simulator real-time factor (default: the simulator's "
+                        f'real_time_factor, {node_default("simulator", "real_time_factor")})')
     p.add_argument('--name', default='', help='run folder runs/NAME (default: up-DATE-TIME)')
     p.add_argument('--timeout', type=_positive, default=60.0, metavar='S',
                    help='[s] to become ready')
@@ -373,8 +377,8 @@ def _urdf_arguments(p: argparse.ArgumentParser) -> None:
 
 
 def _param_arguments(p: argparse.ArgumentParser, action: str) -> None:
-    """NODE and what ``action`` takes after it: get NAME, set NAME VALUE, list [PREFIX]
-    (``value`` is None but for set: cmd_param reads it)."""
+    """NODE and what ``action`` takes after it: get NAME, set NAME VALUE, list [PREFIX],
+    describe NAME (``value`` is None but for set: cmd_param reads it)."""
     p.add_argument('node', metavar='NODE',
                    help='the node\'s name (e.g. flexarm_learner; under --namespace)')
     if action == 'list':
@@ -436,6 +440,8 @@ PARAM_ACTIONS: dict[str, ActionEntry] = {
             lambda p: _param_arguments(p, 'set'), 'wait'),
     'list': ("the node's parameters and their values", lambda p: _param_arguments(p, 'list'),
              'wait'),
+    'describe': ("a parameter's type, description (unit first), range, whether it is "
+                 'read-only, and its value', lambda p: _param_arguments(p, 'describe'), 'wait'),
 }
 SITE_ACTIONS: dict[str, ActionEntry] = {
     'init': ("write the site folder's starting point", _site_init_arguments, None),

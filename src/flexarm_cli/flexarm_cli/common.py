@@ -116,6 +116,19 @@ def learner_default(key: str) -> str:
         return f'its {key} parameter'
 
 
+def node_default(role: str, key: str) -> str:
+    """The configured ``key`` of graph.yaml's node of ``role`` (from its params files, as it
+    starts with them) for a help text, read so that the help cannot drift; its parameter's
+    name where config/ cannot be read."""
+    from flexarm_bringup.launcher import all_nodes, node_parameters
+
+    try:
+        spec = next(spec for spec in all_nodes() if spec.role == role)
+        return str(node_parameters(spec)[key])
+    except (OSError, KeyError, StopIteration, ValueError):
+        return f'its {key} parameter'
+
+
 def check_region(region: str) -> None:
     presets = learner_settings()['regions']
     if region and region not in presets:

@@ -87,7 +87,8 @@ def cmd_up(args: argparse.Namespace) -> dict[str, Any]:
 def _up_parameters(args: argparse.Namespace) -> tuple[dict[str, dict[str, Any]], tuple[str, ...]]:
     """The run's parameters over graph.yaml's (simulated world, link key, recording, Foxglove)
     and the optional nodes it starts."""
-    simulated = {'real_time_factor': args.rtf, **world_settings(args)}
+    simulated = {**({} if args.rtf is None else {'real_time_factor': args.rtf}),
+                 **world_settings(args)}
     link = {'link_key_file': os.path.abspath(args.link_key)} if args.link_key else {}
     params: dict[str, dict[str, Any]] = {node_name('simulator'): simulated,
                                          node_name('fake_controller'): simulated | link,

@@ -32,11 +32,12 @@ def cmd_urdf(args: argparse.Namespace) -> dict[str, Any]:
 
 
 def cmd_param(args: argparse.Namespace) -> dict[str, Any]:
-    """Get, set or list the parameters of a node of the graph over its parameter services, as
-    ros2 param does; a value is read as YAML (a number, true/false, text, a [list])."""
+    """Get, set, list or describe the parameters of a node of the graph over its parameter
+    services, as ros2 param does; a value is read as YAML (a number, true/false, text, a
+    [list])."""
     import rclpy
 
-    from flexarm_cli.parameter_text import typed_value, value_text
+    from flexarm_cli.parameter_text import description_text, typed_value, value_text
 
     _check_param(args)
     node, name = args.node, args.name
@@ -55,6 +56,11 @@ def cmd_param(args: argparse.Namespace) -> dict[str, Any]:
             if args.action == 'get':
                 print(value_text(current[name]))
                 return {'ok': True, 'node': node, 'name': name, 'value': current[name]}
+            if args.action == 'describe':
+                fields = {**client.describe_node_parameter(node, name, args.wait),
+                          'name': name, 'value': current[name]}
+                print(description_text(fields))
+                return {'ok': True, 'node': node, **fields}
             kind, value = typed_value(args.value, current[name])
             try:
                 client.set_node_parameter(node, name, value, args.wait, kind)

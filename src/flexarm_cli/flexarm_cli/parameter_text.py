@@ -1,4 +1,5 @@
-"""Parameter values as the command line types and shows them (``flexarm param``).
+"""Parameter values as the command line types and shows them, and a parameter's description
+(``flexarm param``).
 
 A value typed is read as ``ros2 param set`` reads it: YAML; a bool, an integer, a double or a
 string, or a flat list all of one of these kinds; anything else (a mapping, a mixed list, text
@@ -52,6 +53,18 @@ def value_text(value: Any) -> str:
         return value
     return yaml.safe_dump(value, default_flow_style=True, width=1 << 30).removesuffix(
         '\n...\n').strip()
+
+
+def description_text(fields: dict[str, Any]) -> str:
+    """What ``flexarm param describe`` says of a parameter, a line each: its name, type,
+    description, range, whether it is read-only, and its value."""
+    low_high = fields['range']
+    return '\n'.join([
+        fields['name'], f"  type: {fields['type']}",
+        f"  description: {fields['description'] or '(none)'}",
+        f"  range: {value_text(low_high) if low_high else 'none'}",
+        f"  read-only: {value_text(fields['read_only'])}",
+        f"  value: {value_text(fields['value'])}"])
 
 
 def _kind(value: Any) -> type | None:

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
+from flexarm_core.parameter_schema import node_schema
 from flexarm_core.params import config_path
 
 ROBOTS = ('bridge', 'ros2_control')
@@ -75,8 +76,8 @@ BRIDGE = '''\
 # src/flexarm_bridge/PROTOCOL.md).
 /**:
   ros__parameters:
-    host: 127.0.0.1           # your controller's address (127.0.0.1: a rehearsal on this machine)
-    port: 47800               # its TCP port
+    host: {host}           # your controller's address (127.0.0.1: a rehearsal on this machine)
+    port: {port}               # its TCP port
     link_key_file: ''         # the site key (flexarm keygen FILE): required off this machine
 '''
 
@@ -100,7 +101,9 @@ def files(robot: str) -> dict[str, str]:
         raise ValueError(f'robot must be one of {", ".join(ROBOTS)}, got {robot!r}')
     out = {'config/graph.yaml': GRAPH[robot]}
     if robot == 'bridge':
-        out['config/bridge.yaml'] = BRIDGE
+        shipped = node_schema(config_path('bridge.yaml'), 'flexarm_bridge')   # the clone's
+        out['config/bridge.yaml'] = BRIDGE.format(host=shipped['host'].default,
+                                                  port=shipped['port'].default)
     else:
         out['config/controllers.yaml'] = commented('controllers.yaml')
     out.update({f'config/{name}': commented(name) for name in COMMENTED})

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 from rclpy.parameter import Parameter
 
-from flexarm_cli.parameter_text import typed_value, value_text
+from flexarm_cli.parameter_text import description_text, typed_value, value_text
 
 Kind = Parameter.Type
 
@@ -40,3 +40,13 @@ def test_whole_numbers_set_a_double_parameter_as_doubles() -> None:
 def test_a_value_shown_reads_back_as_itself(value) -> None:
     kind, read = typed_value(value_text(value), current=value)
     assert read == value and type(read) is type(value)
+
+
+def test_a_description_is_a_line_a_field() -> None:
+    fields = {'name': 'port', 'type': 'integer', 'description': 'TCP port, range [1, 65535]',
+              'range': [1, 65535], 'read_only': False, 'value': 47800}
+    assert description_text(fields).splitlines() == [
+        'port', '  type: integer', '  description: TCP port, range [1, 65535]',
+        '  range: [1, 65535]', '  read-only: false', '  value: 47800']
+    unbounded = description_text({**fields, 'range': None, 'description': ''})
+    assert '  range: none' in unbounded and '  description: (none)' in unbounded

@@ -19,6 +19,7 @@ PUBLIC = (
     'flexarm_core.measurement',
     'flexarm_core.natural_frequency',
     'flexarm_core.paper',
+    'flexarm_core.parameter_schema',
     'flexarm_core.params',
     'flexarm_core.parent_death',
     'flexarm_core.paths',

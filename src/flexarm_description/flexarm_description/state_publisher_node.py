@@ -45,7 +45,7 @@ from flexarm_description.chain import (
     plane_transform,
 )
 from flexarm_description.tf_message import transform_msg
-from flexarm_description.urdf_model import MOCK_HARDWARE, published_description
+from flexarm_description.urdf_model import published_description
 from flexarm_msgs.msg import TipPose
 from tf2_msgs.msg import TFMessage
 
@@ -53,7 +53,6 @@ MEASURED_FRAME = 'tip_measured'
 TRUE_FRAME = 'tip_true'
 JOINTS_STALE = 5.0      # [s, wall] without /joint_states: the frames are stale
 RECHECK = 0.2           # [s, wall] between looks at subscribers whose node is not known yet
-RECORDERS = ['flexarm_recorder']
 NEWEST = QoSProfile(depth=1, reliability=ReliabilityPolicy.BEST_EFFORT)   # joints, truth
 MEASURED = 10           # /tip_pose frames kept between two timer ticks (50 a second at 10x)
 UNKNOWN_NODE = '_NODE_NAME_UNKNOWN_'     # rmw's name of a node it does not know yet
@@ -85,19 +84,10 @@ class StatePublisher(Node):
         arm = declare_tree(self, 'arm', 'config/arm.yaml')
         geometry = ArmGeometry.from_dict(arm)
         camera = declare_tree(self, 'camera', 'config/camera.yaml')
-        frequency = declare(self, 'publish_frequency', 30.0,
-                            '[Hz, wall clock] at most this many /tf (and tip pose) messages a '
-                            'second per stream; <= 0: one per message received')
-        self._recorders = set(declare(
-            self, 'recorders', RECORDERS, 'names of the nodes that record rather than '
-            'watch: their subscriptions do not ask for the measured tip (the camera)'))
-        hardware = declare(self, 'hardware_plugin', MOCK_HARDWARE,
-                           'ros2_control hardware plugin of the URDF\'s <ros2_control> system; '
-                           "'': no <ros2_control> block", read_only=True)
-        driver = declare(self, 'hardware_parameters', [''],
-                         "NAME=VALUE parameters of the hardware plugin (a real driver's "
-                         "address, port, ...): <param> elements of its <hardware>",
-                         read_only=True)
+        frequency = declare(self, 'publish_frequency', 'config/description.yaml')
+        self._recorders = set(declare(self, 'recorders', 'config/description.yaml'))
+        hardware = declare(self, 'hardware_plugin', 'config/description.yaml', read_only=True)
+        driver = declare(self, 'hardware_parameters', 'config/description.yaml', read_only=True)
         self._joints = arm_joints(geometry, camera['offset'])
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self.create_publisher(String, topics.ROBOT_DESCRIPTION, latched).publish(String(

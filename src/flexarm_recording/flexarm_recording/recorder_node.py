@@ -15,7 +15,6 @@ import time
 from bisect import bisect_right
 from collections.abc import Sequence
 from operator import itemgetter
-from pathlib import Path
 from typing import Any
 
 from rclpy.clock import Clock, ClockType
@@ -27,35 +26,20 @@ from rclpy.topic_endpoint_info import TopicEndpointInfo
 
 from flexarm_core import topics
 from flexarm_core.health_report import OK, WARN, Status, status
-from flexarm_core.paths import BAGS_DIR
+from flexarm_core.paths import repo_path
 from flexarm_core.ros.diagnostics import DiagnosticsPublisher
 from flexarm_core.ros.node_main import run
 from flexarm_core.ros.node_params import declare
 from flexarm_core.ros.stamps import GraphTime
 from flexarm_core.ros.taken import Taken
-from flexarm_recording.bag_writer import (
-    COMPRESSIONS,
-    DEFAULT_CHUNK_SIZE,
-    DEFAULT_COMPRESSION,
-    BagWriter,
-    duration_yaml,
-)
+from flexarm_recording.bag_writer import BagWriter, duration_yaml
 from flexarm_recording.topic_discovery import (
     RawHandler,
     RawTopicSubscriber,
     TopicSelection,
 )
 
-DEFAULT_BAG_DIRECTORY = BAGS_DIR
 DRAIN_QUIET, DRAIN_MAX = 0.2, 2.0   # [s] on shutdown: write what arrived, bounded
-DEFAULT_TOPICS = [topics.JOINT_STATES, topics.JOINT_COMMANDS, topics.JOINT_TRAJECTORY,
-                  topics.CLOCK, topics.CAMERA_INFO,
-                  topics.TIP_POSE, topics.TIP_POSE_TRUTH, topics.SAMPLES, topics.MODEL,
-                  topics.ACTIVE_MODEL, topics.MODEL_HEALTH, topics.PAYLOAD, topics.OUTCOMES,
-                  topics.ARM_MOTION, topics.DIAGNOSTICS, topics.ROBOT_DESCRIPTION, topics.TF,
-                  topics.TF_STATIC,
-                  topics.TARGET_POSE, topics.COMMANDED_POSE, topics.MEASURED_TIP,
-                  topics.TRUE_TIP, topics.SCENE_MARKERS]
 
 
 def default_bag_name() -> str:
@@ -98,38 +82,19 @@ class RecorderNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('flexarm_recorder', **kwargs)
-        directory = declare(self, 'bag_directory', str(DEFAULT_BAG_DIRECTORY),
-                            'directory holding the bags')
-        name = declare(self, 'bag_name', '',
-                       'bag (sub-directory and file) name; empty: flexarm_YYYYmmdd_HHMMSS')
-        wanted = declare(self, 'topics', DEFAULT_TOPICS,
-                         'topics to record: names or fnmatch patterns ("*": all)')
-        record_images = declare(self, 'record_images', False,
-                                f'also record {topics.CAMERA_IMAGE}')
-        self._passive = declare(self, 'passive_measurements', True,
-                                f'record {topics.TIP_POSE} only while another node consumes '
-                                'it (the vision node measures only while it has a '
-                                'subscriber); false: subscribe throughout (the camera runs '
-                                'for the bag)')
-        discovery_period = declare(self, 'discovery_period', 0.5,
-                                   'period of looking for publishers of wanted topics [s]',
-                                   bounds=(0.01, 60.0))
-        take_period = declare(self, 'take_period', 0.1,
-                              'period of taking what arrived and writing it [s, wall clock]',
-                              bounds=(0.001, 10.0))
-        flush_period = declare(self, 'flush_period', 1.0,
-                               'period of writing the chunk in progress to disk [s]',
-                               bounds=(0.01, 3600.0))
-        queue_depth = declare(self, 'queue_depth', 1000,
-                              'subscription history depth (keep last) of a topic',
-                              bounds=(1, 1000000))
-        image_queue_depth = declare(self, 'image_queue_depth', 30,
-                                    f'the same for {topics.CAMERA_IMAGE}', bounds=(1, 10000))
-        chunk_size = declare(self, 'chunk_size', DEFAULT_CHUNK_SIZE,
-                             'MCAP chunk size [bytes, before compression]')
-        compression = declare(self, 'compression', DEFAULT_COMPRESSION,
-                              f'MCAP chunk compression: {", ".join(COMPRESSIONS)}')
-        self.writer = BagWriter(Path(directory) / (name or default_bag_name()),
+        directory = repo_path(declare(self, 'bag_directory', 'config/recorder.yaml'))
+        name = declare(self, 'bag_name', 'config/recorder.yaml')
+        wanted = declare(self, 'topics', 'config/recorder.yaml')
+        record_images = declare(self, 'record_images', 'config/recorder.yaml')
+        self._passive = declare(self, 'passive_measurements', 'config/recorder.yaml')
+        discovery_period = declare(self, 'discovery_period', 'config/recorder.yaml')
+        take_period = declare(self, 'take_period', 'config/recorder.yaml')
+        flush_period = declare(self, 'flush_period', 'config/recorder.yaml')
+        queue_depth = declare(self, 'queue_depth', 'config/recorder.yaml')
+        image_queue_depth = declare(self, 'image_queue_depth', 'config/recorder.yaml')
+        chunk_size = declare(self, 'chunk_size', 'config/recorder.yaml')
+        compression = declare(self, 'compression', 'config/recorder.yaml')
+        self.writer = BagWriter(directory / (name or default_bag_name()),
                                 chunk_size=chunk_size, compression=compression)
         self._pending: list[tuple[int, str, bytes, int]] = []   # taken, not yet written
         self._consumed: dict[str, int] = {}     # passes in a row another node consumed it

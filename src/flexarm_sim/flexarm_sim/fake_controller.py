@@ -73,13 +73,10 @@ class FakeController(SimNode):
         super().__init__('flexarm_fake_controller')
 
     def _setup_joint_io(self) -> None:
-        host = declare(self, 'host', '127.0.0.1', 'address to listen on')
-        port = declare(self, 'port', 47800, 'TCP port to listen on', bounds=(1, 65535))
-        self._heartbeat_timeout = declare(self, 'heartbeat_timeout', 1.0,
-                                          '[s, wall] silence after which the link is lost',
-                                          bounds=(0.05, 60.0))
-        key_file = declare(self, 'link_key_file', '',
-                           'site key file; required to listen on a non-loopback address')
+        host = declare(self, 'host', 'config/bridge.yaml')
+        port = declare(self, 'port', 'config/bridge.yaml')
+        self._heartbeat_timeout = declare(self, 'heartbeat_timeout', 'config/bridge.yaml')
+        key_file = declare(self, 'link_key_file', 'config/bridge.yaml')
         try:
             self._site_key = site_key_for(host, key_file)
         except ValueError as exc:

@@ -101,44 +101,8 @@ class SimNode(Node):
 
     def __init__(self, node_name: str = 'flexarm_sim') -> None:
         super().__init__(node_name)
-        self._rtf = declare(self, 'real_time_factor', 1.0,
-                            'simulated seconds per wall-clock second', bounds=(0.01, 100.0))
-        self._js_rate = declare(self, 'joint_state_rate', 100.0,
-                                '[Hz, sim time] /joint_states and ground-truth rate',
-                                bounds=(1.0, 10000.0))
-        clock_rate = declare(self, 'clock_rate', 25.0,
-                             '[Hz, wall time] /clock publications and wake-ups (at most one '
-                             'per tick)', bounds=(0.1, 1000.0))
-        camera_rate = declare(self, 'camera_rate', 5.0, '[Hz, sim time] camera frame rate',
-                              bounds=(0.1, 100.0))
-        clock_source = declare(self, 'clock_source', OWN,
-                               'own: publish /clock; follow: step to the /clock of another '
-                               "arm's simulator in the domain; wall: no /clock, real time on "
-                               'the wall clock (a stand-in for a real controller)')
-        self._wall = clock_source == WALL
-        if self._wall:
-            self._rtf = 1.0
-        seed = declare(self, 'seed', 0, 'seed of the camera noise')
-        initial = declare(self, 'initial_positions', [0.0, 0.6, -0.5, -0.5],
-                          'joint1..joint4 at start [rad, m, rad, rad]')
-        if min(self._rtf, self._js_rate, camera_rate, clock_rate) <= 0:
-            raise ValueError('real_time_factor and all rates must be positive')
-
-        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
-        plant = Plant.from_dict(declare_tree(self, 'plant', 'config/sim.yaml', {
-            'payload', *(f'fabrication.{name}' for name in FABRICATION)}), self._geometry)
-        errors = declare_tree(self, 'error_sources', 'config/sim.yaml')
-        self._payload_changes = active(errors, 'payload')
-        self._fabrication_changes = bool(errors['enabled'])
-        self._dynamics = ArmDynamics(
-            plant, self._geometry, declare_tree(self, 'dynamics', 'config/sim.yaml'),
-            np.asarray(initial, dtype=float), ArmErrors.from_dict(errors, plant.backlash))
-        cam = {key: declare_tree(self, key, 'config/camera.yaml')
-               for key in ('plate', 'camera', 'camera_render')}
-        self._camera = true_renderer(cam, errors)
-        self._calibration = CameraModel.from_dict(cam['camera']).intrinsics
-        self._rng = np.random.default_rng(seed)
-
+        clock_source, clock_rate, camera_rate = self._declare_rates()
+        plant = self._build_arm()
         self._dt = 1.0 / self._js_rate
         self._camera_every = max(1, round(self._js_rate / camera_rate))
         self._tick = 0
@@ -151,7 +115,48 @@ class SimNode(Node):
         # (wall time, tick) marks at least ACHIEVED_SPAN apart: the achieved real-time factor
         # is measured from the older one, over 1-2 s whenever a report is asked for
         self._marks = [(time.monotonic(), 0)] * 2
+        self._open_interfaces(clock_source)
+        self.get_logger().info(
+            f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
+            f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
 
+    def _declare_rates(self) -> tuple[str, float, float]:
+        """The simulator's timing (config/sim.yaml, whose ranges keep every rate positive):
+        the real-time factor and joint-state rate kept, the clock source and the ``/clock``
+        and camera rates returned."""
+        self._rtf = declare(self, 'real_time_factor', 'config/sim.yaml')
+        self._js_rate = declare(self, 'joint_state_rate', 'config/sim.yaml')
+        clock_rate = declare(self, 'clock_rate', 'config/sim.yaml')
+        camera_rate = declare(self, 'camera_rate', 'config/sim.yaml')
+        clock_source = declare(self, 'clock_source', 'config/sim.yaml')
+        self._wall = clock_source == WALL
+        if self._wall:
+            self._rtf = 1.0
+        return clock_source, clock_rate, camera_rate
+
+    def _build_arm(self) -> Plant:
+        """The simulated arm at its start, its errors and its camera (config/arm.yaml, sim.yaml,
+        camera.yaml); its plant."""
+        self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
+        plant = Plant.from_dict(declare_tree(self, 'plant', 'config/sim.yaml', {
+            'payload', *(f'fabrication.{name}' for name in FABRICATION)}), self._geometry)
+        errors = declare_tree(self, 'error_sources', 'config/sim.yaml')
+        self._payload_changes = active(errors, 'payload')
+        self._fabrication_changes = bool(errors['enabled'])
+        initial = declare(self, 'initial_positions', 'config/sim.yaml')
+        self._dynamics = ArmDynamics(
+            plant, self._geometry, declare_tree(self, 'dynamics', 'config/sim.yaml'),
+            np.asarray(initial, dtype=float), ArmErrors.from_dict(errors, plant.backlash))
+        cam = {key: declare_tree(self, key, 'config/camera.yaml')
+               for key in ('plate', 'camera', 'camera_render')}
+        self._camera = true_renderer(cam, errors)
+        self._calibration = CameraModel.from_dict(cam['camera']).intrinsics
+        self._rng = np.random.default_rng(declare(self, 'seed', 'config/sim.yaml'))
+        return plant
+
+    def _open_interfaces(self, clock_source: str) -> None:
+        """The publishers, the joint interface, the clock in its role, the parameter and
+        payload handlers and the diagnostics."""
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._share = ClockShare(OWN if self._wall else clock_source,
                                  self.get_fully_qualified_name(),
@@ -181,9 +186,6 @@ class SimNode(Node):
         self.add_on_set_parameters_callback(self._on_set_parameters)
         self.create_subscription(Float64, topics.PAYLOAD, self._on_payload, latched)
         self._diagnostics = DiagnosticsPublisher(self, self.statuses, stamp=self._now)
-        self.get_logger().info(
-            f'simulating at {self._js_rate:.0f} Hz x{self._rtf:g} real time, camera '
-            f'{camera_rate:g} Hz, payload {plant.payload:g} kg')
 
     # --- the controller's joint interface: ROS topics here, TCP in the fake controller ------
     def _setup_joint_io(self) -> None:

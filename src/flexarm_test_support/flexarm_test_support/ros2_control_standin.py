@@ -22,8 +22,8 @@ the goal tolerance and slower than ``stopped_velocity_tolerance`` succeed it, an
 ``goal_time`` after the end aborts it (GOAL_TOLERANCE_VIOLATED); a cancel holds the arm. No
 feedback is published (flexarm reads none).
 
-Hardware limits (parameters ``lower`` and ``upper``, [rad, m, rad, rad], default config/
-arm.yaml's): a goal whose trajectory leaves them is refused before anything moves, as a
+Hardware limits (parameters ``arm.lower`` and ``arm.upper``, [rad, m, rad, rad], as config/
+arm.yaml gives them): a goal whose trajectory leaves them is refused before anything moves, as a
 controller that checks its joints' limits does. A ROS 2 action's rejection carries no reason,
 so it accepts the goal and aborts it at once with INVALID_GOAL and an ``error_string`` naming
 the joint and its limit; the running goal goes on. A test narrows them to have goals refused.
@@ -62,6 +62,7 @@ from flexarm_core.joint_trajectory import SampledTrajectory
 from flexarm_core.kinematics import JOINT_NAMES, ArmGeometry
 from flexarm_core.params import config_path, load_config, load_node_params
 from flexarm_core.ros.node_main import run
+from flexarm_core.ros.node_params import declare
 from flexarm_core.ros.trajectory_message import trajectory_from
 from flexarm_sim.camera import CameraRenderer
 from flexarm_sim.plant import configured_plant
@@ -104,8 +105,8 @@ class Ros2ControlStandIn(Node):
         self._info = camera_info(CameraModel.from_dict(config['camera']).intrinsics,
                                  Header(frame_id=CAMERA_FRAME))
         self._rng = np.random.default_rng(5)
-        self._lower = np.array(self.declare_parameter('lower', geometry.lower.tolist()).value)
-        self._upper = np.array(self.declare_parameter('upper', geometry.upper.tolist()).value)
+        self._lower = np.array(declare(self, 'arm.lower', 'config/arm.yaml'))
+        self._upper = np.array(declare(self, 'arm.upper', 'config/arm.yaml'))
         constraints = load_node_params(config_path('controllers.yaml'),
                                        'joint_trajectory_controller')['constraints']
         self._path = np.array([constraints[n]['trajectory'] for n in JOINT_NAMES])

@@ -200,19 +200,8 @@ class VisionNode(Node):
             declare_tree(self, 'settle', 'config/vision.yaml')))
         self._base = self._configured = self._estimator.camera.intrinsics
         self._camera_id = ''          # the frame id of the camera's images
-        self._tool = self._stored('tool', 'calibration/tool_camera.json', read_calibration,
-                                  ToolCorrection())
-        self._tool.value = ToolCorrection.from_list(declare(
-            self, 'tool_correction', self._tool.value.as_list(),
-            "[m, m, rad] the camera's error in the tool frame (axial, lateral, angle), removed "
-            'from every pose; default: tool_calibration_file'))
-        self._lens_fix = self._stored('camera', 'calibration/camera.json',
-                                      read_camera_calibration, CameraCorrection())
-        self._lens_fix.value = CameraCorrection.from_list(declare(
-            self, 'camera_correction', self._lens_fix.value.as_list(),
-            '[focal scale, k1, k2] the change of the camera_info intrinsics flexarm calibrate '
-            '--camera measured: fx, fy times the scale, k1 and k2 plus theirs; default: '
-            'camera_calibration_file'))
+        self._tool = self._stored('tool', read_calibration, ToolCorrection)
+        self._lens_fix = self._stored('camera', read_camera_calibration, CameraCorrection)
         latched = QoSProfile(depth=1, durability=DurabilityPolicy.TRANSIENT_LOCAL)
         self._mount = self.create_publisher(TFMessage, topics.TF_STATIC, latched)
         self._publish_mount()
@@ -235,17 +224,20 @@ class VisionNode(Node):
         self.get_logger().info(f'estimating the tip pose from {i.width}x{i.height} images of '
                                f'a {self._estimator.plate.shape} hole plate')
 
-    def _stored(self, what: str, default_file: str, read: Any, neutral: Any
-                ) -> StoredCorrection:
-        """The ``<what>_calibration_file`` parameter's correction (docs/nodes.md)."""
-        path = str(repo_path(declare(
-            self, f'{what}_calibration_file', default_file, f'{what} calibration written by '
-            'flexarm calibrate (relative: to the repository)')))
-        stored = StoredCorrection(path, read, neutral)
-        if stored.problem:
+    def _stored(self, what: str, read: Any, kind: Any) -> StoredCorrection:
+        """The ``<what>_correction`` in use (docs/nodes.md): a value other than the neutral one
+        given to that parameter, else the ``<what>_calibration_file``'s (the parameter set to
+        it), else the neutral one."""
+        path = str(repo_path(declare(self, f'{what}_calibration_file', 'config/vision.yaml')))
+        stored = StoredCorrection(path, read, kind())
+        given = declare(self, f'{what}_correction', 'config/vision.yaml')
+        if given != kind().as_list():
+            stored.set(kind.from_list(given))
+        elif stored.problem:
             self.get_logger().error(f'{stored.problem}; poses are reported without it')
         elif stored.record is not None:
             self.get_logger().info(f'{what} calibration from {path}: {stored.value}')
+            self.set_parameters([Parameter(f'{what}_correction', value=stored.value.as_list())])
         return stored
 
     def _publish_mount(self) -> None:

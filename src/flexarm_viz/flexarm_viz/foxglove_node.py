@@ -22,7 +22,6 @@ import foxglove
 from rclpy.node import Node
 from rclpy.topic_endpoint_info import TopicEndpointInfo
 
-from flexarm_core import topics
 from flexarm_core.ros.node_main import run
 from flexarm_core.ros.node_params import declare
 from flexarm_recording.bag_schema import message_definition
@@ -63,21 +62,13 @@ class FoxgloveNode(Node):
 
     def __init__(self, **kwargs: Any) -> None:
         super().__init__('flexarm_foxglove', **kwargs)
-        host = declare(self, 'host', '127.0.0.1', 'address the WebSocket server listens on',
-                       read_only=True)
-        port = declare(self, 'port', 8765, 'TCP port of the WebSocket server (0: any free)',
-                       read_only=True, bounds=(0, 65535))
-        wanted = declare(self, 'topics', ['*'],
-                         'topics to serve: names or fnmatch patterns ("*": all)')
-        images = declare(self, 'images', False, f'also serve {topics.CAMERA_IMAGE}')
-        discovery_period = declare(self, 'discovery_period', 0.25,
-                                   'period of looking for new topics and for channels clients '
-                                   'subscribed to or left [s]', bounds=(0.01, 60.0))
-        queue_depth = declare(self, 'queue_depth', 10,
-                              'subscription history depth (keep last) of a topic',
-                              bounds=(1, 100000))
-        image_queue_depth = declare(self, 'image_queue_depth', 2,
-                                    f'the same for {topics.CAMERA_IMAGE}', bounds=(1, 1000))
+        host = declare(self, 'host', 'config/foxglove.yaml', read_only=True)
+        port = declare(self, 'port', 'config/foxglove.yaml', read_only=True)
+        wanted = declare(self, 'topics', 'config/foxglove.yaml')
+        images = declare(self, 'images', 'config/foxglove.yaml')
+        discovery_period = declare(self, 'discovery_period', 'config/foxglove.yaml')
+        queue_depth = declare(self, 'queue_depth', 'config/foxglove.yaml')
+        image_queue_depth = declare(self, 'image_queue_depth', 'config/foxglove.yaml')
         self._sdk_context = foxglove.Context()
         self.server = foxglove.start_server(name=SERVER_NAME, host='127.0.0.1', port=0,
                                             context=self._sdk_context)

@@ -61,18 +61,14 @@ class SceneNode(Node):
         super().__init__('flexarm_scene')
         self._geometry = ArmGeometry.from_dict(declare_tree(self, 'arm', 'config/arm.yaml'))
         regions = regions_from_dict(declare_tree(self, 'regions', 'config/learner.yaml'))
-        shown = declare(self, 'regions_shown', ['A', 'B'],
-                        'regions of config/learner.yaml drawn, with their deflection field')
+        shown = declare(self, 'regions_shown', 'config/description.yaml')
         unknown = [name for name in shown if name not in regions]
         if unknown:
             raise ValueError(f'regions_shown names unknown regions {unknown}')
         self._regions = [regions[name] for name in shown]
-        self._scale = declare(self, 'arrow_scale', 10.0, 'deflection arrows drawn × this',
-                              bounds=(0.0, 10000.0))
-        self._count = declare(self, 'field_points', 7, 'field grid points per region side',
-                              bounds=(2, 100))
-        self._max_samples = declare(self, 'max_samples', 2000, 'samples drawn (the last ones)',
-                                    bounds=(0, 1000000))
+        self._scale = declare(self, 'arrow_scale', 'config/description.yaml')
+        self._count = declare(self, 'field_points', 'config/description.yaml')
+        self._max_samples = declare(self, 'max_samples', 'config/description.yaml')
         self._samples: list[tuple[float, float, float]] = []
         self._model: ModelInfo | None = None
         self._payload = 0.0

@@ -475,6 +475,24 @@ class FlexarmClient(Node):
         found = dict(zip(asked, map(parameter_value_to_python, answer)))
         return {name: found.get(name) for name in wanted}
 
+    def describe_node_parameter(self, node: str, name: str,
+                                timeout: float = 10.0) -> dict[str, Any] | None:
+        """Parameter ``name`` of the graph's node ``node`` as it describes it: its ``name``,
+        ``type`` (as the params files' schema names it: ``double``, ``string_array``),
+        ``description`` (unit first), ``range`` ([low, high], None without one) and
+        ``read_only``; None for a name it does not have (rclpy answers no descriptor)."""
+        descriptors = self._parameter_call(
+            node, lambda client: client.describe_parameters([name]), timeout,
+            f'{node} parameter {name} description').descriptors
+        if not descriptors:
+            return None
+        described = descriptors[0]
+        bounds = [*described.integer_range, *described.floating_point_range]
+        return {'name': described.name, 'type': Parameter.Type(described.type).name.lower(),
+                'description': described.description,
+                'range': [bounds[0].from_value, bounds[0].to_value] if bounds else None,
+                'read_only': described.read_only}
+
     def set_node_parameter(self, node: str, name: str, value: Any,
                            timeout: float = 10.0, kind: Parameter.Type | None = None) -> None:
         """Set parameter ``name`` of the graph's node ``node`` (as a ``kind`` value, else of

@@ -124,12 +124,9 @@ class CompensatorNode(Node):
         self._geometry = ArmGeometry.from_dict(arm)
         self._compensator = Compensator(self._geometry, declare_tree(
             self, 'compensation', 'config/compensator.yaml'))
-        self._pos_tol = declare(self, 'position_tolerance', 0.05e-3,
-                                '[m] default closed-loop position tolerance', bounds=(0.0, 0.01))
-        self._ang_tol = declare(self, 'angle_tolerance', math.radians(0.005),
-                                '[rad] default closed-loop angle tolerance', bounds=(0.0, 0.1))
-        self._max_corrections = declare(
-            self, 'max_corrections', 5, 'default CLOSED_LOOP corrective moves after the first')
+        self._pos_tol = declare(self, 'position_tolerance', 'config/compensator.yaml')
+        self._ang_tol = declare(self, 'angle_tolerance', 'config/compensator.yaml')
+        self._max_corrections = declare(self, 'max_corrections', 'config/compensator.yaml')
         motion_tree = declare_tree(self, 'motion', 'config/motion.yaml')
         motion = MotionSettings.from_dict(motion_tree)
         self._bounds = GoalBounds.nominal()
@@ -138,17 +135,11 @@ class CompensatorNode(Node):
             f'max_corrections must be 1..{self._bounds.max_corrections}')
         if reason is not None:
             raise ValueError(f'default goal settings out of bounds: {reason}')
-        self._limits = DataLimits(
-            declare(self, 'max_data_distance', 3.0, 'PREDICTIVE refuses joints farther than '
-                    'this from the learning samples [typical sample spacings]',
-                    bounds=(0.0, 1000.0)),
-            declare(self, 'max_prediction_std', 0.3e-3, "[m] PREDICTIVE refuses joints where "
-                    "the model's std of the predicted tip position exceeds this",
-                    bounds=(0.0, 0.1)))
+        self._limits = DataLimits(declare(self, 'max_data_distance', 'config/compensator.yaml'),
+                                  declare(self, 'max_prediction_std', 'config/compensator.yaml'))
         self._site = SiteErrors.from_dict(declare_tree(self, 'error_bound',
                                                        'config/compensator.yaml'))
-        model_path = declare(self, 'model_path', '',
-                             'predictor loaded at start ("" = wait for /learner/model)')
+        model_path = declare(self, 'model_path', 'config/compensator.yaml')
         self._health = ModelHealth(
             HealthSettings.from_dict(declare_tree(self, 'model_health',
                                                   'config/compensator.yaml')),

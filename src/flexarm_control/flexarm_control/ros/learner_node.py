@@ -63,7 +63,7 @@ from flexarm_deflection.model_store import (
     unloadable_text,
     write_current,
 )
-from flexarm_deflection.models import KINDS, load_model, make_model
+from flexarm_deflection.models import load_model, make_model
 from flexarm_deflection.payload_bounds import bound_report, needs_retraining
 from flexarm_deflection.payload_record import payload_path, read_payload, write_payload
 from flexarm_deflection.predictors import Predictor
@@ -99,47 +99,15 @@ class LearnerNode(Node):
         self._geometry = ArmGeometry.from_dict(arm)
         self._arm_id = arm_fingerprint(arm)
         self._regions = regions_from_dict(declare_tree(self, 'regions', 'config/learner.yaml'))
-        self._data_dir = repo_path(declare(self, 'data_directory', 'data',
-                                           'datasets directory (relative: to the repository)'))
-        self._model_dir = repo_path(declare(self, 'model_directory', 'models',
-                                            'models directory (relative: to the repository)'))
-        self._default_dataset = declare(self, 'default_dataset', 'default', 'dataset name')
-        self._payload = declare(self, 'payload', 0.0, '[kg] payload carried by the arm now '
-                                '(published on /payload)', bounds=(0.0, 100.0))
-        self._refresh_samples = declare(self, 'refresh_samples', 8,
-                                        'samples a refresh takes when its goal gives no count',
-                                        bounds=(1, 1000))
-        self._default_region = declare(self, 'default_region', 'AB', 'region preset')
-        self._default_strategy = declare(self, 'default_strategy', 'sobol',
-                                         f'one of {", ".join(STRATEGIES)}')
-        self._max_count = declare(self, 'max_count', 2000, 'largest count accepted',
-                                  bounds=(1, 100000))
-        retries = declare(self, 'measurement_retries', 2,
-                          'extra measurement attempts before a pose is skipped', bounds=(0, 100))
+        retries = self._declare_collection()
+        self._declare_training()
         motion_tree = declare_tree(self, 'motion', 'config/motion.yaml')
-        motion = MotionSettings.from_dict(motion_tree)
-        self._coverage = np.array(declare(
-            self, 'coverage_margin', [0.03, 0.03, 0.0436],
-            '[m, m, rad] learning poses cover the region grown by this on every side'))
-        self._default_kind = declare(self, 'default_kind', 'auto', f'one of {", ".join(KINDS)}')
-        self._folds = declare(self, 'validation_folds', 5, 'cross-validation folds',
-                              bounds=(2, 50))
-        self._screening = Screening.from_dict(
-            declare_tree(self, 'training', 'config/learner.yaml'))
-        self._train_timeout = declare(self, 'training_timeout', 600.0,
-                                      '[s, wall] longest a training request may take',
-                                      bounds=(1.0, 86400.0))
-        self._trainer = TrainingWorker(warm_up)
-        self._chooser = ThreadPoolExecutor(1)   # waits on the worker for active poses
-        if self._default_region not in self._regions:
-            raise ValueError(f'default_region {self._default_region} is not in regions')
-
         self._collecting = threading.Lock()
         self._arm = ArmInterface(self, commands=joint_commands(
             self, motion_tree, arm, lambda: self._payload))
         self._collector = Collector(
-            ArmMotion(self._arm, self._geometry, motion), self._geometry, retries,
-            clock=lambda: self.get_clock().now().nanoseconds * 1e-9,
+            ArmMotion(self._arm, self._geometry, MotionSettings.from_dict(motion_tree)),
+            self._geometry, retries, clock=lambda: self.get_clock().now().nanoseconds * 1e-9,
             warn=self.get_logger().warn)
         latched = QoSProfile(depth=1, durability=QoSDurabilityPolicy.TRANSIENT_LOCAL)
         self._model_pub = self.create_publisher(ModelInfo, topics.MODEL, latched)
@@ -151,6 +119,47 @@ class LearnerNode(Node):
         self.create_subscription(ModelHealth, topics.MODEL_HEALTH,
                                  lambda msg: setattr(self, '_health', msg), latched)
         self._sample_pub = self.create_publisher(DeflectionSample, topics.SAMPLES, 100)
+        self._serve()
+        self._progress = ''        # of the running collection or refresh
+        self._training = False
+        self._dataset: tuple[str, int] | None = None    # last collected into, its samples
+        self._trained: tuple[bool, str] | None = None   # last training: succeeded, outcome
+        self._announced: ModelInfo | None = None
+        self._announce_error = ''
+        self._announce_current()
+        self._diagnostics = DiagnosticsPublisher(self, lambda: learner_statuses(
+            self.get_name(), self._progress, self._training, self._dataset, self._trained,
+            self._announced, self._announce_error))
+
+    def _declare_collection(self) -> int:
+        """Where samples and models go, the payload and the collection's defaults
+        (config/learner.yaml); the measurement retries."""
+        self._data_dir = repo_path(declare(self, 'data_directory', 'config/learner.yaml'))
+        self._model_dir = repo_path(declare(self, 'model_directory', 'config/learner.yaml'))
+        self._default_dataset = declare(self, 'default_dataset', 'config/learner.yaml')
+        self._payload = declare(self, 'payload', 'config/learner.yaml')
+        self._refresh_samples = declare(self, 'refresh_samples', 'config/learner.yaml')
+        self._default_region = declare(self, 'default_region', 'config/learner.yaml')
+        if self._default_region not in self._regions:
+            raise ValueError(f'default_region {self._default_region} is not in regions')
+        self._default_strategy = declare(self, 'default_strategy', 'config/learner.yaml')
+        self._max_count = declare(self, 'max_count', 'config/learner.yaml')
+        self._coverage = np.array(declare(self, 'coverage_margin', 'config/learner.yaml'))
+        return declare(self, 'measurement_retries', 'config/learner.yaml')
+
+    def _declare_training(self) -> None:
+        """The training's defaults, screening and time limit (config/learner.yaml), and the
+        worker that trains."""
+        self._default_kind = declare(self, 'default_kind', 'config/learner.yaml')
+        self._folds = declare(self, 'validation_folds', 'config/learner.yaml')
+        self._screening = Screening.from_dict(
+            declare_tree(self, 'training', 'config/learner.yaml'))
+        self._train_timeout = declare(self, 'training_timeout', 'config/learner.yaml')
+        self._trainer = TrainingWorker(warm_up)
+        self._chooser = ThreadPoolExecutor(1)   # waits on the worker for active poses
+
+    def _serve(self) -> None:
+        """The actions (collect, refresh) and the services (train, use a model)."""
         self._goals = Offload(self, GOAL_THREADS)
         self._collect_server = ActionServer(
             self, CollectSamples, topics.COLLECT_SAMPLES,
@@ -166,16 +175,6 @@ class LearnerNode(Node):
                             callback_group=models)
         self.create_service(UseModel, topics.USE_MODEL, self._models.wrap(self._use_model),
                             callback_group=models)
-        self._progress = ''        # of the running collection or refresh
-        self._training = False
-        self._dataset: tuple[str, int] | None = None    # last collected into, its samples
-        self._trained: tuple[bool, str] | None = None   # last training: succeeded, outcome
-        self._announced: ModelInfo | None = None
-        self._announce_error = ''
-        self._announce_current()
-        self._diagnostics = DiagnosticsPublisher(self, lambda: learner_statuses(
-            self.get_name(), self._progress, self._training, self._dataset, self._trained,
-            self._announced, self._announce_error))
 
     def _on_set_parameters(self, params: list[Parameter]) -> SetParametersResult:
         """A new ``payload`` [kg]: stored with the next samples and published on /payload."""

@@ -1,13 +1,13 @@
-"""Declaring parameters in the node shells (rclpy side of :mod:`flexarm_core.params`).
+"""Declaring parameters in the node shells (rclpy side of :mod:`flexarm_core.parameter_schema`).
 
-Scalar node settings are declared one by one with a default, a description and, for a number
-with a meaningful range, its bounds (the descriptor's range: rclpy refuses a value outside).
-Physical parameter trees (``arm.*``, ``plant.*``, ``camera.*`` ...) come from the ``config/*.yaml``
-files: the shipped file is the tree's schema (which names exist), the params files the node
-was given supply the values. Every name is declared with a description pointing at its file,
-read-only unless the node handles its changes, and handed to the core as a nested dict; a name
-the node was not given is an error naming the file to pass. (rclpy has no public list of the
-overrides a node was given.)
+Every parameter is declared from the shipped ``config/<file>.yaml`` that holds it, read as its
+schema for the node's name: its value there is the default and the type, its comment the
+description, its ``range [LOW, HIGH]`` the descriptor's range (rclpy refuses a value outside,
+given or set at run time, before the node uses it). So no default is written in code, and a
+node started without its params files behaves as the shipped graph does; the params files it
+is given supply the values (a site's over the clone's). Which names are writable is the node's
+choice, made here: read-only unless the node handles their changes. This module alone calls
+rclpy's ``declare_parameter``.
 """
 from __future__ import annotations
 
@@ -18,47 +18,51 @@ from typing import Any
 from rcl_interfaces.msg import FloatingPointRange, IntegerRange, ParameterDescriptor
 from rclpy.node import Node
 
-from flexarm_core.params import config_path, flatten, load_node_params, unflatten
+from flexarm_core.parameter_schema import ParameterSpec, node_schema
+from flexarm_core.params import config_path, unflatten
 
 
-def declare(node: Node, name: str, default: Any, description: str,
-            read_only: bool = False, bounds: tuple[float, float] | None = None) -> Any:
-    """Declare one parameter with a descriptor and return its value. ``bounds`` (low, high):
-    the range rclpy holds it to, given or set at run time (a value outside is refused with
-    the range, before the node uses it); integer for an integer default."""
-    descriptor = ParameterDescriptor(description=description, read_only=read_only)
-    if bounds is not None:
-        low, high = bounds
-        if isinstance(default, bool) or not isinstance(default, (int, float)):
-            raise TypeError(f'{name}: bounds need a numeric default, got {default!r}')
-        if isinstance(default, int):
-            descriptor.integer_range = [IntegerRange(from_value=int(low), to_value=int(high),
-                                                     step=1)]
-        else:
-            descriptor.floating_point_range = [FloatingPointRange(
-                from_value=float(low), to_value=float(high), step=0.0)]
-    return node.declare_parameter(name, default, descriptor).value
+def declare(node: Node, name: str, source: str, read_only: bool = False) -> Any:
+    """Declare ``name`` as the shipped ``source`` (``config/<file>``) defines it for this
+    node, and return its value. ValueError when ``source`` holds no such parameter."""
+    spec = schema(node, source).get(name)
+    if spec is None:
+        raise ValueError(f'{source} defines no parameter {name} for {node.get_name()}')
+    return _declared(node, spec, read_only)
 
 
 def declare_tree(node: Node, prefix: str, source: str,
                  dynamic: Collection[str] = ()) -> dict[str, Any]:
     """Declare every parameter ``prefix.*`` of the shipped ``source`` (``config/<file>``);
-    return the values the node was given as a nested dict. Names in ``dynamic`` (below
-    ``prefix``) are writable, for a node that handles their changes; the rest read-only.
-
-    Raises ``ValueError`` naming ``source`` when the node was not given one of them.
-    """
-    schema = load_node_params(config_path(Path(source).name), node.get_name()).get(prefix)
-    if not isinstance(schema, dict) or not schema:
+    return their values as a nested dict. Names in ``dynamic`` (below ``prefix``) are
+    writable, for a node that handles their changes; the rest read-only."""
+    below = {name.removeprefix(f'{prefix}.'): spec for name, spec in schema(node, source).items()
+             if name.startswith(f'{prefix}.')}
+    if not below:
         raise ValueError(f'{source} defines no "{prefix}.*" parameters')
-    flat, missing = {}, []
-    for name in flatten(schema):
-        descriptor = ParameterDescriptor(description=f'see {source}',
-                                         read_only=name not in dynamic, dynamic_typing=True)
-        flat[name] = node.declare_parameter(f'{prefix}.{name}', None, descriptor).value
-        if flat[name] is None:
-            missing.append(f'{prefix}.{name}')
-    if missing:
-        raise ValueError(f'{len(missing)} "{prefix}.*" parameter(s) not given (e.g. '
-                         f'{missing[0]}); pass --params-file {source}')
-    return unflatten(flat)
+    return unflatten({name: _declared(node, spec, name not in dynamic)
+                      for name, spec in below.items()})
+
+
+def schema(node: Node, source: str) -> dict[str, ParameterSpec]:
+    """The parameters the shipped ``source`` defines for this node (by its name)."""
+    return node_schema(config_path(Path(source).name), node.get_name())
+
+
+def _declared(node: Node, spec: ParameterSpec, read_only: bool) -> Any:
+    """Declare ``spec`` (its default copied: a node may change the list it is handed)."""
+    default = list(spec.default) if isinstance(spec.default, list) else spec.default
+    return node.declare_parameter(spec.name, default, descriptor(spec, read_only)).value
+
+
+def descriptor(spec: ParameterSpec, read_only: bool) -> ParameterDescriptor:
+    """The descriptor of ``spec``: its description (unit included) and range."""
+    described = ParameterDescriptor(description=spec.description, read_only=read_only)
+    if spec.range is not None:
+        low, high = spec.range
+        if spec.type == 'integer':
+            described.integer_range = [IntegerRange(from_value=low, to_value=high, step=1)]
+        else:
+            described.floating_point_range = [FloatingPointRange(
+                from_value=low, to_value=high, step=0.0)]
+    return described

@@ -61,16 +61,15 @@ class DataTime:
 
 class GraphTime:
     """The graph's time now for a node that does not follow ``/clock``. The node's ``sim_clock``
-    parameter (declared here; config/graph.yaml's robot entry sets it, as ``use_sim_time`` for
-    the nodes that follow ``/clock``) says which: true, the newest ``/clock`` (at most one
-    ``/clock`` period old; 0 until one is heard); false, the node's own clock (wall time)."""
+    parameter (declared here from config/clock.yaml; config/graph.yaml's robot entry sets it,
+    as ``use_sim_time`` for the nodes that follow ``/clock``) says which: true, the newest
+    ``/clock`` (at most one ``/clock`` period old; 0 until one is heard); false, the node's own
+    clock (wall time)."""
 
     def __init__(self, node: Node) -> None:
         self._node = node
         self._clock: Subscription | None = None
-        if declare(node, 'sim_clock', False, "the graph runs on the simulator's /clock: stamps "
-                   'of what is about now are taken from it (not followed); false: wall time',
-                   read_only=True):
+        if declare(node, 'sim_clock', 'config/clock.yaml', read_only=True):
             self._clock = node.create_subscription(Clock, topics.CLOCK, lambda _: None,
                                                    QoSProfile(depth=1),
                                                    callback_group=Taken(), raw=True)

@@ -3,7 +3,9 @@
 Each test runs one benchmark as a script at its smallest size (a few seconds; a cheap predictor
 kind where training would dominate) and checks that it exits 0 and that its JSON line (the last
 of stdout) holds the keys a reader relies on, their numbers finite where they are even at that
-size. The figures themselves stay the benchmarks' job: nothing here judges a value.
+size. The figures themselves stay the benchmarks' job: nothing here judges a value. The
+endurance harnesses (pass/fail runs of hours of operation) live in tests/endurance/, their smoke
+runs (with this module's checks) in its test_endurance.py.
 """
 from __future__ import annotations
 
@@ -27,9 +29,9 @@ TAIL = 3000    # [characters] of a failed run's output shown
 
 @dataclass(frozen=True)
 class Smoke:
-    """One benchmark's smoke run."""
+    """One script's smoke run: a benchmark's, or an endurance harness's (tests/endurance/)."""
 
-    name: str                    # benchmarks/<name>.py
+    name: str                    # the script <folder>/<name>.py (:func:`run`)
     args: tuple[str, ...]        # its smallest size
     keys: tuple[str, ...]        # top-level keys of its JSON
     finite: tuple[str, ...] = ()  # dotted paths (list index or key) to finite numbers
@@ -37,25 +39,9 @@ class Smoke:
     domain: str = ''             # its option that takes the test's ROS domain, if any
     check: Callable[[dict[str, Any]], None] | None = None   # more to check in its JSON
     seconds: float = 5.0         # [s] about how long it runs in the suite (scheduling only)
-    endurance: bool = False      # a pass/fail harness of hours of operation: its own tier
 
     def __str__(self) -> str:
         return self.name
-
-
-def _faults_ran(figures: dict[str, Any]) -> None:
-    """The scenario ran: faults.py reports a scenario's or graph's failure as a row."""
-    rows = figures['scenarios']
-    assert [row['scenario'] for row in rows] == ['SIGTERM of flexarm up (idle)'], rows
-    assert not [row for row in rows if 'error:' in row['note']], rows
-
-
-def _graph_stop_judged(figures: dict[str, Any]) -> None:
-    """The cycle's node and then every node of the graph at its stop were judged."""
-    assert figures['graph_stops'] == 1, figures
-    stops = {name: node['stops'] for name, node in figures['per_node'].items()}
-    assert stops.pop('flexarm_state_publisher') == 2 and len(stops) >= 6, stops
-    assert set(stops.values()) == {1}, stops
 
 
 # Offline: the control core on the static simulated arm, no ROS node.
@@ -124,8 +110,6 @@ NODE = [
            'collect_x10_recorded.s_per_sample_wall', 'rss_mb_total',
            'recorder.cores.collect_x10'),
           timeout=150.0, domain='--domain-id', seconds=25),
-    Smoke('faults', ('--only', 'sigterm_idle'), ('lost_samples', 'orphans', 'scenarios'),
-          ('max_detect_s',), timeout=120.0, check=_faults_ran, seconds=14, endurance=True),
     Smoke('multi_arm', ('--arms', '1', '--goals', '1', '--kind', 'kinematic'),
           ('goals_per_min', 'crosstalk', 'cpu'), ('goals_per_min.1.total',), timeout=120.0,
           seconds=30),
@@ -138,17 +122,6 @@ NODE = [
           ('samples_for_1mm', 'curves', 'campaign_s_per_sample'),
           ('curves.sobol.A.0.worst_max_mm', 'campaign_s_per_sample.sobol',
            'campaign_s_per_sample.active'), timeout=150.0, seconds=45),
-    Smoke('lifecycle', ('--cycles', '1', '--nodes', 'state_publisher'),
-          ('crashes', 'hung', 'signal_exits', 'stops', 'graph_stops', 'per_node'),
-          ('crashes', 'stops', 'graph_stops'), check=_graph_stop_judged,
-          timeout=150.0, domain='--domain-id', seconds=30, endurance=True),
-    Smoke('soak', ('--smoke',),
-          ('goals', 'succeeded', 'unfinished_goals', 'false_success', 'concurrent_motion',
-           'crashes', 'rss_growth_mb', 'fd_growth', 'lost_samples', 'arm_hours', 'wall_s',
-           'restarts', 'refused_busy', 'achieved_rtf'),
-          ('goals.total', 'unfinished_goals', 'false_success', 'concurrent_motion', 'crashes',
-           'lost_samples', 'arm_hours', 'achieved_rtf'),
-          timeout=360.0, domain='--domain-id', seconds=105, endurance=True),
     Smoke('sim_node', ('--seconds', '1'), ('runs',),
           ('runs.0.rate_wall_hz', 'runs.1.rate_wall_hz'), domain='--domain-id', seconds=13),
 ]
@@ -158,15 +131,15 @@ PENDING: set[str] = set()
 
 def scheduled(smoke: Smoke) -> Any:
     """The smoke run as a test parameter with its expected duration (conftest's scheduler
-    runs each of this module's tests as a unit of its own, the longest first), in the
-    endurance tier if it is one of its harnesses."""
-    marks = [pytest.mark.duration(smoke.seconds)]
-    return pytest.param(smoke, marks=marks + [pytest.mark.endurance] * smoke.endurance)
+    runs each of this module's tests as a unit of its own, the longest first)."""
+    return pytest.param(smoke, marks=pytest.mark.duration(smoke.seconds))
 
 
-def run(smoke: Smoke, domain_id: int | None = None) -> dict[str, Any]:
-    """Run the benchmark (killed after its timeout); its JSON line, checked."""
-    command = [sys.executable, f'benchmarks/{smoke.name}.py', *smoke.args, '--json']
+def run(smoke: Smoke, domain_id: int | None = None, folder: str = 'benchmarks'
+        ) -> dict[str, Any]:
+    """Run the script ``folder/<name>.py`` (killed after its timeout); its JSON line,
+    checked."""
+    command = [sys.executable, f'{folder}/{smoke.name}.py', *smoke.args, '--json']
     if smoke.domain:
         command += [smoke.domain, str(domain_id)]
     try:

@@ -3,7 +3,7 @@ process behind; `flexarm up` and `flexarm status` name a damaged file or a dead 
 exits 5); `up` stopping removes no shared memory but its own nodes'; the harness counts the
 shared memory its own processes left, and no other.
 
-`flexarm up`, `flexarm status` and benchmarks/faults.py run as processes, as an operator or a
+`flexarm up`, `flexarm status` and tests/endurance/faults.py run as processes, as an operator or a
 CI job runs them, each dying with this test process (PR_SET_PDEATHSIG). Waits are on their
 output lines and on processes' ends, bounded by liveness limits.
 """
@@ -142,7 +142,7 @@ def test_a_harness_killed_mid_run_leaves_no_process_behind(sig, wait_for):
     token = secrets.token_hex(4)
     data = repo_path(load_config('learner.yaml', node_name='flexarm_learner')['data_directory'])
     before = set(data.glob('faults-*-learner.jsonl'))
-    harness = Process('benchmarks/faults.py', '--only', 'learner', env={HARNESS_ENV: token})
+    harness = Process('tests/endurance/faults.py', '--only', 'learner', env={HARNESS_ENV: token})
     try:
         wait_for(lambda: any(len(path.read_bytes().splitlines()) > SAMPLES for path in
                              set(data.glob('faults-*-learner.jsonl')) - before),
@@ -237,7 +237,7 @@ def test_up_stopping_removes_no_shared_memory_but_its_nodes(up, foreign_shm):
 
 
 def test_the_harness_counts_the_shared_memory_its_processes_left_and_no_other():
-    sys.path.insert(0, str(REPO / 'benchmarks'))
+    sys.path.insert(0, str(REPO / 'tests' / 'endurance'))
     import faults
 
     token = secrets.token_hex(4)

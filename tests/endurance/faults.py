@@ -37,7 +37,7 @@ Lifetimes: every process this harness starts gets SIGTERM when it dies, also by 
 long as the run), and SIGTERM to this harness stops its graphs and commands and removes the
 shared memory they left, as the end of a run does.
 
-    python benchmarks/faults.py [--only SCENARIOS] [--json]
+    python tests/endurance/faults.py [--only SCENARIOS] [--json]
 
 ``--only`` runs some of the scenarios, by key (:data:`KEYS`: ``compensator``, ``learner``,
 ``vision_goal``, ``vision_collection``, ``second_up``, ``remote``, ``abandoned``, ``sim``,
@@ -213,7 +213,7 @@ class ShmLedger:
     """The /dev/shm files the processes of one graph (a marker family) created: each file one of
     them uses (:func:`used_shm`) that was not there (same name and inode) before; with the marker
     of the process that owns it (:func:`~flexarm_bringup.launcher.owned_shm`: the
-    files nobody removes once it dies), else of the first that used it.
+    files its death by a signal leaves), else of the first that used it.
 
     Sampled every :data:`SAMPLE_S` and before every SIGKILL of the harness: a file is missed
     only if its process made it and died on its own within a second.
@@ -713,7 +713,8 @@ def abandoned_goal(graph: Graph, row: Row) -> None:
 def replayed_handshakes(graph: Graph, row: Row) -> None:
     """A keyless peer replays a genuine session recorded on the wire (and reflects the
     controller's own frames) against a controller with a site key: a fake controller of its
-    own on a free port, since the graph's holds its bridge's link (tests/link_attacks.py)."""
+    own on a free port, since the graph's holds its bridge's link
+    (flexarm_test_support.link_attacks)."""
     row.detects = False
     run_dir = RUNS_DIR / f'faults-{graph.marker}' / 'replay'
     run_dir.mkdir(parents=True, exist_ok=True)

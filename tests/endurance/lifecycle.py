@@ -21,9 +21,9 @@ fault, an abort). ``signal_exits``: exits by the very signal sent — the node d
 (killed while it was still importing; counted apart, not a crash). A node that did not end
 within ``--stop-wait`` seconds (liveness-scaled) is killed and counted in ``hung``.
 
-    python benchmarks/lifecycle.py [--cycles 100] [--minutes M] [--nodes sim,...]
-                                   [--graph-stops N] [--json]
-    python benchmarks/lifecycle.py --cycles 1 --nodes state_publisher --json     (smoke)
+    python tests/endurance/lifecycle.py [--cycles 100] [--minutes M] [--nodes sim,...]
+                                        [--graph-stops N] [--json]
+    python tests/endurance/lifecycle.py --cycles 1 --nodes state_publisher --json     (smoke)
 
 JSON (last line): ``crashes``, ``hung``, ``signal_exits``, ``cycles`` (done within
 ``--minutes``), ``stops``, ``graph_stops`` (whole-graph stops judged, the end of the cycles'

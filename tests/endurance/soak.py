@@ -81,8 +81,8 @@ JSON (last line):
   changed with no client declaring it: a restarted learner announces its configured one),
   ``camera_error_mm`` (|measured - true| of measured successes).
 
-    python benchmarks/soak.py [--arm-hours 2] [--goals 500] [--seed 1] [--json]
-    python benchmarks/soak.py --smoke --json          (about 40 s alone: 0.02 h, a goal a mode)
+    python tests/endurance/soak.py [--arm-hours 2] [--goals 500] [--seed 1] [--json]
+    python tests/endurance/soak.py --smoke --json    (about 40 s alone: 0.02 h, a goal a mode)
 """
 from __future__ import annotations
 
@@ -107,7 +107,6 @@ from typing import Any
 import numpy as np
 import psutil
 import rclpy
-from footprint import usage
 from rclpy.context import Context
 from rclpy.qos import QoSDurabilityPolicy, QoSProfile
 from rosgraph_msgs.msg import Clock
@@ -126,6 +125,7 @@ from flexarm_control.ros.client import (
 from flexarm_core import liveness, topics
 from flexarm_core.kinematics import ArmGeometry, UnreachableError, inverse
 from flexarm_core.params import load_config
+from flexarm_core.processes import descendants
 from flexarm_core.ros.taken import Taken, take
 from flexarm_deflection.dataset import load_dataset
 from flexarm_msgs.action import CollectSamples, MoveToPose, RefreshModel
@@ -678,6 +678,16 @@ class Proc:
     base: float | None = None          # [MB] its first sample RSS_SETTLE s into its life
 
 
+def tree_rss_mb(pid: int) -> float:
+    """The resident set [MB] of ``pid`` with its child processes (a learner's training
+    worker); 0 once they are gone."""
+    total = 0.0
+    for member in descendants([pid]):
+        with contextlib.suppress(psutil.Error):
+            total += psutil.Process(member).memory_info().rss / 2**20
+    return total
+
+
 def fds(pid: int) -> int | None:
     """How many descriptors the process ``pid`` has open (None once it is gone)."""
     try:
@@ -731,7 +741,7 @@ class Watch:
                 continue
             pid = node.process.pid
             proc = self.procs.setdefault(pid, Proc(name, pid, now, restarted=node.restarts > 0))
-            rss = usage(pid)[1]
+            rss = tree_rss_mb(pid)
             proc.samples.append((sim, now, rss))
             if proc.base is None and self.counts(proc, now):
                 proc.base = rss

@@ -264,10 +264,11 @@ class NodeProcess:
         self.process: subprocess.Popen[bytes] | None = None
         self.restarts = 0
         self.reported = False     # its death was reported and it stays down
-        self.killed_shm: list[Path] = []   # shared memory of its processes killed by SIGKILL
+        self.killed_shm: list[Path] = []   # what its ended processes left, until nobody uses it
+        self.shm: ShmWatch | None = None    # what its running process owns of it
 
     def start(self) -> None:
-        remove_shm_of_dead(self.killed_shm)      # of the previous process, before a restart
+        self._ended()                            # the previous process, before a restart
         self.log_path.parent.mkdir(parents=True, exist_ok=True)
         self._log = open(self.log_path, 'ab')
         overrides = write_overrides(self.spec, self.parameters,
@@ -276,6 +277,7 @@ class NodeProcess:
             node_command(self.spec, overrides, self.namespace), env=self._env,
             stdin=subprocess.DEVNULL, stdout=self._log, stderr=subprocess.STDOUT,
             start_new_session=True, preexec_fn=_terminate_with_parent)
+        self.shm = ShmWatch(self.process)
 
     @property
     def returncode(self) -> int | None:
@@ -283,11 +285,10 @@ class NodeProcess:
 
     def signal(self, sig: int) -> None:
         """Send ``sig`` to the node's process group. Before a SIGKILL, which leaves its Fast
-        DDS shared memory behind, note what it owns: removed once it is gone (:meth:`close`,
-        or the next :meth:`start`)."""
+        DDS shared memory behind, note what it owns as it is then (:class:`ShmWatch`)."""
         if self.process is not None and self.process.poll() is None:
-            if sig == signal.SIGKILL:
-                self.killed_shm += owned_shm(self.process.pid)
+            if sig == signal.SIGKILL and self.shm is not None:
+                self.shm.look()
             os.killpg(self.process.pid, sig)
 
     def log_tail(self, lines: int = 10) -> str:
@@ -299,10 +300,22 @@ class NodeProcess:
 
     def close(self) -> None:
         if self.returncode is not None:
-            remove_shm_of_dead(self.killed_shm)
+            self._ended()
         if self._log is not None:
             self._log.close()
             self._log = None
+
+    def _ended(self) -> None:
+        """Its process is gone (or was never started): what it left joins :attr:`killed_shm`,
+        and of that what nobody uses is removed. A signal (a SIGKILL, also someone else's, or a
+        crash) left all it owned; a clean exit, at most the ports it listened on: Fast DDS
+        removes a port with its last user, and a dead peer that had it open still counts."""
+        if self.shm is not None:
+            owned = self.shm.stop()
+            killed = self.returncode is not None and self.returncode < 0
+            self.killed_shm += owned if killed else listened_ports(owned)
+            self.shm = None
+        remove_shm_of_dead(self.killed_shm)
 
 
 def _terminate_with_parent() -> None:
@@ -367,39 +380,97 @@ SHM_DIR = Path('/dev/shm')
 
 def owned_shm(pid: int, shm_dir: Path = SHM_DIR) -> list[Path]:
     """The Fast DDS shared-memory files of the live process ``pid`` that nobody else can
-    remove once it dies by SIGKILL: its segments (``fastrtps_<id>``, owned by whoever holds
-    the flock of ``fastrtps_<id>_el``, read from /proc/locks) with their lock files, and the
-    port files (``fastrtps_port<N>`` with ``sem.fastrtps_port<N>_mutex``) it maps.
+    remove once it dies by SIGKILL: its segments and the ports it listens on (a file
+    ``fastrtps_*`` it maps whose ``_el`` file it holds the flock of, read from /proc/locks;
+    Fast DDS maps a segment for its owner's whole life) with their lock files, and the port
+    files (``fastrtps_port<N>`` with ``sem.fastrtps_port<N>_mutex``) it maps.
 
     Asked of a named process instead of guessed from the whole folder: a file that merely
     looks unused may be one another participant of the machine is just creating.
     """
     held = _flocks(pid)
     owned = []
-    for lock in shm_dir.glob('fastrtps_*_el'):
-        try:
-            key = file_key(lock.stat())
-        except OSError:
-            continue
-        if key in held:
-            owned += [lock, lock.with_name(lock.name.removesuffix('_el'))]
-    for path in sorted(processes.mapped_files(shm_dir, pid)):
-        name = Path(path).name
-        if name.startswith('fastrtps_port'):
-            owned += [Path(path), shm_dir / f'sem.{name}_mutex']
+    for path in sorted(map(Path, processes.mapped_files(shm_dir, pid))):
+        lock = path.with_name(f'{path.name}_el')
+        with contextlib.suppress(OSError):
+            if file_key(lock.stat()) in held:
+                owned += [lock, path]
+        if path.name.startswith('fastrtps_port'):
+            owned += [path, shm_dir / f'sem.{path.name}_mutex']
     return owned
 
 
 def remove_shm_of_dead(files: list[Path], shm_dir: Path = SHM_DIR) -> int:
-    """Remove ``files`` (:func:`owned_shm` of processes that are gone); clear the list; how
-    many were removed. A segment goes although others may still map it (they opened it to
-    write to its dead owner; their mappings outlive the name). A port stays while another
-    participant uses it (:func:`shm_in_use`): every listener on that port shares it."""
+    """Remove ``files`` (what processes that are gone left of :func:`owned_shm`); how many
+    were removed. A segment goes although others may still map it (they opened it to write to
+    its dead owner; their mappings outlive the name). A port stays while another participant
+    uses it (:func:`shm_in_use`): every listener on that port shares it, and its last user
+    removes it, unless a dead process still counts as one. So a port in use stays in ``files``
+    for a later call (a node's restart, the graph's stop); the rest leaves the list."""
+    files[:] = [f for f in files if os.path.lexists(f)]
+    if not files:
+        return 0
     in_use = shm_in_use(shm_dir)
-    removed = _unlink(*(f for f in files
-                        if 'fastrtps_port' not in f.name or str(f) not in in_use))
-    files.clear()
+    kept = list(dict.fromkeys(f for f in files if 'fastrtps_port' in f.name and str(f) in in_use))
+    removed = _unlink(*{f for f in files if f not in kept})
+    files[:] = kept
     return removed
+
+
+def listened_ports(owned: Iterable[Path]) -> list[Path]:
+    """The ports of ``owned`` (:func:`owned_shm`) its process listened on (it held their
+    lock), with their lock and mutex files."""
+    return [path for lock in owned
+            if lock.name.startswith('fastrtps_port') and lock.name.endswith('_el')
+            for port in [lock.name.removesuffix('_el')]
+            for path in (lock, lock.with_name(port), lock.with_name(f'sem.{port}_mutex'))]
+
+
+SHM_LOOK_S = 1.0      # [s] between two looks at what a node process owns of the shared memory
+SHM_SETTLE_S = 5.0    # [s] the looks go on after /dev/shm changed: discovery maps the new ports
+
+
+class ShmWatch:
+    """What a running process owns of the shared memory (:func:`owned_shm`), noted while it
+    lives: a process that a signal ends (a crash, a SIGKILL from anyone) leaves it behind, and
+    gone, it can no longer be asked. A thread looks every :data:`SHM_LOOK_S` while ``shm_dir``
+    changed within :data:`SHM_SETTLE_S` (a participant came or went: the process made its
+    segments, or maps a newcomer's ports). A look takes some 2 ms; a quiet machine costs a stat
+    a second, one where a participant comes every 2 s 0.02 cores for a graph of 7 nodes (2-core
+    AMD EPYC, 2026-11-29)."""
+
+    def __init__(self, process: subprocess.Popen[bytes], shm_dir: Path = SHM_DIR) -> None:
+        self._process, self._dir = process, shm_dir
+        self.owned: set[Path] = set()
+        self._lock = threading.Lock()
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True,
+                                        name=f'shm-watch-{process.pid}')
+        self._thread.start()
+
+    def look(self) -> None:
+        """Note what the process owns now (nothing once it has ended: a pid is not asked once
+        it is free for another process)."""
+        if self._process.poll() is None:
+            found = owned_shm(self._process.pid, self._dir)
+            with self._lock:
+                self.owned.update(found)
+
+    def stop(self) -> list[Path]:
+        """End the looks; what was noted."""
+        self._stop.set()
+        self._thread.join()
+        return sorted(self.owned)
+
+    def _run(self) -> None:
+        changed, seen = time.monotonic(), None
+        while self._process.poll() is None and not self._stop.wait(SHM_LOOK_S):
+            with contextlib.suppress(OSError):
+                mtime = self._dir.stat().st_mtime_ns
+                if mtime != seen:
+                    changed, seen = time.monotonic(), mtime
+                if time.monotonic() - changed <= SHM_SETTLE_S:
+                    self.look()
 
 
 def shm_in_use(shm_dir: Path = SHM_DIR) -> set[str]:

@@ -1,6 +1,7 @@
 """Node process specs and environments of the orchestrator, and how nodes are stopped."""
 import errno
 import os
+import secrets
 import signal
 import subprocess
 import sys
@@ -12,6 +13,8 @@ import pytest
 import yaml
 
 from flexarm_bringup.launcher import (
+    SHM_DIR,
+    NodeProcess,
     NodeSpec,
     all_nodes,
     controllers,
@@ -211,12 +214,13 @@ def test_the_shared_memory_a_killed_process_owned_is_removed_and_shared_ports_ke
                  'fastrtps_port1', 'sem.fastrtps_port1_mutex', 'fastrtps_port2',
                  'sem.fastrtps_port2_mutex'):
         (tmp_path / name).write_bytes(b'\0' * 4096)
-    # A participant: holds its segment's lock and maps port 1 and port 2.
+    # A participant: holds its segment's lock, maps it and port 1 and port 2.
     owner = subprocess.Popen([sys.executable, '-c', (
         'import fcntl, mmap, sys, pathlib\n'
         f'd = pathlib.Path({str(tmp_path)!r})\n'
         'lock = open(d / "fastrtps_abc_el", "rb"); fcntl.flock(lock, fcntl.LOCK_EX)\n'
-        'files = [open(d / p, "r+b") for p in ("fastrtps_port1", "fastrtps_port2")]\n'
+        'files = [open(d / p, "r+b") for p in ("fastrtps_abc", "fastrtps_port1",\n'
+        '                                      "fastrtps_port2")]\n'
         'maps = [mmap.mmap(f.fileno(), 4096) for f in files]\n'
         'print("ready", flush=True); sys.stdin.read()\n')],
         stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True)
@@ -232,11 +236,12 @@ def test_the_shared_memory_a_killed_process_owned_is_removed_and_shared_ports_ke
                 'sem.fastrtps_port1_mutex', 'sem.fastrtps_port2_mutex']
             owner.kill()
             owner.wait(10)
-            assert remove_shm_of_dead(owned, tmp_path) == 4     # port 1 is still mapped
-            assert owned == []
+            assert remove_shm_of_dead(owned, tmp_path) == 4     # port 1 is still mapped...
+            assert sorted(p.name for p in owned) == ['fastrtps_port1', 'sem.fastrtps_port1_mutex']
+        assert remove_shm_of_dead(owned, tmp_path) == 2         # ... until its last user left
+        assert owned == []
         assert sorted(p.name for p in tmp_path.iterdir()) == [
-            'fastrtps_other', 'fastrtps_other_el', 'fastrtps_port1',
-            'sem.fastrtps_port1_mutex']
+            'fastrtps_other', 'fastrtps_other_el']
     finally:
         owner.kill()
         owner.wait(10)
@@ -258,3 +263,35 @@ def test_listing_the_mapped_shared_memory_survives_a_process_being_reaped(monkey
 
     monkeypatch.setattr(Path, 'stat', reaped)
     assert shm_in_use(tmp_path) == set()
+
+
+def test_a_node_killed_by_another_process_leaves_no_shared_memory(tmp_path, wait_for) -> None:
+    """Gone, a process can no longer be asked what it owned: its watch noted that while it
+    ran, and closing the node removes it (the faults harness's SIGKILLs, a crash)."""
+    token = secrets.token_hex(8)
+    segment, port = SHM_DIR / f'fastrtps_{token}', SHM_DIR / f'fastrtps_port{100000 + os.getpid()}'
+    files = [segment, SHM_DIR / f'{segment.name}_el', port, SHM_DIR / f'sem.{port.name}_mutex']
+    (tmp_path / 'participant.py').write_text(  # a participant: its segment's lock, a port mapped
+        'import fcntl, mmap, pathlib, time\n'
+        f'segment, port = pathlib.Path({str(segment)!r}), pathlib.Path({str(port)!r})\n'
+        'lock = open(f"{segment}_el", "wb"); fcntl.flock(lock, fcntl.LOCK_EX)\n'
+        'segment.write_bytes(bytes(4096)); port.write_bytes(bytes(4096))\n'
+        'port.with_name(f"sem.{port.name}_mutex").write_bytes(bytes(64))\n'
+        'handles = [open(path, "r+b") for path in (segment, port)]\n'
+        'mapped = [mmap.mmap(handle.fileno(), 4096) for handle in handles]\n'
+        'print("ready", flush=True); time.sleep(60)\n')
+    node = NodeProcess(NodeSpec(name='participant', module='participant'),
+                       ros_env(0, base={'PYTHONPATH': str(tmp_path)}),
+                       tmp_path / 'participant.log')
+    try:
+        node.start()
+        wait_for(lambda: set(files) <= node.shm.owned, 20.0, 'its watch to note its files')
+        os.kill(node.process.pid, signal.SIGKILL)
+        node.process.wait(10)
+        node.close()
+        assert [path.name for path in files if path.exists()] == []
+    finally:
+        node.signal(signal.SIGKILL)
+        node.close()
+        for path in files:
+            path.unlink(missing_ok=True)

@@ -19,9 +19,9 @@ import rclpy
 from rclpy.context import Context
 
 from flexarm_bridge import tcp_link
-from flexarm_bringup.launcher import owned_shm
 from flexarm_control.ros.client import SERVER_SILENCE
 from flexarm_core import liveness, processes
+from flexarm_core.dds_shm import owned_shm
 from flexarm_test_support import link_attacks
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(100)]

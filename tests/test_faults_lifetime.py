@@ -23,8 +23,8 @@ from pathlib import Path
 
 import pytest
 
-from flexarm_bringup.launcher import SHM_DIR, owned_shm, remove_shm_of_dead
 from flexarm_core import liveness, processes
+from flexarm_core.dds_shm import SHM_DIR, owned_shm, remove_shm_of_dead
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
 from flexarm_core.paths import CALIBRATION_DIR, MODELS_DIR, RUNS_DIR, repo_path

@@ -4,9 +4,9 @@ import signal
 
 import pytest
 
-from flexarm_bringup.launcher import owned_shm
 from flexarm_bringup.supervisor import Graph
 from flexarm_core import liveness
+from flexarm_core.dds_shm import owned_shm
 
 pytestmark = [pytest.mark.node, pytest.mark.duration(45)]
 

@@ -77,15 +77,8 @@ import psutil
 from flexarm_bridge import controller_protocol as proto
 from flexarm_bridge.link_auth import load_key, make_key
 from flexarm_bringup.domains import reserved
-from flexarm_bringup.launcher import (
-    NodeProcess,
-    load_rehearsal,
-    owned_shm,
-    remove_shm_of_dead,
-    ros_env,
-    shm_in_use,
-    stop_all,
-)
+from flexarm_bringup.launcher import NodeProcess, load_rehearsal, ros_env, stop_all
+from flexarm_core.dds_shm import owned_shm, remove_shm_of_dead, shm_in_use
 from flexarm_core.graph_locks import file_key, held_locks
 from flexarm_core.params import load_config
 from flexarm_core.parent_death import terminate_with_parent
@@ -212,7 +205,7 @@ def used_shm(pid: int, files: dict[str, int]) -> dict[str, int]:
 class ShmLedger:
     """The /dev/shm files the processes of one graph (a marker family) created: each file one of
     them uses (:func:`used_shm`) that was not there (same name and inode) before; with the marker
-    of the process that owns it (:func:`~flexarm_bringup.launcher.owned_shm`: the
+    of the process that owns it (:func:`~flexarm_core.dds_shm.owned_shm`: the
     files its death by a signal leaves), else of the first that used it.
 
     Sampled every :data:`SAMPLE_S` and before every SIGKILL of the harness: a file is missed

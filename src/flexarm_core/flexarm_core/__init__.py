@@ -8,6 +8,7 @@ PUBLIC = (
     'flexarm_core.atomic_file',
     'flexarm_core.calibration_record',
     'flexarm_core.dds_profile',
+    'flexarm_core.dds_shm',
     'flexarm_core.demand',
     'flexarm_core.frames',
     'flexarm_core.goal_sender',

@@ -28,8 +28,9 @@ import rclpy
 from rclpy.context import Context
 from rclpy.executors import SingleThreadedExecutor
 
-from flexarm_bringup.launcher import owned_shm, remove_shm_of_dead, ros_env
+from flexarm_bringup.launcher import ros_env
 from flexarm_core import liveness, topics
+from flexarm_core.dds_shm import owned_shm, remove_shm_of_dead
 from flexarm_msgs.action import MoveToPose
 from flexarm_msgs.msg import GoalOutcome
 

@@ -62,6 +62,7 @@ from unique_identifier_msgs.msg import UUID
 
 from flexarm_control.execution.modes import Mode
 from flexarm_core import liveness, topics, transport
+from flexarm_core.dds_shm import listened_ports, owned_shm, remove_shm_of_dead
 from flexarm_core.goal_sender import own_participant, participant, send_goal_writers, sender_of
 from flexarm_core.graph_locks import graph_domain
 from flexarm_motion.ros.arm_claim import ArmClaim
@@ -293,6 +294,11 @@ class FlexarmClient(Node):
         self._learner_node = learner_node
         super().__init__(node_name, context=context,
                          namespace=f'/{namespace.strip("/")}' if namespace.strip('/') else '')
+        # The ports this process listens on outlive it while a node killed meanwhile mapped
+        # them (Fast DDS removes a port with its last user, and a dead process still counts
+        # as one): what nobody uses of them goes when the context shuts down.
+        self._ports = listened_ports(owned_shm(os.getpid()))
+        self.context.on_shutdown(self._remove_unused_ports)
         # The Train client first: see _wait_responsive for why the order matters.
         self._train = self.create_client(Train, topics.TRAIN)
         self._use_model = self.create_client(UseModel, topics.USE_MODEL)
@@ -311,6 +317,9 @@ class FlexarmClient(Node):
         self.create_subscription(ModelInfo, topics.ACTIVE_MODEL,
                                  lambda msg: setattr(self, 'active_model', msg), latched)
 
+
+    def _remove_unused_ports(self) -> None:
+        remove_shm_of_dead(self._ports)
     def wait_until_ready(self, timeout: float = 30.0, learner: bool = True,
                          compensator: bool = True) -> None:
         """Wait until the compensator's and/or the learner's servers answer this client.

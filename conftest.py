@@ -156,7 +156,8 @@ def pytest_xdist_make_scheduler(config: pytest.Config, log: Any) -> Any:
     return LongestFirstScheduling(config, log)
 
 
-INDEPENDENT_MODULES = {'tests/test_benchmarks.py'}   # each test runs its own script
+INDEPENDENT_MODULES = {'tests/test_benchmarks.py',   # each test runs its own script
+                       'tests/endurance/test_endurance.py'}
 
 
 def _processes_with(variable: str, value: str) -> dict[int, str]:

@@ -228,7 +228,7 @@ def test_no_module_imports_another_ones_private_names():
     """A leading underscore says "this module's own": whatever another module (a test or a
     benchmark too) needs is public."""
     root = SRC.parent
-    paths = [*SRC.glob('*/*/**/*.py'), *SRC.glob('*/test/*.py'), *root.glob('tests/*.py'),
+    paths = [*SRC.glob('*/*/**/*.py'), *SRC.glob('*/test/*.py'), *root.glob('tests/**/*.py'),
              *root.glob('benchmarks/*.py'), root / 'conftest.py']
     private = sorted(
         f'{path.relative_to(root)}: {node.module}.{alias.name}'

@@ -8,9 +8,7 @@ Read from the installed metadata (importlib.metadata): run after scripts/setup.s
 """
 from __future__ import annotations
 
-import ast
 import re
-import sys
 import tomllib
 from collections import Counter
 from dataclasses import dataclass
@@ -22,6 +20,8 @@ from pathlib import Path
 import pytest
 from packaging.requirements import Requirement
 from packaging.utils import canonicalize_name
+
+from flexarm_test_support import source_imports
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / 'src'
@@ -92,21 +92,7 @@ def module_distributions() -> dict[str, frozenset[str]]:
 def third_party_imports(folders: list[Path]) -> dict[str, set[str]]:
     """Top-level names imported under ``folders`` that are neither the standard library, nor
     flexarm, nor a local helper, each with the files importing it."""
-    names: dict[str, set[str]] = {}
-    for folder in folders:
-        for path in [folder] if folder.is_file() else folder.rglob('*.py'):
-            for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-                if isinstance(node, ast.Import):
-                    found = [alias.name for alias in node.names]
-                elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                    found = [node.module]
-                else:
-                    continue
-                for name in (n.split('.')[0] for n in found):
-                    if not (name in sys.stdlib_module_names or name.startswith('flexarm_')
-                            or name in LOCAL):
-                        names.setdefault(name, set()).add(path.relative_to(ROOT).as_posix())
-    return names
+    return source_imports.third_party_imports(folders, ROOT, LOCAL)
 
 
 def is_ros_interface(module: str) -> bool:

@@ -9,13 +9,13 @@ rather than on the first machine that runs rosdep.
 """
 from __future__ import annotations
 
-import ast
-import sys
 from pathlib import Path
 from xml.etree import ElementTree
 
 import pytest
 import yaml
+
+from flexarm_test_support import source_imports
 
 ROOT = Path(__file__).resolve().parents[1]
 SRC = ROOT / 'src'
@@ -51,19 +51,7 @@ def declared(package: str, tags: tuple[str, ...] = DEPENDS) -> set[str]:
 def third_party_imports(folder: Path) -> dict[str, set[str]]:
     """Top-level names that the modules under ``folder`` import and that are neither the
     standard library nor flexarm, each with the files importing it."""
-    names: dict[str, set[str]] = {}
-    for path in folder.rglob('*.py'):
-        for node in ast.walk(ast.parse(path.read_text(encoding='utf-8'))):
-            if isinstance(node, ast.Import):
-                found = [alias.name for alias in node.names]
-            elif isinstance(node, ast.ImportFrom) and node.level == 0 and node.module:
-                found = [node.module]
-            else:
-                continue
-            for name in (n.split('.')[0] for n in found):
-                if name not in sys.stdlib_module_names and not name.startswith('flexarm_'):
-                    names.setdefault(name, set()).add(path.relative_to(SRC).as_posix())
-    return names
+    return source_imports.third_party_imports([folder], SRC)
 
 
 def undeclared(imports: dict[str, set[str]], keys: set[str]) -> dict[str, list[str]]:

@@ -12,7 +12,8 @@ simulator; a real arm's wall time): with several arms on one ``/clock`` a busy
 simulator following it can lag by seconds, and its arm is not late for that. Waits are also
 capped in wall time, so a stopped clock can never hang a goal. A wait also ends when
 ``/joint_states`` stop (the controller died or its link is down: nothing the arm does can be
-seen any more) and when the node shuts down (SIGINT/SIGTERM: the process can then exit).
+seen any more), a move's as soon as its controller restarted (its command died with it), and
+when the node shuts down (SIGINT/SIGTERM: the process can then exit).
 
 Commands are sent only under a claim of the arm that holds (:class:`~flexarm_control.ros.
 arm_claim.ArmClaim`, one motion at a time per arm): a command without one is a programming error
@@ -45,9 +46,11 @@ from rclpy.time import Time
 from sensor_msgs.msg import JointState
 
 from flexarm_core import liveness, topics
+from flexarm_core.goal_sender import full_name
 from flexarm_core.kinematics import JOINT_NAMES
 from flexarm_core.measurement import Measurement, average_frames
 from flexarm_core.ros.taken import Taken, take
+from flexarm_motion.controller_restart import restarted
 from flexarm_motion.ros.arm_claim import ArmClaim
 from flexarm_motion.ros.joint_commands import ForwardCommands, JointCommands
 from flexarm_msgs.msg import TipPose
@@ -70,6 +73,7 @@ TIP_POSES = 10   # queue of /tip_pose: a measurement's frames, between two looks
 # of a new one through discovery, a wall-clock matter: at x10 the 30 s of sim time are 3 s of
 # wall time, less than a starved vision node has taken to start on a busy 2-core machine.
 FIRST_FRAME = 2.0
+RESTART_LOOK = 0.25   # [s, wall] between two looks of a move for its controller's restart
 
 
 @dataclass(frozen=True)
@@ -107,6 +111,34 @@ def measurement_problem(frames: list[TipPose], wanted: int) -> str:
     last = invalid[-1].status if invalid else ''
     return (f'only {len(settled)} of the {wanted} valid settled frames needed'
             + (f' (the others: {last})' if last else ''))
+
+
+class RestartWatch:
+    """The controller a move's command went to (the publishers of ``/joint_states`` as it is
+    sent), looked at again every :data:`RESTART_LOOK` s: a move ends as soon as its node
+    restarted (:mod:`flexarm_motion.controller_restart`)."""
+
+    def __init__(self, node: Node) -> None:
+        self._node = node
+        self._topic = node.resolve_topic_name(topics.JOINT_STATES)
+        self._at_command = self._publishers()
+        self._next = time.monotonic() + RESTART_LOOK
+        self.problem = ''
+
+    def look(self) -> str:
+        """The restart's problem ('' while the controller is the one commanded)."""
+        now = time.monotonic()
+        if not self.problem and now >= self._next:
+            self._next = now + RESTART_LOOK
+            names = restarted(self._at_command, self._publishers())
+            if names:
+                self.problem = (f'the controller {names[0]} restarted during the move: the '
+                                'command went to the one before it and died with it')
+        return self.problem
+
+    def _publishers(self) -> list[tuple[bytes, str]]:
+        return [(bytes(i.endpoint_gid), full_name(i.node_namespace, i.node_name))
+                for i in self._node.get_publishers_info_by_topic(self._topic)]
 
 
 class NotHeld(RuntimeError):
@@ -262,6 +294,7 @@ class ArmInterface:
         :attr:`move_problem` (kept there: the hold that follows is a command of its own)."""
         target = np.asarray(q, dtype=float)
         self.move_problem = ''
+        restart = RestartWatch(self._node)
         self.command(target)
 
         def arrived() -> bool:
@@ -270,10 +303,10 @@ class ArmInterface:
                                                       <= tolerance))
 
         def ended() -> bool:
-            return abort() or bool(self._commands.problem)
+            return abort() or bool(self._commands.problem) or bool(restart.look())
         if self.wait_until(arrived, timeout, ended, self.arm_time):
             return True
-        self.move_problem = self._commands.problem
+        self.move_problem = self._commands.problem or restart.problem
         return False
 
     def measure(self, frames: int, timeout: float, abort: Callable[[], bool] = lambda: False,

@@ -162,10 +162,13 @@ INDEPENDENT_MODULES = {'tests/test_benchmarks.py',   # each test runs its own sc
 
 def _processes_with(variable: str, value: str) -> dict[int, str]:
     """Live processes of this machine whose environment holds ``variable=value``: their
-    command lines (zombies are dead already and left out)."""
-    return {pid: ' '.join(processes.command_line(pid))
-            for pid, env in processes.environments().items()
-            if pid != os.getpid() and env.get(variable) == value}
+    command lines. Zombies are dead already and left out, and so is a process whose command
+    line is gone by the time it is read: it was in the middle of its exit (its memory, the
+    command line with it, is released before it becomes a zombie)."""
+    found = {pid: ' '.join(processes.command_line(pid))
+             for pid, env in processes.environments().items()
+             if pid != os.getpid() and env.get(variable) == value}
+    return {pid: command for pid, command in found.items() if command}
 
 
 def _kill_and_reap(pids: list[int]) -> list[int]:

@@ -1,35 +1,21 @@
 """Smoke runs of the endurance harnesses of this folder (soak, faults, lifecycle: pass/fail runs
-of hours of operation), each at its smallest size and with tests/test_benchmarks.py's checks (it
-exits 0, its JSON line holds the keys a reader relies on); a harness rots where nothing runs it.
+of hours of operation), each at its smallest size and with the benchmarks' checks
+(:mod:`flexarm_test_support.script_smoke`: it exits 0, its JSON line holds the keys a reader
+relies on); a harness rots where nothing runs it.
 The endurance tier: ``pytest -m endurance`` runs it, the default run leaves it out (pytest.ini).
 """
 from __future__ import annotations
 
-import importlib.util
-import sys
 from pathlib import Path
-from types import ModuleType
 from typing import Any
 
 import pytest
 
+from flexarm_test_support.script_smoke import Smoke, run, scheduled
+
 REPO = Path(__file__).resolve().parents[2]
 FOLDER = 'tests/endurance'
 pytestmark = pytest.mark.endurance
-
-
-def _smoke_runs() -> ModuleType:
-    """tests/test_benchmarks.py: its ``Smoke`` and ``run``, the one way a script's smoke run is
-    run and checked (registered as a module: a dataclass looks its module up)."""
-    spec = importlib.util.spec_from_file_location('smoke_runs', REPO / 'tests/test_benchmarks.py')
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[spec.name] = module
-    spec.loader.exec_module(module)
-    return module
-
-
-smoke_runs = _smoke_runs()
-Smoke = smoke_runs.Smoke
 
 
 def _faults_ran(figures: dict[str, Any]) -> None:
@@ -70,6 +56,6 @@ def test_every_harness_has_a_smoke_run() -> None:
 
 
 @pytest.mark.node
-@pytest.mark.parametrize('smoke', [smoke_runs.scheduled(smoke) for smoke in HARNESSES], ids=str)
+@pytest.mark.parametrize('smoke', [scheduled(smoke) for smoke in HARNESSES], ids=str)
 def test_harness_runs(smoke: Smoke, domain_id: int) -> None:
-    smoke_runs.run(smoke, domain_id, FOLDER)
+    run(smoke, domain_id, FOLDER)

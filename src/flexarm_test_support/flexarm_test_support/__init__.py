@@ -3,7 +3,8 @@ benchmarks import: stand-ins for a ros2_control arm (``ros2_control_standin``) a
 senders (``abandoned_goal``), the controller-link proxy and its attacks, a peer on another host
 in a network namespace (``remote_peer``), the learn-and-reach ending of node tests, joint-state
 and run-record watchers, how a test listens to /tf_static (``tf_listening``), and the checks of
-a recorded bag's stamps (``stamp_order``), and what source files import (``source_imports``). A
+a recorded bag's stamps (``stamp_order``), what source files import (``source_imports``), and a
+script's smoke run (``script_smoke``). A
 package's own unit tests use only what lies at or below it (flexarm_control's fake arm lives in
 its test folder); this package sits above every other."""
 
@@ -18,6 +19,7 @@ PUBLIC = (
     'flexarm_test_support.remote_peer',
     'flexarm_test_support.ros2_control_standin',
     'flexarm_test_support.run_record',
+    'flexarm_test_support.script_smoke',
     'flexarm_test_support.source_imports',
     'flexarm_test_support.stamp_order',
     'flexarm_test_support.tf_listening',
